@@ -1,0 +1,237 @@
+//! Cell classification (paper section 4, Fig. 7): which cells can
+//! contribute to an image (1-cells) and which can be leapt over (0-cells).
+//!
+//! A cell lies between 8 samples. With `--iso T` it is a 1-cell when the
+//! largest of its 8 vertex values is >= T: the trilinear interpolant can
+//! only reach T inside the cell then. With a transfer function it is a
+//! 1-cell when the opacity is non-zero anywhere in the [min, max] of its
+//! vertex values, which bounds every value the trilinear interpolant takes.
+//!
+//! NaN policy: a NaN sample is background. It never reaches an iso value
+//! and is left out of a cell's [min, max]; a cell whose 8 samples are all
+//! NaN is a 0-cell.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+/// One control point of a piecewise-linear transfer function.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TfPoint {
+    /// Rescaled sample value (HU for CT).
+    pub value: f64,
+    /// Opacity in [0, 1].
+    pub opacity: f64,
+    /// Colour in [0, 1]; white when left out.
+    #[serde(default = "white")]
+    pub color: [f64; 3],
+}
+
+fn white() -> [f64; 3] {
+    [1.0; 3]
+}
+
+/// A piecewise-linear colour/opacity transfer function, constant beyond
+/// its first and last points. JSON: `{"points": [{"value": v, "opacity":
+/// a, "color": [r, g, b]}, ...]}` with values strictly increasing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TransferFunction {
+    pub points: Vec<TfPoint>,
+}
+
+/// Why a transfer function file was refused.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {msg}", path.display())]
+pub struct TfError {
+    pub path: std::path::PathBuf,
+    pub msg: String,
+}
+
+impl TransferFunction {
+    /// Reads and checks a transfer function file.
+    pub fn load(path: &Path) -> Result<TransferFunction, TfError> {
+        let e = |msg: String| TfError {
+            path: path.to_path_buf(),
+            msg,
+        };
+        let text = std::fs::read_to_string(path).map_err(|x| e(format!("cannot read: {x}")))?;
+        let tf: TransferFunction = serde_json::from_str(&text).map_err(|x| {
+            e(format!(
+                "expected {{\"points\": [{{\"value\", \"opacity\", \"color\"}}, ...]}}: {x}"
+            ))
+        })?;
+        tf.check().map_err(e)?;
+        Ok(tf)
+    }
+
+    /// Checks the invariants `load` promises.
+    pub fn check(&self) -> Result<(), String> {
+        if self.points.is_empty() {
+            return Err("field `points`: empty, expected at least one point".into());
+        }
+        for (i, p) in self.points.iter().enumerate() {
+            if !p.value.is_finite() {
+                return Err(format!(
+                    "field `points[{i}].value`: {}, expected a finite number",
+                    p.value
+                ));
+            }
+            if !(0.0..=1.0).contains(&p.opacity) {
+                return Err(format!(
+                    "field `points[{i}].opacity`: {}, expected 0..=1",
+                    p.opacity
+                ));
+            }
+            if i > 0 && p.value <= self.points[i - 1].value {
+                return Err(format!(
+                    "field `points[{i}].value`: {} after {}, expected strictly increasing values",
+                    p.value,
+                    self.points[i - 1].value
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Opacity at `v` (linear between points, constant beyond the ends).
+    pub fn opacity(&self, v: f64) -> f64 {
+        let p = &self.points;
+        if v <= p[0].value {
+            return p[0].opacity;
+        }
+        let last = p[p.len() - 1];
+        if v >= last.value {
+            return last.opacity;
+        }
+        let i = p.partition_point(|q| q.value <= v);
+        let (a, b) = (p[i - 1], p[i]);
+        let f = (v - a.value) / (b.value - a.value);
+        a.opacity + f * (b.opacity - a.opacity)
+    }
+
+    /// True when the opacity is non-zero anywhere on `[lo, hi]`. A
+    /// piecewise-linear function is largest at an end of the interval or
+    /// at a control point inside it, so checking those is exact.
+    pub fn nonzero_on(&self, lo: f64, hi: f64) -> bool {
+        if self.opacity(lo) > 0.0 || self.opacity(hi) > 0.0 {
+            return true;
+        }
+        self.points
+            .iter()
+            .any(|p| p.value > lo && p.value < hi && p.opacity > 0.0)
+    }
+}
+
+/// How prep decides 1-cells; stored in the packed file's header.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Classification {
+    /// 1-cell when the largest vertex value is >= `iso`.
+    Iso { iso: f64 },
+    /// 1-cell when the opacity is non-zero somewhere in the vertex range.
+    TransferFunction { tf: TransferFunction },
+}
+
+impl Classification {
+    /// Classifies a cell from the min and max of its vertex values (NaN
+    /// excluded; both NaN when all 8 are NaN).
+    #[inline]
+    pub fn is_object(&self, min: f64, max: f64) -> bool {
+        match self {
+            Classification::Iso { iso } => max >= *iso,
+            Classification::TransferFunction { tf } => !max.is_nan() && tf.nonzero_on(min, max),
+        }
+    }
+
+    /// Classifies a cell from its 8 vertex values.
+    pub fn is_object_vertices(&self, v: &[f64; 8]) -> bool {
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::NAN, f64::NAN), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+        self.is_object(lo, hi)
+    }
+
+    /// True when only the maximum matters (no min plane needed).
+    pub fn needs_min(&self) -> bool {
+        matches!(self, Classification::TransferFunction { .. })
+    }
+}
+
+/// Per-column extrema of one sample slice over the 2x2 samples of each
+/// cell column: `max[(y * (nx-1)) + x]` is the max of samples (x..=x+1,
+/// y..=y+1). NaN samples are skipped (`f64::max` ignores NaN).
+pub fn slice_extrema(
+    values: &[f64],
+    nx: usize,
+    ny: usize,
+    max: &mut [f64],
+    min: Option<&mut [f64]>,
+) {
+    use rayon::prelude::*;
+    let ncx = nx - 1;
+    debug_assert_eq!(values.len(), nx * ny);
+    debug_assert_eq!(max.len(), ncx * (ny - 1));
+    max.par_chunks_mut(ncx).enumerate().for_each(|(y, row)| {
+        let a = &values[y * nx..(y + 1) * nx];
+        let b = &values[(y + 1) * nx..(y + 2) * nx];
+        for x in 0..ncx {
+            row[x] = a[x].max(a[x + 1]).max(b[x]).max(b[x + 1]);
+        }
+    });
+    if let Some(min) = min {
+        min.par_chunks_mut(ncx).enumerate().for_each(|(y, row)| {
+            let a = &values[y * nx..(y + 1) * nx];
+            let b = &values[(y + 1) * nx..(y + 2) * nx];
+            for x in 0..ncx {
+                row[x] = a[x].min(a[x + 1]).min(b[x]).min(b[x + 1]);
+            }
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tf(points: &[(f64, f64)]) -> TransferFunction {
+        TransferFunction {
+            points: points
+                .iter()
+                .map(|&(value, opacity)| TfPoint {
+                    value,
+                    opacity,
+                    color: [1.0; 3],
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn tf_nonzero_on_matches_dense_sampling() {
+        let t = tf(&[(0.0, 0.0), (10.0, 0.0), (20.0, 1.0), (30.0, 0.0)]);
+        for lo in -5..40 {
+            for hi in lo..40 {
+                let (lo, hi) = (lo as f64, hi as f64);
+                let dense = (0..=1000)
+                    .map(|i| lo + (hi - lo) * i as f64 / 1000.0)
+                    .any(|v| t.opacity(v) > 0.0);
+                assert_eq!(t.nonzero_on(lo, hi), dense, "[{lo}, {hi}]");
+            }
+        }
+    }
+
+    #[test]
+    fn nan_vertices_are_background() {
+        let c = Classification::Iso { iso: 1.0 };
+        let mut v = [f64::NAN; 8];
+        assert!(!c.is_object_vertices(&v));
+        v[3] = 1.0;
+        assert!(c.is_object_vertices(&v));
+        v[3] = 0.5;
+        assert!(!c.is_object_vertices(&v));
+        let t = Classification::TransferFunction {
+            tf: tf(&[(0.0, 1.0)]),
+        };
+        assert!(!t.is_object_vertices(&[f64::NAN; 8]));
+    }
+}

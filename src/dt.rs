@@ -1,0 +1,630 @@
+//! Streaming chessboard distance transform (paper section 3, eqs. 1 and
+//! 10, and section 4.2.1, Fig. 10, for the anisotropic codes).
+//!
+//! Distances are `u8`: 0 on 1-cells, otherwise the chessboard distance
+//! `max(|dx|, |dy|, |dz|)` to the nearest 1-cell, saturating at [`FAR`].
+//! Cells outside the volume count as empty. The code of a 0-cell is its
+//! distance minus one (the radius of the largest empty cube centred on it);
+//! saturation only ever lowers a distance, so saturated codes stay safe.
+//!
+//! The transform is exact and streams over z with two passes:
+//!
+//! 1. In each slice, the exact 2D distance `D2`: a 1D distance along x per
+//!    row (two scans), then the recurrence `F(y) = min(D2x(y),
+//!    erode_x(F(y-1)) + 1)` forwards and backwards over the rows.
+//! 2. Forward over z, `F(z) = min(D2(z), erode_xy(F(z-1)) + 1)`, spilled to
+//!    disk at one byte per cell; backward over z, `G(z) = min(F(z),
+//!    erode_xy(G(z+1)) + 1)`, which is the final distance.
+//!
+//! Why the recurrences are exact: if `q` is a 1-cell with `dz = z - q_z >=
+//! 1`, the neighbour of `v` one slice down and one step towards `q` along
+//! each axis where `q` differs is exactly one chessboard unit closer to `q`
+//! (every coordinate difference shrinks by one, or stays 0), so `F(z-1)`'s
+//! 3x3 minimum plus one reaches `max(|dx|, |dy|, dz)`; the triangle
+//! inequality rules out anything smaller. The same argument holds per row.
+//! `erode` is the 3 (or 3x3) neighbourhood minimum, the paper's 3x3x3 mask
+//! split into the part in the previous slice and the part in this one.
+//!
+//! Memory is a few slices of `(nx-1)(ny-1)` bytes, whatever nz is. Rows
+//! are processed in parallel (rayon) where the recurrence allows.
+
+use std::io;
+
+use rayon::prelude::*;
+
+/// Saturated distance ("no 1-cell within 254 cells").
+pub const FAR: u8 = u8::MAX;
+
+/// Exact in-slice chessboard distance to the 1-cells of this slice.
+/// `obj[i] != 0` marks a 1-cell; `out` gets the distances.
+pub fn slice_chessboard(obj: &[u8], ncx: usize, ncy: usize, out: &mut [u8]) {
+    // 1D distance along x, two scans per row.
+    out.par_chunks_mut(ncx)
+        .zip(obj.par_chunks(ncx))
+        .for_each(|(row, o)| {
+            let mut d = FAR;
+            for x in 0..ncx {
+                d = if o[x] != 0 { 0 } else { d.saturating_add(1) };
+                row[x] = d;
+            }
+            let mut d = FAR;
+            for x in (0..ncx).rev() {
+                d = row[x].min(d.saturating_add(1));
+                row[x] = d;
+            }
+        });
+    // Rows forward then backward, each merging the eroded neighbour row.
+    let mut eroded = vec![0u8; ncx];
+    for y in 1..ncy {
+        let (done, rest) = out.split_at_mut(y * ncx);
+        erode_row(&done[(y - 1) * ncx..], &mut eroded);
+        merge_plus_one(&mut rest[..ncx], &eroded);
+    }
+    for y in (0..ncy.saturating_sub(1)).rev() {
+        let (head, tail) = out.split_at_mut((y + 1) * ncx);
+        erode_row(&tail[..ncx], &mut eroded);
+        merge_plus_one(&mut head[y * ncx..], &eroded);
+    }
+}
+
+/// `out[x] = min(row[x-1], row[x], row[x+1])` (edges use what exists).
+#[inline]
+fn erode_row(row: &[u8], out: &mut [u8]) {
+    let n = out.len();
+    let row = &row[..n];
+    if n == 1 {
+        out[0] = row[0];
+        return;
+    }
+    out[0] = row[0].min(row[1]);
+    for x in 1..n - 1 {
+        out[x] = row[x - 1].min(row[x]).min(row[x + 1]);
+    }
+    out[n - 1] = row[n - 2].min(row[n - 1]);
+}
+
+/// `cur[x] = min(cur[x], eroded[x] + 1)` with saturation.
+#[inline]
+fn merge_plus_one(cur: &mut [u8], eroded: &[u8]) {
+    for (c, &e) in cur.iter_mut().zip(eroded) {
+        *c = (*c).min(e.saturating_add(1));
+    }
+}
+
+/// `cur = min(cur, erode_xy(prev) + 1)`: one z step of the recurrence.
+pub fn merge_slice(cur: &mut [u8], prev: &[u8], ncx: usize, ncy: usize) {
+    cur.par_chunks_mut(ncx).enumerate().for_each(|(y, row)| {
+        let mut col = vec![0u8; ncx];
+        let y0 = y.saturating_sub(1);
+        let y1 = (y + 1).min(ncy - 1);
+        col.copy_from_slice(&prev[y0 * ncx..(y0 + 1) * ncx]);
+        for yy in y0 + 1..=y1 {
+            for (c, &p) in col.iter_mut().zip(&prev[yy * ncx..(yy + 1) * ncx]) {
+                *c = (*c).min(p);
+            }
+        }
+        let mut eroded = vec![0u8; ncx];
+        erode_row(&col, &mut eroded);
+        merge_plus_one(row, &eroded);
+    });
+}
+
+/// Where the forward pass keeps its slices until the backward pass reads
+/// them in reverse. Prep uses a temporary file; tests use memory.
+pub trait Spill {
+    fn put(&mut self, index: usize, data: &[u8]) -> io::Result<()>;
+    fn get(&mut self, index: usize, out: &mut [u8]) -> io::Result<()>;
+}
+
+/// In-memory spill (tests and small volumes).
+#[derive(Default)]
+pub struct MemSpill(pub Vec<Vec<u8>>);
+
+impl Spill for MemSpill {
+    fn put(&mut self, index: usize, data: &[u8]) -> io::Result<()> {
+        if self.0.len() <= index {
+            self.0.resize(index + 1, Vec::new());
+        }
+        self.0[index] = data.to_vec();
+        Ok(())
+    }
+    fn get(&mut self, index: usize, out: &mut [u8]) -> io::Result<()> {
+        out.copy_from_slice(&self.0[index]);
+        Ok(())
+    }
+}
+
+/// A spill into an anonymous temporary file: fixed-size records.
+pub struct FileSpill {
+    file: std::fs::File,
+    record: u64,
+}
+
+impl FileSpill {
+    /// A temporary file in `dir` (deleted when dropped).
+    pub fn new_in(dir: &std::path::Path, record: usize) -> io::Result<FileSpill> {
+        Ok(FileSpill {
+            file: tempfile::tempfile_in(dir)?,
+            record: record as u64,
+        })
+    }
+}
+
+impl Spill for FileSpill {
+    fn put(&mut self, index: usize, data: &[u8]) -> io::Result<()> {
+        use std::os::unix::fs::FileExt;
+        self.file.write_all_at(data, index as u64 * self.record)
+    }
+    fn get(&mut self, index: usize, out: &mut [u8]) -> io::Result<()> {
+        use std::os::unix::fs::FileExt;
+        self.file.read_exact_at(out, index as u64 * self.record)
+    }
+}
+
+/// Block size (cells per axis) of the anisotropic codes. Each block keeps,
+/// per octant, the smallest code of its cells: conservative, and 8 bytes
+/// per 64 cells instead of 8 bytes per cell (docs/FORMAT.md).
+pub const ANISO_BLOCK: usize = 4;
+
+/// Octant `o` (0..8): bit `k` set means the ray's component along axis `k`
+/// is negative, so the macro region extends towards lower indices on that
+/// axis (paper eqs. 13-15).
+#[inline]
+pub fn octant_negative(o: usize, axis: usize) -> bool {
+    o >> axis & 1 == 1
+}
+
+/// One slice of the one-sided chessboard distance of octant `o` (paper
+/// Fig. 10: one pass per octant, starting from the opposite corner).
+/// `dist` is the isotropic distance of this slice (only `== 0`, a 1-cell,
+/// is used). `prev` is this octant's slice one step in its z direction,
+/// `None` beyond the volume.
+pub fn octant_slice(
+    o: usize,
+    dist: &[u8],
+    prev: Option<&[u8]>,
+    ncx: usize,
+    ncy: usize,
+    out: &mut [u8],
+) {
+    let sx: isize = if octant_negative(o, 0) { -1 } else { 1 };
+    let sy: isize = if octant_negative(o, 1) { -1 } else { 1 };
+    let at = |row: &[u8], x: isize| -> u8 {
+        if x < 0 || x >= ncx as isize {
+            FAR
+        } else {
+            row[x as usize]
+        }
+    };
+    let far_row = vec![FAR; ncx];
+    let mut m = vec![FAR; ncx];
+    let ys: Vec<usize> = if sy > 0 {
+        (0..ncy).rev().collect()
+    } else {
+        (0..ncy).collect()
+    };
+    for (i, &y) in ys.iter().enumerate() {
+        let yn = y as isize + sy;
+        let inside_yn = yn >= 0 && yn < ncy as isize;
+        // Neighbours outside this row: the row y+sy of this slice (already
+        // done) and rows y, y+sy of the previous slice.
+        let done_row: Vec<u8> = if i > 0 {
+            let p = ys[i - 1];
+            out[p * ncx..(p + 1) * ncx].to_vec()
+        } else {
+            far_row.clone()
+        };
+        let (p0, p1) = match prev {
+            Some(p) => (
+                &p[y * ncx..(y + 1) * ncx],
+                if inside_yn {
+                    let yn = yn as usize;
+                    &p[yn * ncx..(yn + 1) * ncx]
+                } else {
+                    &far_row[..]
+                },
+            ),
+            None => (&far_row[..], &far_row[..]),
+        };
+        for x in 0..ncx {
+            let xi = x as isize;
+            let xn = xi + sx;
+            m[x] = done_row[x]
+                .min(at(&done_row, xn))
+                .min(p0[x])
+                .min(at(p0, xn))
+                .min(p1[x])
+                .min(at(p1, xn));
+        }
+        let row = &mut out[y * ncx..(y + 1) * ncx];
+        let d_row = &dist[y * ncx..(y + 1) * ncx];
+        let xs: Box<dyn Iterator<Item = usize>> = if sx > 0 {
+            Box::new((0..ncx).rev())
+        } else {
+            Box::new(0..ncx)
+        };
+        let mut last = FAR;
+        for x in xs {
+            let d = if d_row[x] == 0 {
+                0
+            } else {
+                m[x].min(last).saturating_add(1)
+            };
+            row[x] = d;
+            last = d;
+        }
+    }
+}
+
+/// Reduces one slice of octant distances into the running per-block code
+/// minimum of its block row: `blocks[(by * nbx) + bx] = min(.., d - 1)`,
+/// with 1-cells counting as code 0.
+pub fn reduce_blocks(dist: &[u8], ncx: usize, ncy: usize, blocks: &mut [u8]) {
+    let nbx = ncx.div_ceil(ANISO_BLOCK);
+    for y in 0..ncy {
+        let by = y / ANISO_BLOCK;
+        for (x, &d) in dist[y * ncx..(y + 1) * ncx].iter().enumerate() {
+            let b = &mut blocks[by * nbx + x / ANISO_BLOCK];
+            *b = (*b).min(d.max(1) - 1);
+        }
+    }
+}
+
+/// Forward half of the streaming transform. Feed it the class slices in
+/// increasing z; it spills `F(z)` at index z of `spill`.
+pub struct ForwardDt {
+    ncx: usize,
+    ncy: usize,
+    z: usize,
+    prev: Vec<u8>,
+    cur: Vec<u8>,
+    aniso: Option<AnisoPass>,
+}
+
+/// Four octants computed in one z direction, reduced to blocks.
+struct AnisoPass {
+    /// Octants handled in this pass (z bit fixed).
+    octants: [usize; 4],
+    prev: [Vec<u8>; 4],
+    cur: [Vec<u8>; 4],
+    /// Running block minima of the current block slab, per octant.
+    blocks: [Vec<u8>; 4],
+}
+
+impl AnisoPass {
+    fn new(z_negative: bool, ncx: usize, ncy: usize) -> AnisoPass {
+        let zb = if z_negative { 4 } else { 0 };
+        let nb = ncx.div_ceil(ANISO_BLOCK) * ncy.div_ceil(ANISO_BLOCK);
+        AnisoPass {
+            octants: [zb, zb + 1, zb + 2, zb + 3],
+            prev: std::array::from_fn(|_| Vec::new()),
+            cur: std::array::from_fn(|_| vec![0; ncx * ncy]),
+            blocks: std::array::from_fn(|_| vec![u8::MAX; nb]),
+        }
+    }
+
+    /// Advances every octant by one slice and folds it into the blocks.
+    fn push(&mut self, dist: &[u8], ncx: usize, ncy: usize) {
+        let octants = self.octants;
+        self.cur
+            .par_iter_mut()
+            .zip(self.prev.par_iter())
+            .zip(self.blocks.par_iter_mut())
+            .enumerate()
+            .for_each(|(i, ((cur, prev), blocks))| {
+                let p = if prev.is_empty() {
+                    None
+                } else {
+                    Some(&prev[..])
+                };
+                octant_slice(octants[i], dist, p, ncx, ncy, cur);
+                reduce_blocks(cur, ncx, ncy, blocks);
+            });
+        std::mem::swap(&mut self.prev, &mut self.cur);
+        for c in self.cur.iter_mut() {
+            c.resize(ncx * ncy, 0);
+        }
+    }
+
+    /// Takes the finished block slab (4 octants, concatenated) and resets.
+    fn take_blocks(&mut self) -> Vec<u8> {
+        let mut out = Vec::new();
+        for b in self.blocks.iter_mut() {
+            out.extend_from_slice(b);
+            b.fill(u8::MAX);
+        }
+        out
+    }
+}
+
+impl ForwardDt {
+    pub fn new(ncx: usize, ncy: usize, aniso: bool) -> ForwardDt {
+        ForwardDt {
+            ncx,
+            ncy,
+            z: 0,
+            prev: vec![0; ncx * ncy],
+            cur: vec![0; ncx * ncy],
+            aniso: aniso.then(|| AnisoPass::new(true, ncx, ncy)),
+        }
+    }
+
+    /// Consumes the class slice `z` (in order) and spills `F(z)`. With
+    /// anisotropic codes, the -z octants' block slab goes to `block_spill`
+    /// at index `z / ANISO_BLOCK` when it is complete (or at `last`).
+    pub fn push(
+        &mut self,
+        obj: &[u8],
+        last: bool,
+        spill: &mut dyn Spill,
+        block_spill: Option<&mut dyn Spill>,
+    ) -> io::Result<()> {
+        let (ncx, ncy) = (self.ncx, self.ncy);
+        slice_chessboard(obj, ncx, ncy, &mut self.cur);
+        if self.z > 0 {
+            merge_slice(&mut self.cur, &self.prev, ncx, ncy);
+        }
+        spill.put(self.z, &self.cur)?;
+        if let Some(a) = self.aniso.as_mut() {
+            // The isotropic in-slice D2 is 0 exactly on 1-cells; F(z) too.
+            a.push(&self.cur, ncx, ncy);
+            if (self.z + 1) % ANISO_BLOCK == 0 || last {
+                let blocks = a.take_blocks();
+                if let Some(bs) = block_spill {
+                    bs.put(self.z / ANISO_BLOCK, &blocks)?;
+                }
+            }
+        }
+        std::mem::swap(&mut self.prev, &mut self.cur);
+        self.z += 1;
+        Ok(())
+    }
+}
+
+/// Backward half: reads `F` back in decreasing z and yields the final
+/// distances `G(z)` (and, with anisotropic codes, each completed block
+/// slab's 8 octant codes) to `emit`.
+pub struct BackwardDt {
+    ncx: usize,
+    ncy: usize,
+    ncz: usize,
+    next: Vec<u8>,
+    cur: Vec<u8>,
+    started: bool,
+    aniso: Option<AnisoPass>,
+}
+
+/// The 8 octant block codes of one block slab: `codes[o][by * nbx + bx]`.
+pub type OctantBlocks = [Vec<u8>; 8];
+
+impl BackwardDt {
+    pub fn new(ncx: usize, ncy: usize, ncz: usize, aniso: bool) -> BackwardDt {
+        BackwardDt {
+            ncx,
+            ncy,
+            ncz,
+            next: vec![0; ncx * ncy],
+            cur: vec![0; ncx * ncy],
+            started: false,
+            aniso: aniso.then(|| AnisoPass::new(false, ncx, ncy)),
+        }
+    }
+
+    /// Computes `G(z)` for the next z (they must come in decreasing order,
+    /// starting at `ncz - 1`). Returns the distances of slice z, and the
+    /// octant blocks when z starts a block slab.
+    pub fn step(
+        &mut self,
+        z: usize,
+        spill: &mut dyn Spill,
+        block_spill: Option<&mut dyn Spill>,
+    ) -> io::Result<(&[u8], Option<OctantBlocks>)> {
+        debug_assert!(z < self.ncz);
+        let (ncx, ncy) = (self.ncx, self.ncy);
+        std::mem::swap(&mut self.next, &mut self.cur);
+        spill.get(z, &mut self.cur)?;
+        if self.started {
+            merge_slice(&mut self.cur, &self.next, ncx, ncy);
+        }
+        self.started = true;
+        let mut blocks_out = None;
+        if let Some(a) = self.aniso.as_mut() {
+            a.push(&self.cur, ncx, ncy);
+            if z % ANISO_BLOCK == 0 {
+                let pos = a.take_blocks();
+                let nb = pos.len() / 4;
+                let mut neg = vec![0u8; 4 * nb];
+                if let Some(bs) = block_spill {
+                    bs.get(z / ANISO_BLOCK, &mut neg)?;
+                }
+                blocks_out = Some(std::array::from_fn(|o| {
+                    let src = if o >= 4 { &neg } else { &pos };
+                    let i = o % 4;
+                    src[i * nb..(i + 1) * nb].to_vec()
+                }));
+            }
+        }
+        Ok((&self.cur, blocks_out))
+    }
+}
+
+/// Whole-volume transform in memory through the streaming passes (tests,
+/// benchmarks, small volumes). `obj` is `ncx * ncy * ncz` with x fastest.
+pub fn chessboard_3d(obj: &[u8], dims: [usize; 3]) -> Vec<u8> {
+    let [ncx, ncy, ncz] = dims;
+    let n = ncx * ncy;
+    let mut spill = MemSpill::default();
+    let mut fwd = ForwardDt::new(ncx, ncy, false);
+    for z in 0..ncz {
+        fwd.push(&obj[z * n..(z + 1) * n], z + 1 == ncz, &mut spill, None)
+            .expect("memory spill");
+    }
+    let mut out = vec![0u8; n * ncz];
+    let mut bwd = BackwardDt::new(ncx, ncy, ncz, false);
+    for z in (0..ncz).rev() {
+        let (g, _) = bwd.step(z, &mut spill, None).expect("memory spill");
+        out[z * n..(z + 1) * n].copy_from_slice(g);
+    }
+    out
+}
+
+/// Anisotropic block codes in memory through the streaming passes:
+/// `result[o]` holds, per block (x fastest), octant `o`'s code.
+pub fn octant_blocks_3d(obj: &[u8], dims: [usize; 3]) -> [Vec<u8>; 8] {
+    let [ncx, ncy, ncz] = dims;
+    let n = ncx * ncy;
+    let nb = ncx.div_ceil(ANISO_BLOCK) * ncy.div_ceil(ANISO_BLOCK);
+    let nbz = ncz.div_ceil(ANISO_BLOCK);
+    let mut spill = MemSpill::default();
+    let mut bspill = MemSpill::default();
+    let mut fwd = ForwardDt::new(ncx, ncy, true);
+    for z in 0..ncz {
+        fwd.push(
+            &obj[z * n..(z + 1) * n],
+            z + 1 == ncz,
+            &mut spill,
+            Some(&mut bspill),
+        )
+        .expect("memory spill");
+    }
+    let mut out: [Vec<u8>; 8] = std::array::from_fn(|_| vec![0u8; nb * nbz]);
+    let mut bwd = BackwardDt::new(ncx, ncy, ncz, true);
+    for z in (0..ncz).rev() {
+        let (_, blocks) = bwd
+            .step(z, &mut spill, Some(&mut bspill))
+            .expect("memory spill");
+        if let Some(b) = blocks {
+            let bz = z / ANISO_BLOCK;
+            for o in 0..8 {
+                out[o][bz * nb..(bz + 1) * nb].copy_from_slice(&b[o]);
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Brute force: min over 1-cells of the chessboard distance, saturated.
+    /// With `octant`, only 1-cells in that closed octant of each cell.
+    fn brute(obj: &[u8], dims: [usize; 3], octant: Option<usize>) -> Vec<u8> {
+        let [nx, ny, nz] = dims;
+        let objs: Vec<[isize; 3]> = (0..obj.len())
+            .filter(|&i| obj[i] != 0)
+            .map(|i| {
+                [
+                    (i % nx) as isize,
+                    (i / nx % ny) as isize,
+                    (i / nx / ny) as isize,
+                ]
+            })
+            .collect();
+        let mut out = vec![FAR; obj.len()];
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let v = [x as isize, y as isize, z as isize];
+                    let mut best = FAR as isize;
+                    for q in &objs {
+                        let ok = match octant {
+                            None => true,
+                            Some(o) => (0..3).all(|k| {
+                                let d = q[k] - v[k];
+                                if octant_negative(o, k) {
+                                    d <= 0
+                                } else {
+                                    d >= 0
+                                }
+                            }),
+                        };
+                        if ok {
+                            let d = (0..3).map(|k| (q[k] - v[k]).abs()).max().unwrap();
+                            best = best.min(d);
+                        }
+                    }
+                    out[(z * ny + y) * nx + x] = best as u8;
+                }
+            }
+        }
+        out
+    }
+
+    fn brute_blocks(obj: &[u8], dims: [usize; 3], o: usize) -> Vec<u8> {
+        let d = brute(obj, dims, Some(o));
+        let [nx, ny, nz] = dims;
+        let g = ANISO_BLOCK;
+        let (bx, by, bz) = (nx.div_ceil(g), ny.div_ceil(g), nz.div_ceil(g));
+        let mut out = vec![u8::MAX; bx * by * bz];
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let b = &mut out[((z / g) * by + y / g) * bx + x / g];
+                    *b = (*b).min(d[(z * ny + y) * nx + x].max(1) - 1);
+                }
+            }
+        }
+        out
+    }
+
+    fn volume() -> impl Strategy<Value = (Vec<u8>, [usize; 3])> {
+        (1usize..12, 1usize..12, 1usize..12, 0u32..=100).prop_flat_map(|(x, y, z, pct)| {
+            let n = x * y * z;
+            (
+                proptest::collection::vec((0u32..100).prop_map(move |r| (r < pct / 8) as u8), n),
+                Just([x, y, z]),
+            )
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        #[test]
+        fn isotropic_equals_brute_force((obj, dims) in volume()) {
+            prop_assert_eq!(chessboard_3d(&obj, dims), brute(&obj, dims, None));
+        }
+
+        #[test]
+        fn octant_blocks_equal_brute_force((obj, dims) in volume()) {
+            let got = octant_blocks_3d(&obj, dims);
+            for (o, g) in got.iter().enumerate() {
+                prop_assert_eq!(g, &brute_blocks(&obj, dims, o), "octant {}", o);
+            }
+        }
+    }
+
+    #[test]
+    fn empty_full_and_single_cells() {
+        for dims in [[1, 1, 1], [5, 1, 7], [3, 4, 5]] {
+            let n = dims.iter().product();
+            assert_eq!(chessboard_3d(&vec![0; n], dims), vec![FAR; n]);
+            assert_eq!(chessboard_3d(&vec![1; n], dims), vec![0; n]);
+        }
+        // One 1-cell in the corner of a long thin volume saturates far away.
+        let dims = [300, 2, 2];
+        let mut obj = vec![0; 1200];
+        obj[0] = 1;
+        let d = chessboard_3d(&obj, dims);
+        assert_eq!(d, brute(&obj, dims, None));
+        assert_eq!(d[254], 254);
+        assert_eq!(d[255], FAR);
+        assert_eq!(d[299], FAR);
+    }
+
+    #[test]
+    fn one_cell_thick_plane() {
+        let dims = [9, 10, 11];
+        let mut obj = vec![0; 990];
+        for y in 0..10 {
+            for x in 0..9 {
+                obj[(5 * 10 + y) * 9 + x] = 1;
+            }
+        }
+        let d = chessboard_3d(&obj, dims);
+        assert_eq!(d, brute(&obj, dims, None));
+        assert_eq!(d[(0 * 10 + 3) * 9 + 3], 5);
+        assert_eq!(d[(10 * 10 + 3) * 9 + 3], 5);
+    }
+}

@@ -1,0 +1,234 @@
+//! `cdvol export`: full-resolution arrays back out of a packed file, as a
+//! raw stack plus a sidecar in the input schema, streamed one brick slab
+//! at a time.
+//!
+//! - `values`: every sample, in the input type. A sample whose word was
+//!   replaced by a code is written as the fill value: NaN for float data,
+//!   the smallest raw value of the input (`summary.raw_min`) for integers.
+//! - `codes`: one `u8` per cell: the isotropic code of each 0-cell, and
+//!   [`OBJECT_MARKER`] (255) for 1-cells. Axes are the cell centres.
+//! - `classes`: one `u8` per cell, 1 for 1-cells and 0 otherwise.
+
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::format::reader::{Brick, CellClass, PackedVolume, Sample};
+use crate::format::FormatError;
+use crate::input::sidecar::{AxisSpec, SidecarOut};
+use crate::input::{Dtype, Endian};
+use crate::progress::Progress;
+
+/// The `codes` export's value for 1-cells.
+pub const OBJECT_MARKER: u8 = 255;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExportWhat {
+    Values,
+    Codes,
+    Classes,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error("{}: {what}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        what: &'static str,
+        source: std::io::Error,
+    },
+}
+
+/// Writes `what` of `vol` as `<out_json stem>.raw` plus the sidecar
+/// `out_json`. Returns the raw file's path.
+pub fn export(
+    vol: &PackedVolume,
+    what: ExportWhat,
+    out_json: &Path,
+    progress: &dyn Progress,
+) -> Result<PathBuf, ExportError> {
+    let h = vol.header();
+    let dir = match out_json.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let stem = out_json
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "export".into());
+    let raw_name = format!("{stem}.raw");
+    let raw_path = dir.join(&raw_name);
+    let io = |path: &Path, what| {
+        let path = path.to_path_buf();
+        move |source| ExportError::Io { path, what, source }
+    };
+    let tmp = tempfile::Builder::new()
+        .prefix(".cdvol-partial-")
+        .tempfile_in(&dir)
+        .map_err(io(
+            &raw_path,
+            "cannot create a temporary file beside the output",
+        ))?;
+    let mut w = BufWriter::with_capacity(1 << 20, tmp);
+
+    let [nx, ny, nz] = h.dims.map(|d| d as usize);
+    let [ncx, ncy, ncz] = h.cells().map(|c| c as usize);
+    let b = h.brick_size as usize;
+    let [nbx, nby, nbz] = h.bricks.map(|n| n as usize);
+    let fill = if h.dtype.is_float() {
+        f64::NAN
+    } else {
+        h.summary.raw_min.unwrap_or(0.0)
+    };
+    progress.begin("export", nbz as u64);
+    for bz in 0..nbz {
+        // Decode the slab's bricks in parallel (one slab in memory).
+        let ids: Vec<u64> = (0..nby)
+            .flat_map(|by| (0..nbx).map(move |bx| (bz * nby + by) * nbx + bx))
+            .map(|i| i as u64)
+            .collect();
+        let bricks: Vec<Brick> = ids
+            .par_iter()
+            .map(|&id| vol.read_brick(id))
+            .collect::<Result<_, _>>()?;
+        let brick_at = |bx: usize, by: usize| &bricks[by * nbx + bx];
+        let mut line: Vec<u8> = Vec::new();
+        match what {
+            ExportWhat::Values => {
+                let z0 = bz * b;
+                let z1 = if bz + 1 == nbz { nz } else { z0 + b };
+                for z in z0..z1 {
+                    for y in 0..ny {
+                        line.clear();
+                        let by = (y / b).min(nby - 1);
+                        for x in 0..nx {
+                            let bx = (x / b).min(nbx - 1);
+                            let br = brick_at(bx, by);
+                            let l = [x - bx * b, y - by * b, z - z0];
+                            let v = match br.sample(l) {
+                                Some(Sample::Value(v)) => v,
+                                _ => fill,
+                            };
+                            push_value(&mut line, h.dtype, v);
+                        }
+                        w.write_all(&line).map_err(io(&raw_path, "cannot write"))?;
+                    }
+                }
+            }
+            ExportWhat::Codes | ExportWhat::Classes => {
+                let z0 = bz * b;
+                let z1 = (z0 + b).min(ncz);
+                for z in z0..z1 {
+                    for y in 0..ncy {
+                        line.clear();
+                        let by = y / b;
+                        for x in 0..ncx {
+                            let bx = x / b;
+                            let l = [x - bx * b, y - by * b, z - z0];
+                            let c = vol.cell_class(brick_at(bx, by), l);
+                            line.push(match (what, c) {
+                                (ExportWhat::Classes, CellClass::Object) => 1,
+                                (ExportWhat::Classes, CellClass::Empty(_)) => 0,
+                                (_, CellClass::Object) => OBJECT_MARKER,
+                                (_, CellClass::Empty(code)) => code.min(254) as u8,
+                            });
+                        }
+                        w.write_all(&line).map_err(io(&raw_path, "cannot write"))?;
+                    }
+                }
+            }
+        }
+        drop(bricks);
+        progress.advance(1);
+    }
+    progress.end();
+    let tmp = w.into_inner().map_err(|e| ExportError::Io {
+        path: raw_path.clone(),
+        what: "cannot flush",
+        source: e.into_error(),
+    })?;
+    tmp.persist(&raw_path).map_err(|e| ExportError::Io {
+        path: raw_path.clone(),
+        what: "cannot rename into place",
+        source: e.error,
+    })?;
+
+    // The sidecar.
+    let (dims, dtype, axes): ([usize; 3], &'static str, [Vec<f64>; 3]) = match what {
+        ExportWhat::Values => (
+            [nx, ny, nz],
+            h.dtype.name(),
+            h.axes.each_ref().map(|a| a.coords().to_vec()),
+        ),
+        _ => (
+            [ncx, ncy, ncz],
+            "u8",
+            h.axes
+                .each_ref()
+                .map(|a| a.coords().windows(2).map(|w| 0.5 * (w[0] + w[1])).collect()),
+        ),
+    };
+    let spec = |c: &Vec<f64>| {
+        let first = c.get(1).map(|x| x - c[0]);
+        match first {
+            Some(g)
+                if c.windows(2)
+                    .all(|w| ((w[1] - w[0]) - g).abs() <= 1e-9 * g.abs()) =>
+            {
+                AxisSpec::Uniform(g)
+            }
+            _ => AxisSpec::Positions {
+                positions: c.clone(),
+            },
+        }
+    };
+    let [sx, sy, sz] = axes.each_ref().map(spec);
+    let origin = axes.each_ref().map(|c| c[0]);
+    let side = SidecarOut {
+        data: raw_name,
+        dims,
+        dtype,
+        endian: Endian::Little,
+        header_bytes: 0,
+        x: sx,
+        y: sy,
+        z: sz,
+        origin,
+        rescale: (what == ExportWhat::Values).then_some(h.rescale),
+    };
+    let tmp = tempfile::Builder::new()
+        .prefix(".cdvol-partial-")
+        .tempfile_in(&dir)
+        .map_err(io(
+            out_json,
+            "cannot create a temporary file beside the output",
+        ))?;
+    serde_json::to_writer_pretty(tmp.as_file(), &side).map_err(|e| ExportError::Io {
+        path: out_json.to_path_buf(),
+        what: "cannot write sidecar",
+        source: e.into(),
+    })?;
+    tmp.persist(out_json).map_err(|e| ExportError::Io {
+        path: out_json.to_path_buf(),
+        what: "cannot rename into place",
+        source: e.error,
+    })?;
+    Ok(raw_path)
+}
+
+fn push_value(out: &mut Vec<u8>, dtype: Dtype, v: f64) {
+    match dtype {
+        Dtype::U8 => out.push(v as u8),
+        Dtype::I8 => out.push(v as i8 as u8),
+        Dtype::U16 => out.extend_from_slice(&(v as u16).to_le_bytes()),
+        Dtype::I16 => out.extend_from_slice(&(v as i16).to_le_bytes()),
+        Dtype::U32 => out.extend_from_slice(&(v as u32).to_le_bytes()),
+        Dtype::I32 => out.extend_from_slice(&(v as i32).to_le_bytes()),
+        Dtype::I64 => out.extend_from_slice(&(v as i64).to_le_bytes()),
+        Dtype::F32 => out.extend_from_slice(&(v as f32).to_le_bytes()),
+        Dtype::F64 => out.extend_from_slice(&v.to_le_bytes()),
+    }
+}

@@ -1,0 +1,239 @@
+//! The packed, bricked file (docs/FORMAT.md): header, brick index, zstd
+//! payloads, and distance codes embedded in background samples.
+//!
+//! Layout: a 16-byte preamble, the brick payloads, then the trailer (the
+//! JSON header and the binary brick index), then a 40-byte footer that
+//! locates the trailer and carries its CRC-32. Everything a writer learns
+//! only at the end (index, summary) therefore sits at the end, and a
+//! truncated file has no footer and is refused.
+
+pub mod reader;
+pub mod word;
+pub mod writer;
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use crate::classify::Classification;
+use crate::grid::Axis;
+use crate::input::{Dtype, Rescale};
+
+/// First 8 bytes of every packed file.
+pub const MAGIC: &[u8; 8] = b"CDVOLPK\x01";
+/// Last 8 bytes of every complete packed file.
+pub const END_MAGIC: &[u8; 8] = b"CDVOLEND";
+/// Format version written by this crate; readers refuse others.
+pub const FORMAT_VERSION: u32 = 1;
+/// Bytes before the first payload.
+pub const PREAMBLE_LEN: u64 = 16;
+/// Bytes of the footer.
+pub const FOOTER_LEN: u64 = 40;
+/// Bytes of one brick index entry.
+pub const INDEX_ENTRY_LEN: usize = 32;
+/// Largest JSON header a reader accepts (axes of 2^31 samples would need
+/// more, but such a header is not something we allocate blindly).
+pub const MAX_HEADER_LEN: u64 = 1 << 32;
+
+/// How distance codes are stored in sample words.
+///
+/// On write: a sample that is the minimum corner of a cell with code
+/// `n >= 1` is a vertex of no 1-cell, and its word is replaced by the
+/// code word of `min(n, max)`. On read: a word that is a code word gives
+/// the code of the cell at whose minimum corner it sits; every other word
+/// is an exact sample value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum CodeEncoding {
+    /// Integer words: code `n` is the word `base + n`, `0 <= n <= max`. The
+    /// data never uses that range (prep picks a free range of the type, or
+    /// widens the type when there is none).
+    IntRange { base: i64, max: u32 },
+    /// Float words: code `n` is a quiet NaN whose payload is
+    /// [`word::NAN_CODE_FLAG`] `| n`. Input NaNs are stored as the canonical
+    /// quiet NaN (payload 0), so they never read as codes.
+    NanPayload { max: u32 },
+}
+
+impl CodeEncoding {
+    /// Largest code the file can hold (codes saturate there).
+    pub fn max_code(&self) -> u32 {
+        match *self {
+            CodeEncoding::IntRange { max, .. } | CodeEncoding::NanPayload { max } => max,
+        }
+    }
+}
+
+/// Summary figures computed while preparing (for `cdvol info`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    pub cells: u64,
+    pub one_cells: u64,
+    /// `code_histogram[n]` = number of 0-cells with code n (after
+    /// saturation at the encoding's maximum).
+    pub code_histogram: Vec<u64>,
+    pub uniform_bricks: u64,
+    /// Smallest and largest raw sample (NaN excluded; None if all NaN).
+    pub raw_min: Option<f64>,
+    pub raw_max: Option<f64>,
+    pub nan_samples: u64,
+    /// Bytes of input samples (dims product times the input type size).
+    pub input_bytes: u64,
+    /// Bytes of compressed payloads in the file.
+    pub payload_bytes: u64,
+    /// Bytes of payloads before compression.
+    pub raw_payload_bytes: u64,
+}
+
+/// The JSON header (see docs/FORMAT.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    pub format_version: u32,
+    /// Samples per axis.
+    pub dims: [u64; 3],
+    /// Sample positions in mm along x, y and z.
+    pub axes: [Axis; 3],
+    /// Sample type of the input.
+    pub dtype: Dtype,
+    /// Type of the stored words (the input type, or a wider one).
+    pub storage: Dtype,
+    pub rescale: Rescale,
+    pub classification: Classification,
+    pub codes: CodeEncoding,
+    /// Cells per brick edge.
+    pub brick_size: u32,
+    /// Bricks per axis.
+    pub bricks: [u64; 3],
+    /// Anisotropic (octant) codes: cells per block edge, when present.
+    pub aniso_block: Option<u32>,
+    pub zstd_level: i32,
+    pub source: String,
+    pub summary: Summary,
+}
+
+impl Header {
+    pub fn cells(&self) -> [u64; 3] {
+        self.dims.map(|d| d - 1)
+    }
+
+    pub fn brick_count(&self) -> u64 {
+        self.bricks.iter().product()
+    }
+
+    /// Cell range `[lo, hi)` of brick `b` along one axis.
+    pub fn brick_cells(&self, axis: usize, b: u64) -> (u64, u64) {
+        let bs = self.brick_size as u64;
+        let lo = b * bs;
+        (lo, (lo + bs).min(self.cells()[axis]))
+    }
+
+    /// Brick coordinates of linear brick id (x fastest).
+    pub fn brick_coords(&self, id: u64) -> [u64; 3] {
+        let [bx, by, _] = self.bricks;
+        [id % bx, id / bx % by, id / bx / by]
+    }
+
+    pub fn brick_id(&self, c: [u64; 3]) -> u64 {
+        (c[2] * self.bricks[1] + c[1]) * self.bricks[0] + c[0]
+    }
+
+    /// Samples per axis stored in brick `c` (cells + 1 apron sample).
+    pub fn brick_samples(&self, c: [u64; 3]) -> [u64; 3] {
+        std::array::from_fn(|k| {
+            let (lo, hi) = self.brick_cells(k, c[k]);
+            hi - lo + 1
+        })
+    }
+
+    /// Anisotropic blocks per axis in brick `c`.
+    pub fn brick_blocks(&self, c: [u64; 3]) -> Option<[u64; 3]> {
+        let g = self.aniso_block? as u64;
+        Some(std::array::from_fn(|k| {
+            let (lo, hi) = self.brick_cells(k, c[k]);
+            (hi - lo).div_ceil(g)
+        }))
+    }
+
+    /// Exact decompressed payload size of brick `c`.
+    pub fn payload_len(&self, c: [u64; 3]) -> u64 {
+        let s = self.brick_samples(c);
+        let words = s[0] * s[1] * s[2] * self.storage.size() as u64;
+        let aniso = self.brick_blocks(c).map_or(0, |b| 8 * b[0] * b[1] * b[2]);
+        words + aniso
+    }
+}
+
+/// One brick index entry (32 bytes, little-endian).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct IndexEntry {
+    /// Byte offset of the compressed payload in the file.
+    pub offset: u64,
+    /// Compressed length in bytes (0 for uniform bricks).
+    pub length: u32,
+    /// CRC-32 (IEEE) of the compressed payload.
+    pub crc32: u32,
+    /// Bit 0: uniform (no payload; every cell is a 0-cell with
+    /// `uniform_code`).
+    pub flags: u32,
+    pub uniform_code: u32,
+    pub reserved: u64,
+}
+
+pub const FLAG_UNIFORM: u32 = 1;
+
+impl IndexEntry {
+    pub fn is_uniform(&self) -> bool {
+        self.flags & FLAG_UNIFORM != 0
+    }
+
+    pub fn to_bytes(&self) -> [u8; INDEX_ENTRY_LEN] {
+        let mut b = [0u8; INDEX_ENTRY_LEN];
+        b[0..8].copy_from_slice(&self.offset.to_le_bytes());
+        b[8..12].copy_from_slice(&self.length.to_le_bytes());
+        b[12..16].copy_from_slice(&self.crc32.to_le_bytes());
+        b[16..20].copy_from_slice(&self.flags.to_le_bytes());
+        b[20..24].copy_from_slice(&self.uniform_code.to_le_bytes());
+        b[24..32].copy_from_slice(&self.reserved.to_le_bytes());
+        b
+    }
+
+    pub fn from_bytes(b: &[u8]) -> IndexEntry {
+        let u64_at = |i: usize| u64::from_le_bytes(b[i..i + 8].try_into().expect("8 bytes"));
+        let u32_at = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"));
+        IndexEntry {
+            offset: u64_at(0),
+            length: u32_at(8),
+            crc32: u32_at(12),
+            flags: u32_at(16),
+            uniform_code: u32_at(20),
+            reserved: u64_at(24),
+        }
+    }
+}
+
+/// Errors reading or writing a packed file. Each names the file and,
+/// where one is at fault, the brick or field.
+#[derive(Debug, thiserror::Error)]
+pub enum FormatError {
+    #[error("{}: {what}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        what: &'static str,
+        source: std::io::Error,
+    },
+    #[error("{}: not a cdvol packed file (magic {found:02x?}, expected {:02x?})", path.display(), MAGIC)]
+    NotPacked { path: PathBuf, found: Vec<u8> },
+    #[error("{}: format version {found}, this cdvol reads version {FORMAT_VERSION}", path.display())]
+    Version { path: PathBuf, found: u32 },
+    #[error("{}: truncated or incomplete: {msg}", path.display())]
+    Truncated { path: PathBuf, msg: String },
+    #[error("{}: corrupt header: {msg}", path.display())]
+    Header { path: PathBuf, msg: String },
+    #[error("{}: brick {brick} {coords:?}: {msg}", path.display())]
+    Brick {
+        path: PathBuf,
+        brick: u64,
+        coords: [u64; 3],
+        msg: String,
+    },
+}

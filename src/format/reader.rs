@@ -1,0 +1,388 @@
+//! Reads packed files: checks the footer, header and index when opening,
+//! and each brick's checksum and size when it is read. Header numbers are
+//! untrusted: every size is checked against the file before use.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use memmap2::Mmap;
+
+use super::word::Word;
+use super::{
+    FormatError, Header, IndexEntry, END_MAGIC, FOOTER_LEN, FORMAT_VERSION, INDEX_ENTRY_LEN, MAGIC,
+    MAX_HEADER_LEN, PREAMBLE_LEN,
+};
+use crate::with_word;
+
+/// An open packed file. Brick payloads are read on demand from a read-only
+/// memory map, so only the bricks asked for are ever paged in.
+pub struct PackedVolume {
+    path: PathBuf,
+    map: Mmap,
+    header: Header,
+    index: Vec<IndexEntry>,
+}
+
+/// What a sample word of a brick holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Sample {
+    /// An exact raw sample value (before rescale).
+    Value(f64),
+    /// The distance code of the cell whose minimum corner this sample is.
+    Code(u32),
+}
+
+/// Class of one cell as read back from a packed file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CellClass {
+    Object,
+    /// A 0-cell and its code.
+    Empty(u32),
+}
+
+/// A decoded brick.
+#[derive(Debug, Clone)]
+pub struct Brick {
+    /// Brick coordinates.
+    pub coords: [u64; 3],
+    /// Global index of its first sample (= first cell).
+    pub first: [u64; 3],
+    /// Samples per axis (cells + 1).
+    pub samples: [usize; 3],
+    pub data: BrickData,
+}
+
+#[derive(Debug, Clone)]
+pub enum BrickData {
+    /// No payload: every cell is a 0-cell with this code.
+    Uniform(u32),
+    Words {
+        samples: Vec<Sample>,
+        /// Per anisotropic block (x fastest): the 8 octant codes.
+        octants: Option<Vec<[u8; 8]>>,
+    },
+}
+
+impl Brick {
+    /// The word at local sample `(x, y, z)`. Uniform bricks have codes at
+    /// every cell corner and no values.
+    pub fn sample(&self, l: [usize; 3]) -> Option<Sample> {
+        match &self.data {
+            BrickData::Uniform(_) => None,
+            BrickData::Words { samples, .. } => {
+                let [sx, sy, _] = self.samples;
+                Some(samples[(l[2] * sy + l[1]) * sx + l[0]])
+            }
+        }
+    }
+
+    /// The 8 vertex words of local cell `l`, x fastest.
+    pub fn vertices(&self, l: [usize; 3]) -> Option<[Sample; 8]> {
+        let mut out = [Sample::Code(0); 8];
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = self.sample([l[0] + (i & 1), l[1] + (i >> 1 & 1), l[2] + (i >> 2)])?;
+        }
+        Some(out)
+    }
+}
+
+impl PackedVolume {
+    /// Opens and checks a packed file.
+    pub fn open(path: &Path) -> Result<PackedVolume, FormatError> {
+        let p = || path.to_path_buf();
+        let f = File::open(path).map_err(|source| FormatError::Io {
+            path: p(),
+            what: "cannot open packed file",
+            source,
+        })?;
+        // SAFETY: read-only map of a file cdvol wrote; callers must not
+        // modify it while it is open (a concurrent writer could make reads
+        // fault, never write through the map).
+        let map = unsafe { Mmap::map(&f) }.map_err(|source| FormatError::Io {
+            path: p(),
+            what: "cannot memory-map packed file",
+            source,
+        })?;
+        let len = map.len() as u64;
+        if len < 8 || &map[..8] != MAGIC {
+            return Err(FormatError::NotPacked {
+                path: p(),
+                found: map[..map.len().min(8)].to_vec(),
+            });
+        }
+        if len < PREAMBLE_LEN + FOOTER_LEN {
+            return Err(FormatError::Truncated {
+                path: p(),
+                msg: format!("{len} bytes, shorter than preamble and footer"),
+            });
+        }
+        let version = u32::from_le_bytes(map[8..12].try_into().expect("4 bytes"));
+        if version != FORMAT_VERSION {
+            return Err(FormatError::Version {
+                path: p(),
+                found: version,
+            });
+        }
+        let foot = &map[(len - FOOTER_LEN) as usize..];
+        if &foot[32..40] != END_MAGIC {
+            return Err(FormatError::Truncated {
+                path: p(),
+                msg: "no footer at the end of the file (was the write interrupted?)".into(),
+            });
+        }
+        let u64_at = |i: usize| u64::from_le_bytes(foot[i..i + 8].try_into().expect("8 bytes"));
+        let (trailer, hlen, ilen) = (u64_at(0), u64_at(8), u64_at(16));
+        let crc = u32::from_le_bytes(foot[24..28].try_into().expect("4 bytes"));
+        let consistent = trailer >= PREAMBLE_LEN
+            && hlen <= MAX_HEADER_LEN
+            && trailer
+                .checked_add(hlen)
+                .and_then(|x| x.checked_add(ilen))
+                .and_then(|x| x.checked_add(FOOTER_LEN))
+                == Some(len);
+        if !consistent {
+            return Err(FormatError::Truncated {
+                path: p(),
+                msg: format!(
+                    "footer says trailer at {trailer} with {hlen} + {ilen} bytes, \
+                     but the file has {len} bytes"
+                ),
+            });
+        }
+        let json = &map[trailer as usize..(trailer + hlen) as usize];
+        let idx = &map[(trailer + hlen) as usize..(trailer + hlen + ilen) as usize];
+        let mut h = crc32fast::Hasher::new();
+        h.update(json);
+        h.update(idx);
+        let found = h.finalize();
+        if found != crc {
+            return Err(FormatError::Header {
+                path: p(),
+                msg: format!("trailer checksum {found:08x}, expected {crc:08x}"),
+            });
+        }
+        let header: Header = serde_json::from_slice(json).map_err(|e| FormatError::Header {
+            path: p(),
+            msg: e.to_string(),
+        })?;
+        check_header(&header).map_err(|msg| FormatError::Header { path: p(), msg })?;
+        if ilen != header.brick_count() * INDEX_ENTRY_LEN as u64 {
+            return Err(FormatError::Header {
+                path: p(),
+                msg: format!(
+                    "brick index has {ilen} bytes, expected {} for {} bricks",
+                    header.brick_count() * INDEX_ENTRY_LEN as u64,
+                    header.brick_count()
+                ),
+            });
+        }
+        let index: Vec<IndexEntry> = idx
+            .chunks_exact(INDEX_ENTRY_LEN)
+            .map(IndexEntry::from_bytes)
+            .collect();
+        for (i, e) in index.iter().enumerate() {
+            if !e.is_uniform() && (e.offset < PREAMBLE_LEN || e.offset + e.length as u64 > trailer)
+            {
+                return Err(FormatError::Brick {
+                    path: p(),
+                    brick: i as u64,
+                    coords: header.brick_coords(i as u64),
+                    msg: format!(
+                        "payload at {}..{} lies outside the payload area {PREAMBLE_LEN}..{trailer}",
+                        e.offset,
+                        e.offset + e.length as u64
+                    ),
+                });
+            }
+        }
+        Ok(PackedVolume {
+            path: p(),
+            map,
+            header,
+            index,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    pub fn index(&self) -> &[IndexEntry] {
+        &self.index
+    }
+
+    pub fn file_len(&self) -> u64 {
+        self.map.len() as u64
+    }
+
+    fn brick_err(&self, id: u64, msg: String) -> FormatError {
+        FormatError::Brick {
+            path: self.path.clone(),
+            brick: id,
+            coords: self.header.brick_coords(id),
+            msg,
+        }
+    }
+
+    /// Reads, checks and decompresses the payload bytes of brick `id`
+    /// (`None` for a uniform brick).
+    pub fn read_payload(&self, id: u64) -> Result<Option<Vec<u8>>, FormatError> {
+        let e = *self.index.get(id as usize).ok_or_else(|| {
+            self.brick_err(id, format!("no such brick (file has {})", self.index.len()))
+        })?;
+        if e.is_uniform() {
+            return Ok(None);
+        }
+        let bytes = &self.map[e.offset as usize..e.offset as usize + e.length as usize];
+        let crc = crc32fast::hash(bytes);
+        if crc != e.crc32 {
+            return Err(self.brick_err(
+                id,
+                format!(
+                    "checksum {crc:08x}, expected {:08x}: the payload is corrupt",
+                    e.crc32
+                ),
+            ));
+        }
+        let want = self.header.payload_len(self.header.brick_coords(id)) as usize;
+        let raw = zstd::bulk::decompress(bytes, want)
+            .map_err(|x| self.brick_err(id, format!("cannot decompress: {x}")))?;
+        if raw.len() != want {
+            return Err(self.brick_err(
+                id,
+                format!("payload is {} bytes, expected {want}", raw.len()),
+            ));
+        }
+        Ok(Some(raw))
+    }
+
+    /// Reads and decodes brick `id`.
+    pub fn read_brick(&self, id: u64) -> Result<Brick, FormatError> {
+        let h = &self.header;
+        let coords = h.brick_coords(id);
+        let first = std::array::from_fn(|k| coords[k] * h.brick_size as u64);
+        let samples = h.brick_samples(coords).map(|s| s as usize);
+        let data = match self.read_payload(id)? {
+            None => BrickData::Uniform(self.index[id as usize].uniform_code),
+            Some(raw) => {
+                let n = samples.iter().product::<usize>();
+                let wbytes = n * h.storage.size();
+                let enc = h.codes;
+                let samples_v: Vec<Sample> = with_word!(h.storage, W => {
+                    let words: Vec<W> = bytemuck::pod_collect_to_vec(&raw[..wbytes]);
+                    words
+                        .into_iter()
+                        .map(|w| match w.as_code(&enc) {
+                            Some(c) => Sample::Code(c),
+                            None => Sample::Value(w.to_raw()),
+                        })
+                        .collect()
+                });
+                let octants = h.brick_blocks(coords).map(|b| {
+                    let nb = (b[0] * b[1] * b[2]) as usize;
+                    let a = &raw[wbytes..];
+                    (0..nb)
+                        .map(|i| std::array::from_fn(|o| a[o * nb + i]))
+                        .collect()
+                });
+                BrickData::Words {
+                    samples: samples_v,
+                    octants,
+                }
+            }
+        };
+        Ok(Brick {
+            coords,
+            first,
+            samples,
+            data,
+        })
+    }
+
+    /// Class of local cell `l` of a decoded brick: a code word at its
+    /// minimum corner makes it a 0-cell with that code; otherwise the
+    /// classification decides from its 8 exact vertex values (a 0-cell
+    /// there has code 0).
+    pub fn cell_class(&self, brick: &Brick, l: [usize; 3]) -> CellClass {
+        match &brick.data {
+            BrickData::Uniform(c) => CellClass::Empty(*c),
+            BrickData::Words { .. } => {
+                let v = brick.vertices(l).expect("words brick");
+                if let Sample::Code(c) = v[0] {
+                    return CellClass::Empty(c);
+                }
+                let mut vals = [0.0; 8];
+                for (o, s) in vals.iter_mut().zip(v) {
+                    match s {
+                        Sample::Value(x) => *o = self.header.rescale.apply(x),
+                        // A vertex of a 1-cell never carries a code.
+                        Sample::Code(_) => return CellClass::Empty(0),
+                    }
+                }
+                if self.header.classification.is_object_vertices(&vals) {
+                    CellClass::Object
+                } else {
+                    CellClass::Empty(0)
+                }
+            }
+        }
+    }
+}
+
+fn check_header(h: &Header) -> Result<(), String> {
+    if h.format_version != FORMAT_VERSION {
+        return Err(format!(
+            "format_version {}, expected {FORMAT_VERSION}",
+            h.format_version
+        ));
+    }
+    for k in 0..3 {
+        if h.dims[k] < 2 {
+            return Err(format!("dims[{k}] = {}, expected >= 2", h.dims[k]));
+        }
+        if h.axes[k].samples() as u64 != h.dims[k] {
+            return Err(format!(
+                "axis {k} has {} positions, expected {} (dims[{k}])",
+                h.axes[k].samples(),
+                h.dims[k]
+            ));
+        }
+    }
+    if h.brick_size < 4 || h.brick_size % 4 != 0 || h.brick_size > 1024 {
+        return Err(format!(
+            "brick_size {}, expected a multiple of 4 in 4..=1024",
+            h.brick_size
+        ));
+    }
+    let want = h.cells().map(|c| c.div_ceil(h.brick_size as u64));
+    if h.bricks != want {
+        return Err(format!(
+            "bricks {:?}, expected {want:?} for the dims and brick size",
+            h.bricks
+        ));
+    }
+    if let Some(g) = h.aniso_block {
+        if g as usize != crate::dt::ANISO_BLOCK {
+            return Err(format!(
+                "aniso_block {g}, expected {}",
+                crate::dt::ANISO_BLOCK
+            ));
+        }
+    }
+    let storage_ok = match h.codes {
+        super::CodeEncoding::IntRange { .. } => !h.storage.is_float(),
+        super::CodeEncoding::NanPayload { .. } => h.storage.is_float(),
+    };
+    if !storage_ok {
+        return Err(format!(
+            "code encoding {:?} does not fit storage {}",
+            h.codes,
+            h.storage.name()
+        ));
+    }
+    Ok(())
+}

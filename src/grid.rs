@@ -1,0 +1,178 @@
+//! Rectilinear grids: the sample coordinates along each axis (paper eqs. 4-7).
+//!
+//! Samples sit on grid points; cell `i` along an axis spans samples `i` and
+//! `i + 1`, so an axis of `n` samples has `n - 1` cells. Coordinates are f64
+//! millimetres and strictly increasing. A uniform axis is only a flag on the
+//! same type (paper eq. 6), so every consumer handles the rectilinear case.
+
+use serde::{Deserialize, Serialize};
+
+/// Largest number of samples the format allows along one axis. Cell indices
+/// and brick counts then fit in `u32` (see docs/FORMAT.md).
+pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 31;
+
+/// Why a list of coordinates is not a valid axis.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AxisProblem {
+    TooShort { len: usize },
+    TooLong { len: usize },
+    NotFinite { index: usize, value: f64 },
+    NotIncreasing { index: usize, prev: f64, value: f64 },
+}
+
+impl std::fmt::Display for AxisProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AxisProblem::TooShort { len } => {
+                write!(f, "{len} samples, expected at least 2")
+            }
+            AxisProblem::TooLong { len } => {
+                write!(f, "{len} samples, expected at most {MAX_SAMPLES_PER_AXIS}")
+            }
+            AxisProblem::NotFinite { index, value } => {
+                write!(f, "coordinate {index} is {value}, expected a finite number")
+            }
+            AxisProblem::NotIncreasing { index, prev, value } => write!(
+                f,
+                "coordinate {index} is {value} mm after {prev} mm, \
+                 expected strictly increasing positions (gap > 0)"
+            ),
+        }
+    }
+}
+
+/// One axis of a rectilinear grid: the positions `S[0..n]` of its samples.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "Vec<f64>", into = "Vec<f64>")]
+pub struct Axis {
+    coords: Vec<f64>,
+    uniform: bool,
+}
+
+impl TryFrom<Vec<f64>> for Axis {
+    type Error = String;
+    fn try_from(coords: Vec<f64>) -> Result<Self, String> {
+        Axis::from_coords(coords).map_err(|p| p.to_string())
+    }
+}
+
+impl From<Axis> for Vec<f64> {
+    fn from(a: Axis) -> Vec<f64> {
+        a.coords
+    }
+}
+
+impl Axis {
+    /// Checks and wraps sample positions in mm.
+    pub fn from_coords(coords: Vec<f64>) -> Result<Axis, AxisProblem> {
+        if coords.len() < 2 {
+            return Err(AxisProblem::TooShort { len: coords.len() });
+        }
+        if coords.len() > MAX_SAMPLES_PER_AXIS {
+            return Err(AxisProblem::TooLong { len: coords.len() });
+        }
+        for (index, &value) in coords.iter().enumerate() {
+            if !value.is_finite() {
+                return Err(AxisProblem::NotFinite { index, value });
+            }
+            if index > 0 && value <= coords[index - 1] {
+                let prev = coords[index - 1];
+                return Err(AxisProblem::NotIncreasing { index, prev, value });
+            }
+        }
+        let uniform = is_uniform(&coords);
+        Ok(Axis { coords, uniform })
+    }
+
+    /// A uniform axis of `n` samples (paper eq. 6).
+    pub fn uniform(origin_mm: f64, spacing_mm: f64, n: usize) -> Result<Axis, AxisProblem> {
+        Axis::from_coords((0..n).map(|i| origin_mm + spacing_mm * i as f64).collect())
+    }
+
+    /// Sample positions in mm.
+    pub fn coords(&self) -> &[f64] {
+        &self.coords
+    }
+
+    /// Number of samples.
+    pub fn samples(&self) -> usize {
+        self.coords.len()
+    }
+
+    /// Number of cells (`samples - 1`).
+    pub fn cells(&self) -> usize {
+        self.coords.len() - 1
+    }
+
+    /// True when every gap equals the first one to 1e-9 relative.
+    pub fn is_uniform(&self) -> bool {
+        self.uniform
+    }
+
+    /// Smallest and largest gap between neighbouring samples, in mm.
+    pub fn spacing_range(&self) -> (f64, f64) {
+        self.coords
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), g| {
+                (lo.min(g), hi.max(g))
+            })
+    }
+}
+
+fn is_uniform(coords: &[f64]) -> bool {
+    let first = coords[1] - coords[0];
+    coords
+        .windows(2)
+        .all(|w| ((w[1] - w[0]) - first).abs() <= 1e-9 * first.abs())
+}
+
+/// The three axes of a rectilinear grid, x fastest.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Grid {
+    pub axes: [Axis; 3],
+}
+
+impl Grid {
+    /// Samples per axis.
+    pub fn dims(&self) -> [usize; 3] {
+        [
+            self.axes[0].samples(),
+            self.axes[1].samples(),
+            self.axes[2].samples(),
+        ]
+    }
+
+    /// Cells per axis.
+    pub fn cells(&self) -> [usize; 3] {
+        let d = self.dims();
+        [d[0] - 1, d[1] - 1, d[2] - 1]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refuses_bad_axes_with_the_index() {
+        assert_eq!(
+            Axis::from_coords(vec![0.0]),
+            Err(AxisProblem::TooShort { len: 1 })
+        );
+        let e = Axis::from_coords(vec![0.0, 1.0, 1.0]).unwrap_err();
+        assert!(e.to_string().contains("coordinate 2"), "{e}");
+        assert!(e.to_string().contains("strictly increasing"), "{e}");
+        let e = Axis::from_coords(vec![0.0, f64::NAN]).unwrap_err();
+        assert!(e.to_string().contains("finite"), "{e}");
+    }
+
+    #[test]
+    fn detects_uniform_and_rectilinear() {
+        assert!(Axis::uniform(-3.0, 0.25, 9).unwrap().is_uniform());
+        let a = Axis::from_coords(vec![0.0, 1.0, 2.5]).unwrap();
+        assert!(!a.is_uniform());
+        assert_eq!(a.spacing_range(), (1.0, 1.5));
+        assert_eq!(a.cells(), 2);
+    }
+}

@@ -1,0 +1,172 @@
+//! `cdvol info`: what a packed file holds, from its header and index.
+
+use serde::Serialize;
+
+use crate::format::reader::PackedVolume;
+use crate::format::{CodeEncoding, Header};
+
+/// Spacing figures of one axis.
+#[derive(Debug, Clone, Serialize)]
+pub struct AxisInfo {
+    pub samples: u64,
+    pub min_spacing_mm: f64,
+    pub max_spacing_mm: f64,
+    pub uniform: bool,
+    pub extent_mm: [f64; 2],
+}
+
+/// Everything `cdvol info` prints.
+#[derive(Debug, Clone, Serialize)]
+pub struct Info {
+    pub file: String,
+    pub file_bytes: u64,
+    pub source: String,
+    pub dims: [u64; 3],
+    pub cells: [u64; 3],
+    pub axes: [AxisInfo; 3],
+    pub dtype: String,
+    pub storage: String,
+    pub codes: CodeEncoding,
+    pub classification: serde_json::Value,
+    pub brick_size: u32,
+    pub bricks: [u64; 3],
+    pub brick_count: u64,
+    pub uniform_bricks: u64,
+    pub one_cells: u64,
+    pub one_cell_fraction: f64,
+    /// `[code, count]` for every code that occurs.
+    pub code_histogram: Vec<[u64; 2]>,
+    pub aniso_block: Option<u32>,
+    pub input_bytes: u64,
+    pub payload_bytes: u64,
+    /// Input sample bytes divided by file bytes.
+    pub compression_ratio: f64,
+    pub raw_min: Option<f64>,
+    pub raw_max: Option<f64>,
+    pub nan_samples: u64,
+}
+
+impl Info {
+    pub fn of(vol: &PackedVolume) -> Info {
+        let h: &Header = vol.header();
+        let s = &h.summary;
+        let axes = std::array::from_fn(|k| {
+            let a = &h.axes[k];
+            let (lo, hi) = a.spacing_range();
+            AxisInfo {
+                samples: a.samples() as u64,
+                min_spacing_mm: lo,
+                max_spacing_mm: hi,
+                uniform: a.is_uniform(),
+                extent_mm: [a.coords()[0], a.coords()[a.cells()]],
+            }
+        });
+        Info {
+            file: vol.path().display().to_string(),
+            file_bytes: vol.file_len(),
+            source: h.source.clone(),
+            dims: h.dims,
+            cells: h.cells(),
+            axes,
+            dtype: h.dtype.name().into(),
+            storage: h.storage.name().into(),
+            codes: h.codes,
+            classification: serde_json::to_value(&h.classification).unwrap_or_default(),
+            brick_size: h.brick_size,
+            bricks: h.bricks,
+            brick_count: h.brick_count(),
+            uniform_bricks: s.uniform_bricks,
+            one_cells: s.one_cells,
+            one_cell_fraction: s.one_cells as f64 / s.cells.max(1) as f64,
+            code_histogram: s
+                .code_histogram
+                .iter()
+                .enumerate()
+                .filter(|(_, &n)| n > 0)
+                .map(|(c, &n)| [c as u64, n])
+                .collect(),
+            aniso_block: h.aniso_block,
+            input_bytes: s.input_bytes,
+            payload_bytes: s.payload_bytes,
+            compression_ratio: s.input_bytes as f64 / vol.file_len().max(1) as f64,
+            raw_min: s.raw_min,
+            raw_max: s.raw_max,
+            nan_samples: s.nan_samples,
+        }
+    }
+
+    /// Human-readable report.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let mut o = String::new();
+        let mib = |b: u64| b as f64 / (1024.0 * 1024.0);
+        let _ = writeln!(
+            o,
+            "file         {} ({:.2} MiB)",
+            self.file,
+            mib(self.file_bytes)
+        );
+        let _ = writeln!(o, "source       {}", self.source);
+        let _ = writeln!(
+            o,
+            "dims         {} x {} x {} samples, {} x {} x {} cells",
+            self.dims[0], self.dims[1], self.dims[2], self.cells[0], self.cells[1], self.cells[2]
+        );
+        for (name, a) in ["x", "y", "z"].iter().zip(&self.axes) {
+            let kind = if a.uniform { "uniform" } else { "rectilinear" };
+            let _ = writeln!(
+                o,
+                "spacing {name}    {:.4} .. {:.4} mm ({kind}), extent {:.3} .. {:.3} mm",
+                a.min_spacing_mm, a.max_spacing_mm, a.extent_mm[0], a.extent_mm[1]
+            );
+        }
+        let _ = writeln!(o, "samples      {} stored as {}", self.dtype, self.storage);
+        let _ = writeln!(o, "classify     {}", self.classification);
+        let _ = writeln!(o, "codes        {:?}", self.codes);
+        let _ = writeln!(
+            o,
+            "bricks       {} ({} x {} x {} of {}^3 cells), {} uniform (no payload)",
+            self.brick_count,
+            self.bricks[0],
+            self.bricks[1],
+            self.bricks[2],
+            self.brick_size,
+            self.uniform_bricks
+        );
+        if let Some(g) = self.aniso_block {
+            let _ = writeln!(o, "aniso codes  8 octants per {g}^3 block");
+        }
+        let _ = writeln!(
+            o,
+            "1-cells      {} ({:.4} % of cells)",
+            self.one_cells,
+            100.0 * self.one_cell_fraction
+        );
+        let _ = writeln!(
+            o,
+            "size         input {:.2} MiB, payload {:.2} MiB, file {:.2} MiB, ratio {:.2}:1",
+            mib(self.input_bytes),
+            mib(self.payload_bytes),
+            mib(self.file_bytes),
+            self.compression_ratio
+        );
+        if let (Some(lo), Some(hi)) = (self.raw_min, self.raw_max) {
+            let _ = writeln!(
+                o,
+                "raw range    {lo} .. {hi} ({} NaN samples)",
+                self.nan_samples
+            );
+        }
+        let _ = writeln!(o, "code histogram (code: 0-cells)");
+        let total: u64 = self.code_histogram.iter().map(|c| c[1]).sum();
+        for [code, n] in &self.code_histogram {
+            let _ = writeln!(
+                o,
+                "  {code:>4}: {n:>12} {:5.1} % {}",
+                100.0 * *n as f64 / total.max(1) as f64,
+                "#".repeat(((40 * n) / total.max(1)) as usize)
+            );
+        }
+        o
+    }
+}

@@ -1,0 +1,210 @@
+//! Inputs: everything that turns a scan on disk into a stream of z slices.
+//!
+//! First stage of the pipeline. A [`SliceSource`] knows the grid (three
+//! axes in mm), the sample type and the rescale, and hands out one z slice
+//! of raw sample values at a time. Nothing downstream knows the file format.
+//! Today the raw stack with a JSON sidecar ([`sidecar`]) implements it.
+
+pub mod raw;
+pub mod sidecar;
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use crate::grid::Grid;
+
+/// Sample type of an input stack (and of the stored words).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Dtype {
+    U8,
+    I8,
+    U16,
+    I16,
+    U32,
+    I32,
+    I64,
+    F32,
+    F64,
+}
+
+impl Dtype {
+    /// The names a sidecar may use (`i64` is a storage type only).
+    pub const SIDECAR_NAMES: &'static str = "u8, i8, u16, i16, u32, i32, f32, f64";
+
+    /// Parses a sidecar dtype name.
+    pub fn from_sidecar_name(s: &str) -> Option<Dtype> {
+        Some(match s {
+            "u8" => Dtype::U8,
+            "i8" => Dtype::I8,
+            "u16" => Dtype::U16,
+            "i16" => Dtype::I16,
+            "u32" => Dtype::U32,
+            "i32" => Dtype::I32,
+            "f32" => Dtype::F32,
+            "f64" => Dtype::F64,
+            _ => return None,
+        })
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Dtype::U8 => "u8",
+            Dtype::I8 => "i8",
+            Dtype::U16 => "u16",
+            Dtype::I16 => "i16",
+            Dtype::U32 => "u32",
+            Dtype::I32 => "i32",
+            Dtype::I64 => "i64",
+            Dtype::F32 => "f32",
+            Dtype::F64 => "f64",
+        }
+    }
+
+    /// Bytes per sample.
+    pub fn size(self) -> usize {
+        match self {
+            Dtype::U8 | Dtype::I8 => 1,
+            Dtype::U16 | Dtype::I16 => 2,
+            Dtype::U32 | Dtype::I32 | Dtype::F32 => 4,
+            Dtype::I64 | Dtype::F64 => 8,
+        }
+    }
+
+    pub fn is_float(self) -> bool {
+        matches!(self, Dtype::F32 | Dtype::F64)
+    }
+
+    /// Smallest and largest representable integer value (floats: infinite).
+    pub fn int_range(self) -> (i64, i64) {
+        match self {
+            Dtype::U8 => (0, u8::MAX as i64),
+            Dtype::I8 => (i8::MIN as i64, i8::MAX as i64),
+            Dtype::U16 => (0, u16::MAX as i64),
+            Dtype::I16 => (i16::MIN as i64, i16::MAX as i64),
+            Dtype::U32 => (0, u32::MAX as i64),
+            Dtype::I32 => (i32::MIN as i64, i32::MAX as i64),
+            Dtype::I64 => (i64::MIN, i64::MAX),
+            Dtype::F32 | Dtype::F64 => (i64::MIN, i64::MAX),
+        }
+    }
+
+    /// The next wider integer type, used when a type has no spare range
+    /// for distance codes.
+    pub fn widened(self) -> Dtype {
+        match self {
+            Dtype::U8 | Dtype::I8 => Dtype::I16,
+            Dtype::U16 | Dtype::I16 => Dtype::I32,
+            Dtype::U32 | Dtype::I32 | Dtype::I64 => Dtype::I64,
+            f => f,
+        }
+    }
+}
+
+/// Byte order of the samples in the input files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Endian {
+    Little,
+    Big,
+}
+
+/// `value = raw * slope + intercept` (HU for CT).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Rescale {
+    pub slope: f64,
+    pub intercept: f64,
+}
+
+impl Rescale {
+    pub const IDENTITY: Rescale = Rescale {
+        slope: 1.0,
+        intercept: 0.0,
+    };
+
+    #[inline]
+    pub fn apply(&self, raw: f64) -> f64 {
+        raw * self.slope + self.intercept
+    }
+}
+
+/// What a source knows about its volume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VolumeMeta {
+    pub grid: Grid,
+    pub dtype: Dtype,
+    pub rescale: Rescale,
+    /// Where the volume came from (for error messages and the header).
+    pub origin_desc: String,
+}
+
+impl VolumeMeta {
+    pub fn dims(&self) -> [usize; 3] {
+        self.grid.dims()
+    }
+}
+
+/// A volume that streams its z slices.
+pub trait SliceSource: Send + Sync {
+    fn meta(&self) -> &VolumeMeta;
+
+    /// Fills `out` (`nx * ny` entries, x fastest) with the raw sample values
+    /// of slice `z`, before rescale. Integers are exact in f64; float NaNs
+    /// are passed through.
+    fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError>;
+}
+
+/// Errors while reading an input volume. Each names the file and, where
+/// one is at fault, the field and what was expected.
+#[derive(Debug, thiserror::Error)]
+pub enum InputError {
+    /// A sidecar field is missing or has a bad value.
+    #[error("{}: field `{field}`: {msg}", path.display())]
+    Field {
+        path: PathBuf,
+        field: String,
+        msg: String,
+    },
+    /// The sidecar is not valid JSON.
+    #[error("{}: not valid JSON: {source}", path.display())]
+    Json {
+        path: PathBuf,
+        source: serde_json::Error,
+    },
+    /// A data file is shorter than the sidecar says it must be.
+    #[error(
+        "{}: file is {actual} bytes, expected at least {expected} \
+         ({why}; from sidecar {})",
+        path.display(),
+        sidecar.display()
+    )]
+    TooShort {
+        path: PathBuf,
+        sidecar: PathBuf,
+        actual: u64,
+        expected: u64,
+        why: String,
+    },
+    /// An I/O error on a named file.
+    #[error("{}: {what}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        what: &'static str,
+        source: std::io::Error,
+    },
+}
+
+impl InputError {
+    pub(crate) fn field(
+        path: &std::path::Path,
+        field: impl Into<String>,
+        msg: impl Into<String>,
+    ) -> InputError {
+        InputError::Field {
+            path: path.to_path_buf(),
+            field: field.into(),
+            msg: msg.into(),
+        }
+    }
+}

@@ -1,0 +1,170 @@
+//! Raw stacks: one file, or one file per z slice, memory-mapped and read
+//! slice by slice. The only `unsafe` of the input side lives here.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use memmap2::Mmap;
+use rayon::prelude::*;
+
+use super::sidecar::{parse_sidecar, DataFiles, Sidecar};
+use super::{Dtype, Endian, InputError, SliceSource, VolumeMeta};
+
+/// A raw stack described by a sidecar, memory-mapped.
+pub struct RawSource {
+    meta: VolumeMeta,
+    sidecar: Sidecar,
+    maps: Vec<Mmap>,
+    slice_bytes: u64,
+}
+
+impl RawSource {
+    /// Opens the sidecar at `path`, then checks and maps every data file.
+    pub fn open(path: &Path) -> Result<RawSource, InputError> {
+        let sidecar = parse_sidecar(path)?;
+        let [nx, ny, nz] = sidecar.dims;
+        let slice_bytes = (nx as u64)
+            .checked_mul(ny as u64)
+            .and_then(|n| n.checked_mul(sidecar.dtype.size() as u64))
+            .ok_or_else(|| InputError::field(path, "dims", "slice size overflows 64 bits"))?;
+        let files: Vec<(PathBuf, u64, String)> = match &sidecar.data {
+            DataFiles::One(f) => vec![(
+                f.clone(),
+                sidecar.header_bytes + slice_bytes * nz as u64,
+                format!(
+                    "header_bytes {} + {nx} x {ny} x {nz} samples of {}",
+                    sidecar.header_bytes,
+                    sidecar.dtype.name()
+                ),
+            )],
+            DataFiles::PerSlice(list) => list
+                .iter()
+                .map(|f| {
+                    (
+                        f.clone(),
+                        sidecar.header_bytes + slice_bytes,
+                        format!(
+                            "header_bytes {} + one {nx} x {ny} slice of {}",
+                            sidecar.header_bytes,
+                            sidecar.dtype.name()
+                        ),
+                    )
+                })
+                .collect(),
+        };
+        let mut maps = Vec::with_capacity(files.len());
+        for (file, need, why) in files {
+            let f = File::open(&file).map_err(|source| InputError::Io {
+                path: file.clone(),
+                what: "cannot open data file named in the sidecar",
+                source,
+            })?;
+            let len = f
+                .metadata()
+                .map_err(|source| InputError::Io {
+                    path: file.clone(),
+                    what: "cannot stat data file",
+                    source,
+                })?
+                .len();
+            if len < need {
+                return Err(InputError::TooShort {
+                    path: file,
+                    sidecar: path.to_path_buf(),
+                    actual: len,
+                    expected: need,
+                    why,
+                });
+            }
+            // SAFETY: the map is read-only and we only read it. The caller
+            // must not truncate or rewrite the input while cdvol runs; if
+            // it does, reads may fault (SIGBUS), as with any mmap reader.
+            let map = unsafe { Mmap::map(&f) }.map_err(|source| InputError::Io {
+                path: file.clone(),
+                what: "cannot memory-map data file",
+                source,
+            })?;
+            #[cfg(unix)]
+            let _ = map.advise(memmap2::Advice::Sequential);
+            maps.push(map);
+        }
+        let meta = VolumeMeta {
+            grid: sidecar.grid.clone(),
+            dtype: sidecar.dtype,
+            rescale: sidecar.rescale,
+            origin_desc: path.display().to_string(),
+        };
+        Ok(RawSource {
+            meta,
+            sidecar,
+            maps,
+            slice_bytes,
+        })
+    }
+
+    /// The checked sidecar.
+    pub fn sidecar(&self) -> &Sidecar {
+        &self.sidecar
+    }
+
+    fn slice_bytes_of(&self, z: usize) -> &[u8] {
+        let h = self.sidecar.header_bytes as usize;
+        let sb = self.slice_bytes as usize;
+        if self.maps.len() == 1 {
+            let start = h + z * sb;
+            &self.maps[0][start..start + sb]
+        } else {
+            &self.maps[z][h..h + sb]
+        }
+    }
+}
+
+impl SliceSource for RawSource {
+    fn meta(&self) -> &VolumeMeta {
+        &self.meta
+    }
+
+    fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {
+        let bytes = self.slice_bytes_of(z);
+        decode_samples(bytes, self.meta.dtype, self.sidecar.endian, out);
+        Ok(())
+    }
+}
+
+/// Decodes raw sample bytes into f64 (exact for every supported type).
+pub fn decode_samples(bytes: &[u8], dtype: Dtype, endian: Endian, out: &mut [f64]) {
+    let size = dtype.size();
+    debug_assert_eq!(bytes.len(), out.len() * size);
+    const CHUNK: usize = 1 << 16;
+    out.par_chunks_mut(CHUNK)
+        .zip(bytes.par_chunks(CHUNK * size))
+        .for_each(|(o, b)| decode_chunk(b, dtype, endian, o));
+}
+
+fn decode_chunk(b: &[u8], dtype: Dtype, endian: Endian, out: &mut [f64]) {
+    macro_rules! conv {
+        ($t:ty, $n:expr) => {{
+            for (o, c) in out.iter_mut().zip(b.chunks_exact($n)) {
+                let a: [u8; $n] = c.try_into().expect("chunk size");
+                *o = match endian {
+                    Endian::Little => <$t>::from_le_bytes(a),
+                    Endian::Big => <$t>::from_be_bytes(a),
+                } as f64;
+            }
+        }};
+    }
+    match dtype {
+        Dtype::U8 => out.iter_mut().zip(b).for_each(|(o, &v)| *o = v as f64),
+        Dtype::I8 => out
+            .iter_mut()
+            .zip(b)
+            .for_each(|(o, &v)| *o = v as i8 as f64),
+        Dtype::U16 => conv!(u16, 2),
+        Dtype::I16 => conv!(i16, 2),
+        Dtype::U32 => conv!(u32, 4),
+        Dtype::I32 => conv!(i32, 4),
+        Dtype::I64 => conv!(i64, 8),
+        Dtype::F32 => conv!(f32, 4),
+        Dtype::F64 => conv!(f64, 8),
+    }
+}

@@ -1,0 +1,39 @@
+//! # cdvol: streaming out-of-core volume processing for CD ray casting
+//!
+//! cdvol prepares CT and other scan series, which may be larger than RAM
+//! and have slice thickness that varies along the stack, for fast ray
+//! casting with the Chessboard Distance (CD) traversal of Sramek and
+//! Kaufman, "Fast Ray-Tracing of Rectilinear Volume Data Using Distance
+//! Transforms" (IEEE TVCG 2000; `../shared/paper/`).
+//!
+//! ## The pipeline, one module a stage
+//! ```text
+//! input::SliceSource   raw stack + JSON sidecar (memory-mapped), z slices
+//!   -> classify        cells between 8 samples -> 1-cells / 0-cells
+//!   -> dt              streaming chessboard distance transform (2 passes)
+//!   -> prep            slabs of bricks, codes embedded, zstd, atomic write
+//! == packed file (format, docs/FORMAT.md) ==
+//!   -> format::reader  header, index, checked brick payloads on demand
+//!   -> info, export    summaries and full-resolution arrays back out
+//! ```
+//! [`phantom`] generates test scenes (the paper's sphere scenes of section
+//! 5.1 and a CT-like head with variable slice thickness), streaming.
+//!
+//! Samples sit on grid points and a cell spans 2x2x2 samples, so n samples
+//! give n-1 cells per axis ([`grid`]). Codes live on the cells.
+
+#[cfg(target_endian = "big")]
+compile_error!(
+    "cdvol's packed format is little-endian and is only built for little-endian targets"
+);
+
+pub mod classify;
+pub mod dt;
+pub mod export;
+pub mod format;
+pub mod grid;
+pub mod info;
+pub mod input;
+pub mod phantom;
+pub mod prep;
+pub mod progress;

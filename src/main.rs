@@ -1,0 +1,256 @@
+//! The `cdvol` binary: parse arguments, call the library, map errors to
+//! exit codes. Progress bars live here (indicatif on stderr).
+
+mod cli;
+
+use std::io::Write;
+use std::path::Path;
+use std::process::ExitCode;
+use std::sync::Mutex;
+
+use anyhow::{bail, Context, Result};
+use clap::Parser;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use cdvol::classify::{Classification, TransferFunction};
+use cdvol::export::{export, ExportWhat};
+use cdvol::format::reader::PackedVolume;
+use cdvol::info::Info;
+use cdvol::input::raw::RawSource;
+use cdvol::phantom;
+use cdvol::prep::{prep, PrepOptions, PrepReport};
+use cdvol::progress::{NoProgress, Progress};
+use cli::{Cli, Command, PhantomCmd};
+
+/// indicatif bars on stderr; hidden when stderr is not a terminal.
+struct Bars {
+    bar: Mutex<Option<ProgressBar>>,
+}
+
+impl Progress for Bars {
+    fn begin(&self, stage: &str, total: u64) {
+        let pb = ProgressBar::new(total);
+        pb.set_style(
+            ProgressStyle::with_template(
+                "{msg:28} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        pb.set_message(stage.to_string());
+        if let Ok(mut b) = self.bar.lock() {
+            *b = Some(pb);
+        }
+    }
+    fn advance(&self, n: u64) {
+        if let Ok(b) = self.bar.lock() {
+            if let Some(pb) = b.as_ref() {
+                pb.inc(n);
+            }
+        }
+    }
+    fn end(&self) {
+        if let Ok(mut b) = self.bar.lock() {
+            if let Some(pb) = b.take() {
+                pb.finish_and_clear();
+            }
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let bars = Bars {
+        bar: Mutex::new(None),
+    };
+    let progress: &dyn Progress = if cli.quiet { &NoProgress } else { &bars };
+    match run(cli.command, progress) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // A closed pipe (`cdvol info f | head`) is not a failure.
+            if let Some(io) = e.downcast_ref::<std::io::Error>() {
+                if io.kind() == std::io::ErrorKind::BrokenPipe {
+                    return ExitCode::SUCCESS;
+                }
+            }
+            eprintln!("cdvol: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
+    match cmd {
+        Command::Prep(a) => {
+            let classification = match (a.iso, &a.classify_tf) {
+                (Some(iso), None) => {
+                    if !iso.is_finite() {
+                        bail!("option --iso: {iso}, expected a finite number");
+                    }
+                    Classification::Iso { iso }
+                }
+                (None, Some(tf)) => Classification::TransferFunction {
+                    tf: TransferFunction::load(tf)?,
+                },
+                _ => bail!(
+                    "prep needs --iso T or --classify-tf FILE to decide which cells are objects"
+                ),
+            };
+            let opts = PrepOptions {
+                classification,
+                brick_size: a.brick,
+                zstd_level: a.zstd_level,
+                aniso: a.aniso,
+                temp_dir: a.temp_dir,
+            };
+            let report = prep_file(&a.input, &a.output, &opts, progress)?;
+            print_prep(&a.output, &report)?;
+        }
+        Command::Info(a) => {
+            let vol = PackedVolume::open(&a.file)?;
+            let info = Info::of(&vol);
+            let mut out = std::io::stdout().lock();
+            if a.json {
+                serde_json::to_writer_pretty(&mut out, &info)?;
+                writeln!(out)?;
+            } else {
+                write!(out, "{}", info.to_text())?;
+            }
+        }
+        Command::Export(a) => {
+            let vol = PackedVolume::open(&a.file)?;
+            let what = match a.what {
+                cli::What::Values => ExportWhat::Values,
+                cli::What::Codes => ExportWhat::Codes,
+                cli::What::Classes => ExportWhat::Classes,
+            };
+            let raw = export(&vol, what, &a.output, progress)?;
+            println!("wrote {} and {}", a.output.display(), raw.display());
+        }
+        Command::Phantom(PhantomCmd::Spheres(a)) => {
+            let spacing = phantom::parse_spacing3(&a.spacing)
+                .map_err(|e| anyhow::anyhow!("option --spacing: {e}"))?;
+            let opts = phantom::SpheresOptions {
+                size: a.size,
+                per_axis: a.per_axis,
+                seed: a.seed,
+                spacing,
+            };
+            let info = phantom::spheres(&a.output, &opts, progress)?;
+            println!(
+                "wrote {} ({} spheres, iso {}), {} and {}",
+                a.output.display(),
+                info.spheres.len(),
+                info.iso,
+                info.raw_path.display(),
+                info.spheres_path.display()
+            );
+        }
+        Command::Phantom(PhantomCmd::Ct(a)) => {
+            let opts = phantom::CtOptions {
+                dims: a.dims,
+                dtype: match a.dtype {
+                    cli::CtType::I16 => phantom::CtDtype::I16,
+                    cli::CtType::U16 => phantom::CtDtype::U16,
+                },
+                seed: a.seed,
+            };
+            let info = phantom::ct(&a.output, &opts, progress)?;
+            println!(
+                "wrote {} and {} ({:.1} MiB)",
+                a.output.display(),
+                info.raw_path.display(),
+                info.bytes as f64 / 1048576.0
+            );
+        }
+        Command::Demo(a) => demo(&a.dir, progress)?,
+    }
+    Ok(())
+}
+
+fn prep_file(
+    input: &Path,
+    output: &Path,
+    opts: &PrepOptions,
+    progress: &dyn Progress,
+) -> Result<PrepReport> {
+    let src = RawSource::open(input)?;
+    Ok(prep(&src, output, opts, progress)?)
+}
+
+fn print_prep(output: &Path, r: &PrepReport) -> Result<()> {
+    let s = &r.header.summary;
+    let mb = s.input_bytes as f64 / 1048576.0;
+    println!(
+        "wrote {} ({:.2} MiB from {:.2} MiB of samples, {:.2}:1) in {:.2} s ({:.1} MB/s); \
+         {} of {} cells are 1-cells; {} of {} bricks uniform; temp {:.2} MiB",
+        output.display(),
+        r.file_bytes as f64 / 1048576.0,
+        mb,
+        s.input_bytes as f64 / r.file_bytes.max(1) as f64,
+        r.seconds,
+        s.input_bytes as f64 / 1e6 / r.seconds.max(1e-9),
+        s.one_cells,
+        s.cells,
+        s.uniform_bricks,
+        r.header.brick_count(),
+        r.temp_bytes as f64 / 1048576.0
+    );
+    Ok(())
+}
+
+fn demo(dir: &Path, progress: &dyn Progress) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot create demo directory", dir.display()))?;
+    // The CT-like head: variable slice thickness, bone at 300 HU.
+    let head = dir.join("head.json");
+    let ct = phantom::ct(
+        &head,
+        &phantom::CtOptions {
+            dims: [256, 256, 160],
+            dtype: phantom::CtDtype::I16,
+            seed: 1,
+        },
+        progress,
+    )?;
+    println!(
+        "phantom   {} ({:.1} MiB)",
+        ct.raw_path.display(),
+        ct.bytes as f64 / 1048576.0
+    );
+    let head_packed = dir.join("head.cdv");
+    let r = prep_file(
+        &head,
+        &head_packed,
+        &PrepOptions::new(Classification::Iso { iso: 300.0 }),
+        progress,
+    )?;
+    print_prep(&head_packed, &r)?;
+    // A sphere scene of the paper's section 5.1 (N = 5).
+    let scene = dir.join("spheres.json");
+    let sp = phantom::spheres(
+        &scene,
+        &phantom::SpheresOptions {
+            size: 128,
+            per_axis: 5,
+            seed: 1,
+            spacing: phantom::parse_spacing3("1").map_err(anyhow::Error::msg)?,
+        },
+        progress,
+    )?;
+    let scene_packed = dir.join("spheres.cdv");
+    let r = prep_file(
+        &scene,
+        &scene_packed,
+        &PrepOptions::new(Classification::Iso { iso: sp.iso }),
+        progress,
+    )?;
+    print_prep(&scene_packed, &r)?;
+    println!();
+    let vol = PackedVolume::open(&head_packed)?;
+    print!("{}", Info::of(&vol).to_text());
+    println!();
+    println!("Rendering is not part of cdvol yet (issue 3); the packed files above are its input.");
+    println!("Inspect them with: cdvol info {}", head_packed.display());
+    Ok(())
+}

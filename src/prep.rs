@@ -1,0 +1,438 @@
+//! `cdvol prep`: streams a [`SliceSource`] into a packed file.
+//!
+//! Pass 1 runs forward over z: read a sample slice, reduce it to per-cell
+//! extrema, classify the cell slice between it and the previous one, and
+//! feed the forward distance transform, which spills one byte per cell to
+//! a temporary file. Pass 2 runs backward over z in slabs of one brick
+//! depth: finish the distance transform, re-read the slab's samples,
+//! embed the codes, cut the slab into bricks, compress them in parallel and
+//! append them. Memory is bounded by one slab (see docs/BENCHMARKS.md for
+//! the formula); nothing grows with nz.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::classify::{slice_extrema, Classification};
+use crate::dt::{self, BackwardDt, FileSpill, ForwardDt, OctantBlocks, ANISO_BLOCK, FAR};
+use crate::format::word::{choose_encoding, Word};
+use crate::format::writer::PackedWriter;
+use crate::format::{CodeEncoding, FormatError, Header, Summary, FORMAT_VERSION};
+use crate::input::{InputError, SliceSource};
+use crate::progress::Progress;
+use crate::with_word;
+
+/// Options of `cdvol prep`.
+#[derive(Debug, Clone)]
+pub struct PrepOptions {
+    pub classification: Classification,
+    /// Cells per brick edge (multiple of 4, 4..=1024).
+    pub brick_size: usize,
+    pub zstd_level: i32,
+    /// Also compute the anisotropic octant codes (section 4.2.1).
+    pub aniso: bool,
+    /// Where the one-byte-per-cell spill goes (default: beside the output).
+    pub temp_dir: Option<PathBuf>,
+}
+
+impl PrepOptions {
+    pub fn new(classification: Classification) -> PrepOptions {
+        PrepOptions {
+            classification,
+            brick_size: 32,
+            zstd_level: 3,
+            aniso: false,
+            temp_dir: None,
+        }
+    }
+}
+
+/// What prep did.
+#[derive(Debug, Clone)]
+pub struct PrepReport {
+    pub header: Header,
+    pub seconds: f64,
+    pub file_bytes: u64,
+    /// Bytes of temporary disk used for the spill.
+    pub temp_bytes: u64,
+}
+
+/// Errors of `cdvol prep`.
+#[derive(Debug, thiserror::Error)]
+pub enum PrepError {
+    #[error(transparent)]
+    Input(#[from] InputError),
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error("{}: {what}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        what: &'static str,
+        source: std::io::Error,
+    },
+    #[error("option {option}: {msg}")]
+    Option { option: &'static str, msg: String },
+}
+
+/// Prepares `src` into the packed file `out`.
+pub fn prep(
+    src: &dyn SliceSource,
+    out: &Path,
+    opts: &PrepOptions,
+    progress: &dyn Progress,
+) -> Result<PrepReport, PrepError> {
+    let t0 = Instant::now();
+    let b = opts.brick_size;
+    if !(4..=1024).contains(&b) || b % ANISO_BLOCK != 0 {
+        return Err(PrepError::Option {
+            option: "--brick",
+            msg: format!("{b}, expected a multiple of {ANISO_BLOCK} in 4..=1024"),
+        });
+    }
+    if !(-7..=22).contains(&opts.zstd_level) {
+        return Err(PrepError::Option {
+            option: "--zstd-level",
+            msg: format!("{}, expected -7..=22", opts.zstd_level),
+        });
+    }
+    let meta = src.meta().clone();
+    let [nx, ny, nz] = meta.dims();
+    let [ncx, ncy, ncz] = meta.grid.cells();
+    let n_cells_slice = ncx * ncy;
+    let temp_dir = match &opts.temp_dir {
+        Some(d) => d.clone(),
+        None => match out.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        },
+    };
+    let spill_err = |source| PrepError::Io {
+        path: temp_dir.clone(),
+        what: "temporary spill file",
+        source,
+    };
+    let mut spill = FileSpill::new_in(&temp_dir, n_cells_slice).map_err(spill_err)?;
+    let nb_slice = ncx.div_ceil(ANISO_BLOCK) * ncy.div_ceil(ANISO_BLOCK);
+    let mut block_spill = if opts.aniso {
+        Some(FileSpill::new_in(&temp_dir, 4 * nb_slice).map_err(spill_err)?)
+    } else {
+        None
+    };
+
+    // ---- Pass 1: classify and run the forward transform. ----
+    let cls = &opts.classification;
+    let need_min = cls.needs_min() || meta.rescale.slope < 0.0;
+    let mut buf = vec![0.0f64; nx * ny];
+    let mut planes = [vec![0.0f64; n_cells_slice], vec![0.0f64; n_cells_slice]];
+    let mut min_planes = if need_min {
+        [vec![0.0f64; n_cells_slice], vec![0.0f64; n_cells_slice]]
+    } else {
+        [Vec::new(), Vec::new()]
+    };
+    let mut obj = vec![0u8; n_cells_slice];
+    let mut fwd = ForwardDt::new(ncx, ncy, opts.aniso);
+    let mut summary = Summary {
+        cells: (ncx * ncy) as u64 * ncz as u64,
+        input_bytes: (nx * ny) as u64 * nz as u64 * meta.dtype.size() as u64,
+        ..Summary::default()
+    };
+    let (mut raw_min, mut raw_max) = (f64::INFINITY, f64::NEG_INFINITY);
+    progress.begin("classify + forward DT", nz as u64);
+    for z in 0..nz {
+        src.read_slice(z, &mut buf)?;
+        let (lo, hi, nans) = buf
+            .par_chunks(1 << 16)
+            .map(|c| {
+                c.iter().fold(
+                    (f64::INFINITY, f64::NEG_INFINITY, 0u64),
+                    |(lo, hi, n), &v| (lo.min(v), hi.max(v), n + v.is_nan() as u64),
+                )
+            })
+            .reduce(
+                || (f64::INFINITY, f64::NEG_INFINITY, 0),
+                |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2),
+            );
+        raw_min = raw_min.min(lo);
+        raw_max = raw_max.max(hi);
+        summary.nan_samples += nans;
+        let cur = z % 2;
+        slice_extrema(
+            &buf,
+            nx,
+            ny,
+            &mut planes[cur],
+            need_min.then_some(&mut min_planes[cur][..]),
+        );
+        if z > 0 {
+            let prev = 1 - cur;
+            let (rs, slope_neg) = (meta.rescale, meta.rescale.slope < 0.0);
+            let (pa, pb) = (&planes[prev], &planes[cur]);
+            let (ma, mb) = (&min_planes[prev], &min_planes[cur]);
+            obj.par_chunks_mut(ncx).enumerate().for_each(|(y, row)| {
+                for (x, o) in row.iter_mut().enumerate() {
+                    let i = y * ncx + x;
+                    let hi = pa[i].max(pb[i]);
+                    let lo = if need_min { ma[i].min(mb[i]) } else { hi };
+                    let (lo, hi) = if slope_neg {
+                        (rs.apply(hi), rs.apply(lo))
+                    } else {
+                        (rs.apply(lo), rs.apply(hi))
+                    };
+                    *o = cls.is_object(lo, hi) as u8;
+                }
+            });
+            summary.one_cells += obj.iter().map(|&o| o as u64).sum::<u64>();
+            fwd.push(
+                &obj,
+                z == ncz,
+                &mut spill,
+                block_spill.as_mut().map(|s| s as &mut dyn dt::Spill),
+            )
+            .map_err(spill_err)?;
+        }
+        progress.advance(1);
+    }
+    progress.end();
+    let range = (raw_min <= raw_max).then_some((raw_min, raw_max));
+    summary.raw_min = range.map(|r| r.0);
+    summary.raw_max = range.map(|r| r.1);
+    let (storage, codes) = choose_encoding(meta.dtype, range);
+
+    // ---- Pass 2: backward transform, embed codes, write bricks. ----
+    let bricks = [ncx, ncy, ncz].map(|c| c.div_ceil(b) as u64);
+    let mut header = Header {
+        format_version: FORMAT_VERSION,
+        dims: [nx as u64, ny as u64, nz as u64],
+        axes: meta.grid.axes.clone(),
+        dtype: meta.dtype,
+        storage,
+        rescale: meta.rescale,
+        classification: cls.clone(),
+        codes,
+        brick_size: b as u32,
+        bricks,
+        aniso_block: opts.aniso.then_some(ANISO_BLOCK as u32),
+        zstd_level: opts.zstd_level,
+        source: meta.origin_desc.clone(),
+        summary: Summary::default(),
+    };
+    let mut writer = PackedWriter::create(out, header.brick_count())?;
+    let mut hist = vec![0u64; codes.max_code() as usize + 1];
+    let mut bwd = BackwardDt::new(ncx, ncy, ncz, opts.aniso);
+    // Distances of cell slices z0..=z1 of the current slab (the last one
+    // is the first slice of the slab above, kept from the previous round).
+    let mut slab_dist = vec![FAR; (b + 1) * n_cells_slice];
+    let mut slab_blocks: Vec<Option<OctantBlocks>> = vec![None; b / ANISO_BLOCK];
+    progress.begin("backward DT + bricks", ncz as u64);
+    for bz in (0..bricks[2] as usize).rev() {
+        let z0 = bz * b;
+        let z1 = (z0 + b).min(ncz);
+        for z in (z0..z1).rev() {
+            let (g, blocks) = bwd
+                .step(
+                    z,
+                    &mut spill,
+                    block_spill.as_mut().map(|s| s as &mut dyn dt::Spill),
+                )
+                .map_err(spill_err)?;
+            slab_dist[(z - z0) * n_cells_slice..(z - z0 + 1) * n_cells_slice].copy_from_slice(g);
+            for &d in g {
+                if d > 0 {
+                    hist[((d - 1) as usize).min(codes.max_code() as usize)] += 1;
+                }
+            }
+            if let Some(bl) = blocks {
+                slab_blocks[(z - z0) / ANISO_BLOCK] = Some(bl);
+            }
+            progress.advance(1);
+        }
+        let ctx = SlabCtx {
+            header: &header,
+            src,
+            dist: &slab_dist,
+            blocks: &slab_blocks,
+            z0,
+            z1,
+            has_upper: z1 < ncz,
+        };
+        let outs = with_word!(storage, W => emit_slab::<W>(&ctx, opts.zstd_level)?);
+        for (id, o) in outs {
+            match o {
+                BrickOut::Uniform(c) => {
+                    writer.put_uniform(id, c);
+                    summary.uniform_bricks += 1;
+                }
+                BrickOut::Payload {
+                    compressed,
+                    raw_len,
+                } => {
+                    writer.put_brick(id, &compressed)?;
+                    summary.raw_payload_bytes += raw_len;
+                }
+            }
+        }
+        // The first slice of this slab is the upper slice of the next one.
+        slab_dist.copy_within(0..n_cells_slice, b * n_cells_slice);
+    }
+    progress.end();
+    summary.code_histogram = hist;
+    summary.payload_bytes = writer.payload_bytes();
+    header.summary = summary;
+    writer.finish(&header)?;
+    let file_bytes = std::fs::metadata(out)
+        .map_err(|source| PrepError::Io {
+            path: out.to_path_buf(),
+            what: "cannot stat the written file",
+            source,
+        })?
+        .len();
+    let temp_bytes = header.summary.cells
+        + if opts.aniso {
+            4 * nb_slice as u64 * ncz.div_ceil(ANISO_BLOCK) as u64
+        } else {
+            0
+        };
+    Ok(PrepReport {
+        header,
+        seconds: t0.elapsed().as_secs_f64(),
+        file_bytes,
+        temp_bytes,
+    })
+}
+
+struct SlabCtx<'a> {
+    header: &'a Header,
+    src: &'a dyn SliceSource,
+    /// Distances: slab-local cell slice k at `k * ncx * ncy`; slot `b`
+    /// holds cell slice z1 when `has_upper`.
+    dist: &'a [u8],
+    blocks: &'a [Option<OctantBlocks>],
+    z0: usize,
+    z1: usize,
+    has_upper: bool,
+}
+
+enum BrickOut {
+    Uniform(u32),
+    Payload { compressed: Vec<u8>, raw_len: u64 },
+}
+
+/// Reads the slab's samples, embeds codes and compresses its bricks.
+fn emit_slab<W: Word>(ctx: &SlabCtx, level: i32) -> Result<Vec<(u64, BrickOut)>, PrepError> {
+    let h = ctx.header;
+    let [nx, ny, _] = h.dims.map(|d| d as usize);
+    let [ncx, ncy, _] = h.cells().map(|c| c as usize);
+    let b = h.brick_size as usize;
+    let nsl = ctx.z1 - ctx.z0 + 1;
+    let enc: CodeEncoding = h.codes;
+    let max_code = enc.max_code();
+    let n_cells_slice = ncx * ncy;
+    // Sample words of slices z0..=z1, codes embedded.
+    let mut words: Vec<W> = vec![W::from_raw(0.0); nsl * nx * ny];
+    let mut raw = vec![0.0f64; nx * ny];
+    for k in 0..nsl {
+        let zs = ctx.z0 + k;
+        ctx.src.read_slice(zs, &mut raw)?;
+        // Cell slice whose minimum corners lie on this sample slice.
+        let dist_slot = if zs < ctx.z1 {
+            Some(k)
+        } else if ctx.has_upper {
+            Some(b)
+        } else {
+            None
+        };
+        let out = &mut words[k * nx * ny..(k + 1) * nx * ny];
+        out.par_chunks_mut(nx).enumerate().for_each(|(y, row)| {
+            let r = &raw[y * nx..(y + 1) * nx];
+            for (w, &v) in row.iter_mut().zip(r) {
+                *w = W::from_raw(v);
+            }
+            if let (Some(slot), true) = (dist_slot, y < ncy) {
+                let d =
+                    &ctx.dist[slot * n_cells_slice + y * ncx..slot * n_cells_slice + (y + 1) * ncx];
+                for (w, &dd) in row.iter_mut().zip(d) {
+                    if dd >= 2 {
+                        *w = W::code(&enc, (dd as u32 - 1).min(max_code));
+                    }
+                }
+            }
+        });
+    }
+    let bz = (ctx.z0 / b) as u64;
+    let ids: Vec<u64> = (0..h.bricks[1])
+        .flat_map(|by| (0..h.bricks[0]).map(move |bx| h.brick_id([bx, by, bz])))
+        .collect();
+    let outs: Vec<(u64, BrickOut)> = ids
+        .par_iter()
+        .map(|&id| {
+            let c = h.brick_coords(id);
+            let (x0, x1) = h.brick_cells(0, c[0]);
+            let (y0, y1) = h.brick_cells(1, c[1]);
+            let (x0, x1, y0, y1) = (x0 as usize, x1 as usize, y0 as usize, y1 as usize);
+            let nzc = ctx.z1 - ctx.z0;
+            // Uniform: every cell a 0-cell with the same saturated code >= 1.
+            let code_of = |d: u8| (d as u32 - 1).min(max_code);
+            let first = ctx.dist[y0 * ncx + x0];
+            let uniform = first >= 2
+                && (0..nzc).all(|k| {
+                    (y0..y1).all(|y| {
+                        let row = &ctx.dist[k * n_cells_slice + y * ncx..];
+                        row[x0..x1]
+                            .iter()
+                            .all(|&d| d >= 2 && code_of(d) == code_of(first))
+                    })
+                });
+            if uniform {
+                return (id, BrickOut::Uniform(code_of(first)));
+            }
+            let mut payload: Vec<W> = Vec::with_capacity((x1 - x0 + 1) * (y1 - y0 + 1) * (nzc + 1));
+            for k in 0..=nzc {
+                for y in y0..=y1 {
+                    let row = &words[(k * ny + y) * nx..];
+                    payload.extend_from_slice(&row[x0..=x1]);
+                }
+            }
+            let mut bytes: Vec<u8> = bytemuck::cast_slice(&payload).to_vec();
+            if h.aniso_block.is_some() {
+                bytes.extend(octant_payload(ctx, c, max_code));
+            }
+            let raw_len = bytes.len() as u64;
+            let compressed =
+                zstd::bulk::compress(&bytes, level).expect("zstd compress into memory");
+            (
+                id,
+                BrickOut::Payload {
+                    compressed,
+                    raw_len,
+                },
+            )
+        })
+        .collect();
+    Ok(outs)
+}
+
+/// The 8 octant planes of brick `c`: plane-major, blocks x fastest.
+fn octant_payload(ctx: &SlabCtx, c: [u64; 3], max_code: u32) -> Vec<u8> {
+    let h = ctx.header;
+    let g = ANISO_BLOCK;
+    let nbx_slice = (h.cells()[0] as usize).div_ceil(g);
+    let nb = h.brick_blocks(c).expect("aniso").map(|v| v as usize);
+    let bpb = h.brick_size as usize / g;
+    let mut out = Vec::with_capacity(8 * nb[0] * nb[1] * nb[2]);
+    for o in 0..8 {
+        for kz in 0..nb[2] {
+            let slab = ctx.blocks[kz]
+                .as_ref()
+                .expect("octant blocks for every block slab");
+            for ky in 0..nb[1] {
+                for kx in 0..nb[0] {
+                    let gx = c[0] as usize * bpb + kx;
+                    let gy = c[1] as usize * bpb + ky;
+                    out.push(slab[o][gy * nbx_slice + gx].min(max_code as u8));
+                }
+            }
+        }
+    }
+    out
+}
