@@ -368,7 +368,7 @@ impl ForwardDt {
         if let Some(a) = self.aniso.as_mut() {
             // The isotropic in-slice D2 is 0 exactly on 1-cells; F(z) too.
             a.push(&self.cur, ncx, ncy);
-            if (self.z + 1) % ANISO_BLOCK == 0 || last {
+            if (self.z + 1).is_multiple_of(ANISO_BLOCK) || last {
                 let blocks = a.take_blocks();
                 if let Some(bs) = block_spill {
                     bs.put(self.z / ANISO_BLOCK, &blocks)?;
@@ -430,7 +430,7 @@ impl BackwardDt {
         let mut blocks_out = None;
         if let Some(a) = self.aniso.as_mut() {
             a.push(&self.cur, ncx, ncy);
-            if z % ANISO_BLOCK == 0 {
+            if z.is_multiple_of(ANISO_BLOCK) {
                 let pos = a.take_blocks();
                 let nb = pos.len() / 4;
                 let mut neg = vec![0u8; 4 * nb];
@@ -624,7 +624,7 @@ mod tests {
         }
         let d = chessboard_3d(&obj, dims);
         assert_eq!(d, brute(&obj, dims, None));
-        assert_eq!(d[(0 * 10 + 3) * 9 + 3], 5);
+        assert_eq!(d[3 * 9 + 3], 5);
         assert_eq!(d[(10 * 10 + 3) * 9 + 3], 5);
     }
 }

@@ -84,7 +84,7 @@ pub fn prep(
 ) -> Result<PrepReport, PrepError> {
     let t0 = Instant::now();
     let b = opts.brick_size;
-    if !(4..=1024).contains(&b) || b % ANISO_BLOCK != 0 {
+    if !(4..=1024).contains(&b) || !b.is_multiple_of(ANISO_BLOCK) {
         return Err(PrepError::Option {
             option: "--brick",
             msg: format!("{b}, expected a multiple of {ANISO_BLOCK} in 4..=1024"),

@@ -352,7 +352,7 @@ fn check_header(h: &Header) -> Result<(), String> {
             ));
         }
     }
-    if h.brick_size < 4 || h.brick_size % 4 != 0 || h.brick_size > 1024 {
+    if h.brick_size < 4 || !h.brick_size.is_multiple_of(4) || h.brick_size > 1024 {
         return Err(format!(
             "brick_size {}, expected a multiple of 4 in 4..=1024",
             h.brick_size

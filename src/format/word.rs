@@ -239,8 +239,8 @@ mod tests {
                 f64::NAN,
                 f64::INFINITY,
                 f64::NEG_INFINITY,
-                1e-40,
-                3.0e38,
+                f32::from_bits(1) as f64,
+                f32::MAX as f64,
             ],
         );
         roundtrip::<f64>(

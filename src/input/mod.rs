@@ -186,6 +186,19 @@ pub enum InputError {
         expected: u64,
         why: String,
     },
+    /// A data file named in the sidecar cannot be opened or mapped.
+    #[error(
+        "{}: {what} (named in field `{field}` of {}): {source}",
+        path.display(),
+        sidecar.display()
+    )]
+    DataFile {
+        path: PathBuf,
+        sidecar: PathBuf,
+        field: String,
+        what: &'static str,
+        source: std::io::Error,
+    },
     /// An I/O error on a named file.
     #[error("{}: {what}: {source}", path.display())]
     Io {

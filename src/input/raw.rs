@@ -27,8 +27,9 @@ impl RawSource {
             .checked_mul(ny as u64)
             .and_then(|n| n.checked_mul(sidecar.dtype.size() as u64))
             .ok_or_else(|| InputError::field(path, "dims", "slice size overflows 64 bits"))?;
-        let files: Vec<(PathBuf, u64, String)> = match &sidecar.data {
+        let files: Vec<(String, PathBuf, u64, String)> = match &sidecar.data {
             DataFiles::One(f) => vec![(
+                "data".to_string(),
                 f.clone(),
                 sidecar.header_bytes + slice_bytes * nz as u64,
                 format!(
@@ -39,8 +40,10 @@ impl RawSource {
             )],
             DataFiles::PerSlice(list) => list
                 .iter()
-                .map(|f| {
+                .enumerate()
+                .map(|(i, f)| {
                     (
+                        format!("data[{i}]"),
                         f.clone(),
                         sidecar.header_bytes + slice_bytes,
                         format!(
@@ -53,19 +56,21 @@ impl RawSource {
                 .collect(),
         };
         let mut maps = Vec::with_capacity(files.len());
-        for (file, need, why) in files {
-            let f = File::open(&file).map_err(|source| InputError::Io {
-                path: file.clone(),
-                what: "cannot open data file named in the sidecar",
-                source,
-            })?;
+        for (field, file, need, why) in files {
+            let data_err = |what| {
+                let (path, field, sidecar) = (file.clone(), field.clone(), path.to_path_buf());
+                move |source| InputError::DataFile {
+                    path,
+                    sidecar,
+                    field,
+                    what,
+                    source,
+                }
+            };
+            let f = File::open(&file).map_err(data_err("cannot open data file"))?;
             let len = f
                 .metadata()
-                .map_err(|source| InputError::Io {
-                    path: file.clone(),
-                    what: "cannot stat data file",
-                    source,
-                })?
+                .map_err(data_err("cannot stat data file"))?
                 .len();
             if len < need {
                 return Err(InputError::TooShort {
@@ -79,11 +84,7 @@ impl RawSource {
             // SAFETY: the map is read-only and we only read it. The caller
             // must not truncate or rewrite the input while cdvol runs; if
             // it does, reads may fault (SIGBUS), as with any mmap reader.
-            let map = unsafe { Mmap::map(&f) }.map_err(|source| InputError::Io {
-                path: file.clone(),
-                what: "cannot memory-map data file",
-                source,
-            })?;
+            let map = unsafe { Mmap::map(&f) }.map_err(data_err("cannot memory-map data file"))?;
             #[cfg(unix)]
             let _ = map.advise(memmap2::Advice::Sequential);
             maps.push(map);

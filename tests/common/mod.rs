@@ -1,0 +1,209 @@
+//! Shared helpers of the integration tests: writing raw stacks, oracles
+//! that do not share code with the library, and reading packed files back
+//! into dense arrays.
+#![allow(dead_code)]
+
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+
+use cdvol::format::reader::{BrickData, CellClass, PackedVolume, Sample};
+
+/// Writes `values` (x fastest) as a raw stack of `dtype` plus a sidecar
+/// with the given axis JSON snippets; returns the sidecar path.
+pub fn write_stack(
+    dir: &Path,
+    name: &str,
+    dims: [usize; 3],
+    dtype: &str,
+    values: &[f64],
+    axes_json: [&str; 3],
+    extra: &str,
+) -> PathBuf {
+    let mut bytes = Vec::new();
+    for &v in values {
+        match dtype {
+            "u8" => bytes.push(v as u8),
+            "i8" => bytes.push(v as i8 as u8),
+            "u16" => bytes.extend_from_slice(&(v as u16).to_le_bytes()),
+            "i16" => bytes.extend_from_slice(&(v as i16).to_le_bytes()),
+            "u32" => bytes.extend_from_slice(&(v as u32).to_le_bytes()),
+            "i32" => bytes.extend_from_slice(&(v as i32).to_le_bytes()),
+            "f32" => bytes.extend_from_slice(&(v as f32).to_le_bytes()),
+            "f64" => bytes.extend_from_slice(&v.to_le_bytes()),
+            _ => panic!("dtype {dtype}"),
+        }
+    }
+    std::fs::write(dir.join(format!("{name}.raw")), &bytes).unwrap();
+    let json = format!(
+        r#"{{"data": "{name}.raw", "dims": [{}, {}, {}], "dtype": "{dtype}",
+            "x": {}, "y": {}, "z": {} {extra}}}"#,
+        dims[0], dims[1], dims[2], axes_json[0], axes_json[1], axes_json[2]
+    );
+    let p = dir.join(format!("{name}.json"));
+    std::fs::write(&p, json).unwrap();
+    p
+}
+
+/// Iso classification oracle: 1 when the largest non-NaN vertex value of a
+/// cell is >= iso.
+pub fn classify_iso(values: &[f64], dims: [usize; 3], iso: f64) -> Vec<u8> {
+    let [nx, ny, nz] = dims;
+    let (cx, cy, cz) = (nx - 1, ny - 1, nz - 1);
+    let mut out = vec![0u8; cx * cy * cz];
+    for z in 0..cz {
+        for y in 0..cy {
+            for x in 0..cx {
+                let mut hit = false;
+                for i in 0..8 {
+                    let v = values[((z + (i >> 2)) * ny + y + (i >> 1 & 1)) * nx + x + (i & 1)];
+                    hit |= v >= iso;
+                }
+                out[(z * cy + y) * cx + x] = hit as u8;
+            }
+        }
+    }
+    out
+}
+
+/// Chessboard distance oracle by multi-source breadth-first search over
+/// 26-neighbours (a chessboard ball of radius r is exactly the set of
+/// cells r 26-steps away), saturated at 255. Independent of the library's
+/// two-pass recurrence.
+pub fn chessboard_bfs(obj: &[u8], cells: [usize; 3]) -> Vec<u8> {
+    let [cx, cy, cz] = cells;
+    let mut d = vec![255u8; obj.len()];
+    let mut q = VecDeque::new();
+    for (i, &o) in obj.iter().enumerate() {
+        if o != 0 {
+            d[i] = 0;
+            q.push_back(i);
+        }
+    }
+    while let Some(i) = q.pop_front() {
+        let (x, y, z) = (i % cx, i / cx % cy, i / cx / cy);
+        let nd = d[i].saturating_add(1);
+        if nd == 255 {
+            continue;
+        }
+        for dz in -1i64..=1 {
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let (a, b, c) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
+                    if a < 0 || b < 0 || c < 0 || a >= cx as i64 || b >= cy as i64 || c >= cz as i64
+                    {
+                        continue;
+                    }
+                    let j = ((c as usize * cy) + b as usize) * cx + a as usize;
+                    if d[j] > nd {
+                        d[j] = nd;
+                        q.push_back(j);
+                    }
+                }
+            }
+        }
+    }
+    d
+}
+
+/// Expected per-cell codes export: 255 for 1-cells, else min(d - 1, max).
+pub fn expected_codes(dist: &[u8], max_code: u32) -> Vec<u8> {
+    dist.iter()
+        .map(|&d| {
+            if d == 0 {
+                255
+            } else {
+                ((d - 1) as u32).min(max_code) as u8
+            }
+        })
+        .collect()
+}
+
+/// Everything read back from a packed file, densely.
+pub struct ReadBack {
+    /// 255 for 1-cells, else the code.
+    pub codes: Vec<u8>,
+    /// Number of 1-cells whose 8 vertex values were checked.
+    pub checked_one_cells: usize,
+}
+
+/// Reads every brick, checks that every 1-cell's 8 vertex words are exact
+/// values equal to `values` (rescale not applied), and returns the codes.
+pub fn read_back(vol: &PackedVolume, values: &[f64]) -> ReadBack {
+    let h = vol.header();
+    let [nx, ny, _] = h.dims.map(|d| d as usize);
+    let [cx, cy, cz] = h.cells().map(|c| c as usize);
+    let mut codes = vec![0u8; cx * cy * cz];
+    let mut seen = vec![false; cx * cy * cz];
+    let mut checked = 0;
+    for id in 0..h.brick_count() {
+        let b = vol.read_brick(id).unwrap();
+        let [sx, sy, sz] = b.samples;
+        for lz in 0..sz - 1 {
+            for ly in 0..sy - 1 {
+                for lx in 0..sx - 1 {
+                    let g = [
+                        b.first[0] as usize + lx,
+                        b.first[1] as usize + ly,
+                        b.first[2] as usize + lz,
+                    ];
+                    let ci = (g[2] * cy + g[1]) * cx + g[0];
+                    assert!(!seen[ci], "cell {g:?} in two bricks");
+                    seen[ci] = true;
+                    match vol.cell_class(&b, [lx, ly, lz]) {
+                        CellClass::Object => {
+                            codes[ci] = 255;
+                            let v = b.vertices([lx, ly, lz]).unwrap();
+                            for (i, s) in v.iter().enumerate() {
+                                let want = values[((g[2] + (i >> 2)) * ny + g[1] + (i >> 1 & 1))
+                                    * nx
+                                    + g[0]
+                                    + (i & 1)];
+                                match s {
+                                    Sample::Value(got) => assert!(
+                                        *got == want || (got.is_nan() && want.is_nan()),
+                                        "cell {g:?} vertex {i}: {got} stored, {want} in the input"
+                                    ),
+                                    Sample::Code(c) => {
+                                        panic!("1-cell {g:?} vertex {i} carries code {c}")
+                                    }
+                                }
+                            }
+                            checked += 1;
+                        }
+                        CellClass::Empty(c) => codes[ci] = c.min(254) as u8,
+                    }
+                }
+            }
+        }
+        if let BrickData::Uniform(_) = b.data {
+            assert!(h.summary.uniform_bricks > 0);
+        }
+    }
+    assert!(seen.iter().all(|&s| s), "some cell is in no brick");
+    ReadBack {
+        codes,
+        checked_one_cells: checked,
+    }
+}
+
+/// The real CT (Debian's invesalius-examples), fetched once into
+/// target/ct by tools/fetch-ct.sh. Fails loudly when it cannot be fetched.
+pub fn real_ct() -> PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root.join("target").join("ct");
+    let sidecar = dir.join("cranium.json");
+    if !sidecar.exists() {
+        let st = std::process::Command::new("bash")
+            .arg(root.join("tools/fetch-ct.sh"))
+            .arg(&dir)
+            .status()
+            .expect("run tools/fetch-ct.sh");
+        assert!(
+            st.success() && sidecar.exists(),
+            "the real CT could not be fetched: tools/fetch-ct.sh {} failed ({st}). \
+             It needs `apt-get download invesalius-examples` to work (Debian archive reachable).",
+            dir.display()
+        );
+    }
+    sidecar
+}
