@@ -150,43 +150,129 @@ impl Classification {
             .fold((f64::NAN, f64::NAN), |(lo, hi), &x| (lo.min(x), hi.max(x)));
         self.is_object(lo, hi)
     }
+}
 
-    /// True when only the maximum matters (no min plane needed).
-    pub fn needs_min(&self) -> bool {
-        matches!(self, Classification::TransferFunction { .. })
+/// Larger of two values, never NaN unless `m` is (`v` NaN keeps `m`).
+/// Plain comparisons so the compiler vectorizes the loops below.
+#[inline(always)]
+fn max_nn(m: f64, v: f64) -> f64 {
+    if v > m {
+        v
+    } else {
+        m
+    }
+}
+
+#[inline(always)]
+fn min_nn(m: f64, v: f64) -> f64 {
+    if v < m {
+        v
+    } else {
+        m
     }
 }
 
 /// Per-column extrema of one sample slice over the 2x2 samples of each
-/// cell column: `max[(y * (nx-1)) + x]` is the max of samples (x..=x+1,
-/// y..=y+1). NaN samples are skipped (`f64::max` ignores NaN).
+/// cell column: `max[y * (nx-1) + x]` is the max of samples `x..=x+1`,
+/// `y..=y+1`, likewise `min`. NaN samples are skipped; a column of four
+/// NaNs gives max = -inf and min = +inf (an empty range). Returns the
+/// (min, max) of the whole slice (every sample is in some column).
 pub fn slice_extrema(
     values: &[f64],
     nx: usize,
     ny: usize,
     max: &mut [f64],
-    min: Option<&mut [f64]>,
-) {
+    min: &mut [f64],
+) -> (f64, f64) {
     use rayon::prelude::*;
     let ncx = nx - 1;
     debug_assert_eq!(values.len(), nx * ny);
     debug_assert_eq!(max.len(), ncx * (ny - 1));
-    max.par_chunks_mut(ncx).enumerate().for_each(|(y, row)| {
-        let a = &values[y * nx..(y + 1) * nx];
-        let b = &values[(y + 1) * nx..(y + 2) * nx];
-        for x in 0..ncx {
-            row[x] = a[x].max(a[x + 1]).max(b[x]).max(b[x + 1]);
-        }
-    });
-    if let Some(min) = min {
-        min.par_chunks_mut(ncx).enumerate().for_each(|(y, row)| {
+    max.par_chunks_mut(ncx)
+        .zip(min.par_chunks_mut(ncx))
+        .enumerate()
+        .with_min_len(8)
+        .map(|(y, (mx, mn))| {
             let a = &values[y * nx..(y + 1) * nx];
             let b = &values[(y + 1) * nx..(y + 2) * nx];
-            for x in 0..ncx {
-                row[x] = a[x].min(a[x + 1]).min(b[x]).min(b[x + 1]);
+            let cols = mx.iter_mut().zip(mn.iter_mut());
+            let quads = a.windows(2).zip(b.windows(2));
+            for ((hi, lo), (p, q)) in cols.zip(quads) {
+                *hi = max_nn(
+                    max_nn(max_nn(max_nn(f64::NEG_INFINITY, p[0]), p[1]), q[0]),
+                    q[1],
+                );
+                *lo = min_nn(
+                    min_nn(min_nn(min_nn(f64::INFINITY, p[0]), p[1]), q[0]),
+                    q[1],
+                );
             }
-        });
-    }
+            // Row range with 8 independent lanes (a plain fold of floats
+            // cannot be vectorized without reassociation).
+            let mut hi8 = [f64::NEG_INFINITY; 8];
+            let mut lo8 = [f64::INFINITY; 8];
+            for (h, l) in mx.chunks(8).zip(mn.chunks(8)) {
+                for i in 0..h.len() {
+                    hi8[i] = max_nn(hi8[i], h[i]);
+                    lo8[i] = min_nn(lo8[i], l[i]);
+                }
+            }
+            (
+                lo8.iter().fold(f64::INFINITY, |m, &v| min_nn(m, v)),
+                hi8.iter().fold(f64::NEG_INFINITY, |m, &v| max_nn(m, v)),
+            )
+        })
+        .reduce(
+            || (f64::INFINITY, f64::NEG_INFINITY),
+            |a, b| (min_nn(a.0, b.0), max_nn(a.1, b.1)),
+        )
+}
+
+/// Classifies the cell slice between two sample slices from their column
+/// extrema (see [`slice_extrema`]); values are rescaled here, per cell.
+/// Returns the number of 1-cells.
+pub fn classify_slice(
+    cls: &Classification,
+    rescale: crate::input::Rescale,
+    max: [&[f64]; 2],
+    min: [&[f64]; 2],
+    ncx: usize,
+    out: &mut [u8],
+) -> u64 {
+    use rayon::prelude::*;
+    let neg = rescale.slope < 0.0;
+    out.par_chunks_mut(ncx)
+        .enumerate()
+        .with_min_len(8)
+        .map(|(y, row)| {
+            let r = y * ncx..(y + 1) * ncx;
+            let (a, b) = (&max[0][r.clone()], &max[1][r.clone()]);
+            let (c, d) = (&min[0][r.clone()], &min[1][r]);
+            let mut n = 0u64;
+            match cls {
+                Classification::Iso { iso } if !neg => {
+                    for x in 0..row.len() {
+                        let hi = rescale.apply(max_nn(a[x], b[x]));
+                        row[x] = (hi >= *iso) as u8;
+                        n += row[x] as u64;
+                    }
+                }
+                _ => {
+                    for x in 0..row.len() {
+                        let (rl, rh) = (min_nn(c[x], d[x]), max_nn(a[x], b[x]));
+                        let (lo, hi) = if neg {
+                            (rescale.apply(rh), rescale.apply(rl))
+                        } else {
+                            (rescale.apply(rl), rescale.apply(rh))
+                        };
+                        row[x] = cls.is_object(lo, hi) as u8;
+                        n += row[x] as u64;
+                    }
+                }
+            }
+            n
+        })
+        .sum()
 }
 
 #[cfg(test)]

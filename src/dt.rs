@@ -41,6 +41,7 @@ pub fn slice_chessboard(obj: &[u8], ncx: usize, ncy: usize, out: &mut [u8]) {
     // 1D distance along x, two scans per row.
     out.par_chunks_mut(ncx)
         .zip(obj.par_chunks(ncx))
+        .with_min_len(8)
         .for_each(|(row, o)| {
             let mut d = FAR;
             for x in 0..ncx {
@@ -77,10 +78,14 @@ fn erode_row(row: &[u8], out: &mut [u8]) {
         return;
     }
     out[0] = row[0].min(row[1]);
-    for x in 1..n - 1 {
-        out[x] = row[x - 1].min(row[x]).min(row[x + 1]);
-    }
     out[n - 1] = row[n - 2].min(row[n - 1]);
+    // Zipped slices: no bounds checks, so this vectorizes.
+    let mid = out[1..n - 1]
+        .iter_mut()
+        .zip(row[..n - 2].iter().zip(&row[1..n - 1]).zip(&row[2..]));
+    for (o, ((&a, &b), &c)) in mid {
+        *o = a.min(b).min(c);
+    }
 }
 
 /// `cur[x] = min(cur[x], eroded[x] + 1)` with saturation.
@@ -93,20 +98,24 @@ fn merge_plus_one(cur: &mut [u8], eroded: &[u8]) {
 
 /// `cur = min(cur, erode_xy(prev) + 1)`: one z step of the recurrence.
 pub fn merge_slice(cur: &mut [u8], prev: &[u8], ncx: usize, ncy: usize) {
-    cur.par_chunks_mut(ncx).enumerate().for_each(|(y, row)| {
-        let mut col = vec![0u8; ncx];
-        let y0 = y.saturating_sub(1);
-        let y1 = (y + 1).min(ncy - 1);
-        col.copy_from_slice(&prev[y0 * ncx..(y0 + 1) * ncx]);
-        for yy in y0 + 1..=y1 {
-            for (c, &p) in col.iter_mut().zip(&prev[yy * ncx..(yy + 1) * ncx]) {
-                *c = (*c).min(p);
-            }
-        }
-        let mut eroded = vec![0u8; ncx];
-        erode_row(&col, &mut eroded);
-        merge_plus_one(row, &eroded);
-    });
+    cur.par_chunks_mut(ncx)
+        .enumerate()
+        .with_min_len(8)
+        .for_each_init(
+            || (vec![0u8; ncx], vec![0u8; ncx]),
+            |(col, eroded), (y, row)| {
+                let y0 = y.saturating_sub(1);
+                let y1 = (y + 1).min(ncy - 1);
+                col.copy_from_slice(&prev[y0 * ncx..(y0 + 1) * ncx]);
+                for yy in y0 + 1..=y1 {
+                    for (c, &p) in col.iter_mut().zip(&prev[yy * ncx..(yy + 1) * ncx]) {
+                        *c = (*c).min(p);
+                    }
+                }
+                erode_row(col, eroded);
+                merge_plus_one(row, eroded);
+            },
+        );
 }
 
 /// Where the forward pass keeps its slices until the backward pass reads

@@ -157,13 +157,34 @@ impl Info {
                 self.nan_samples
             );
         }
-        let _ = writeln!(o, "code histogram (code: 0-cells)");
+        let _ = writeln!(
+            o,
+            "code histogram (0-cells per code range; --json has every code)"
+        );
         let total: u64 = self.code_histogram.iter().map(|c| c[1]).sum();
-        for [code, n] in &self.code_histogram {
+        // Buckets 0, 1, 2-3, 4-7, ... so the text stays short.
+        let mut buckets: Vec<(u64, u64, u64)> = Vec::new();
+        for &[code, n] in &self.code_histogram {
+            let lo = if code == 0 {
+                0
+            } else {
+                1u64 << (63 - code.leading_zeros())
+            };
+            match buckets.last_mut() {
+                Some(b) if b.0 == lo => b.2 += n,
+                _ => buckets.push((lo, (2 * lo).max(1) - 1, n)),
+            }
+        }
+        for (lo, hi, n) in buckets {
+            let range = if lo == hi {
+                format!("{lo}")
+            } else {
+                format!("{lo}-{hi}")
+            };
             let _ = writeln!(
                 o,
-                "  {code:>4}: {n:>12} {:5.1} % {}",
-                100.0 * *n as f64 / total.max(1) as f64,
+                "  {range:>9}: {n:>12} {:5.1} % {}",
+                100.0 * n as f64 / total.max(1) as f64,
                 "#".repeat(((40 * n) / total.max(1)) as usize)
             );
         }

@@ -196,6 +196,12 @@ fn print_prep(output: &Path, r: &PrepReport) -> Result<()> {
         r.header.brick_count(),
         r.temp_bytes as f64 / 1048576.0
     );
+    let t = &r.stages;
+    println!(
+        "stages (s): read {:.2}, classify+forward DT {:.2}, backward DT {:.2}, \
+         re-read+embed {:.2}, bricks+zstd {:.2}, write {:.2}",
+        t.read1, t.classify_forward, t.backward, t.embed, t.compress, t.write
+    );
     Ok(())
 }
 

@@ -786,6 +786,11 @@ impl Outputs {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
+        std::fs::create_dir_all(&dir).map_err(|source| PhantomError::Io {
+            path: dir.clone(),
+            what: "cannot create the output directory",
+            source,
+        })?;
         let raw_name = format!("{stem}.raw");
         Ok(Outputs {
             raw: dir.join(&raw_name),
@@ -1267,9 +1272,13 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("option output"), "{e}");
-        // A missing directory is an I/O error naming the file.
+        // An output directory that cannot be created is an I/O error
+        // naming it (a missing one is created).
+        let other = tempfile::tempdir().unwrap();
+        let blocker = other.path().join("plain-file");
+        std::fs::write(&blocker, b"x").unwrap();
         let e = ct(
-            &dir.path().join("missing").join("h.json"),
+            &blocker.join("h.json"),
             &CtOptions {
                 dims: [4, 4, 4],
                 ..CtOptions::default()
@@ -1278,7 +1287,7 @@ mod tests {
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("h.raw"), "{e}");
+        assert!(e.contains("plain-file"), "{e}");
         // Nothing was left behind.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
         // Bad sphere lists name the file.

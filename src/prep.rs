@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::classify::{slice_extrema, Classification};
+use crate::classify::{classify_slice, slice_extrema, Classification};
 use crate::dt::{self, BackwardDt, FileSpill, ForwardDt, OctantBlocks, ANISO_BLOCK, FAR};
 use crate::format::word::{choose_encoding, Word};
 use crate::format::writer::PackedWriter;
@@ -56,6 +56,25 @@ pub struct PrepReport {
     pub file_bytes: u64,
     /// Bytes of temporary disk used for the spill.
     pub temp_bytes: u64,
+    /// Wall seconds per stage.
+    pub stages: StageTimes,
+}
+
+/// Wall seconds spent in each stage of prep.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct StageTimes {
+    /// Pass 1: reading and decoding sample slices.
+    pub read1: f64,
+    /// Pass 1: extrema, classification and the forward transform.
+    pub classify_forward: f64,
+    /// Pass 2: the backward transform and the code histogram.
+    pub backward: f64,
+    /// Pass 2: re-reading samples, embedding codes.
+    pub embed: f64,
+    /// Pass 2: cutting and compressing bricks.
+    pub compress: f64,
+    /// Pass 2: appending payloads to the file, trailer, sync, rename.
+    pub write: f64,
 }
 
 /// Errors of `cdvol prep`.
@@ -122,14 +141,9 @@ pub fn prep(
 
     // ---- Pass 1: classify and run the forward transform. ----
     let cls = &opts.classification;
-    let need_min = cls.needs_min() || meta.rescale.slope < 0.0;
     let mut buf = vec![0.0f64; nx * ny];
     let mut planes = [vec![0.0f64; n_cells_slice], vec![0.0f64; n_cells_slice]];
-    let mut min_planes = if need_min {
-        [vec![0.0f64; n_cells_slice], vec![0.0f64; n_cells_slice]]
-    } else {
-        [Vec::new(), Vec::new()]
-    };
+    let mut min_planes = [vec![0.0f64; n_cells_slice], vec![0.0f64; n_cells_slice]];
     let mut obj = vec![0u8; n_cells_slice];
     let mut fwd = ForwardDt::new(ncx, ncy, opts.aniso);
     let mut summary = Summary {
@@ -138,51 +152,34 @@ pub fn prep(
         ..Summary::default()
     };
     let (mut raw_min, mut raw_max) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut st = StageTimes::default();
+    let lap = |t: &mut Instant| {
+        let e = t.elapsed().as_secs_f64();
+        *t = Instant::now();
+        e
+    };
+    let mut t = Instant::now();
     progress.begin("classify + forward DT", nz as u64);
     for z in 0..nz {
         src.read_slice(z, &mut buf)?;
-        let (lo, hi, nans) = buf
-            .par_chunks(1 << 16)
-            .map(|c| {
-                c.iter().fold(
-                    (f64::INFINITY, f64::NEG_INFINITY, 0u64),
-                    |(lo, hi, n), &v| (lo.min(v), hi.max(v), n + v.is_nan() as u64),
-                )
-            })
-            .reduce(
-                || (f64::INFINITY, f64::NEG_INFINITY, 0),
-                |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2),
-            );
+        st.read1 += lap(&mut t);
+        if meta.dtype.is_float() {
+            summary.nan_samples += buf.par_iter().filter(|v| v.is_nan()).count() as u64;
+        }
+        let cur = z % 2;
+        let (lo, hi) = slice_extrema(&buf, nx, ny, &mut planes[cur], &mut min_planes[cur]);
         raw_min = raw_min.min(lo);
         raw_max = raw_max.max(hi);
-        summary.nan_samples += nans;
-        let cur = z % 2;
-        slice_extrema(
-            &buf,
-            nx,
-            ny,
-            &mut planes[cur],
-            need_min.then_some(&mut min_planes[cur][..]),
-        );
         if z > 0 {
             let prev = 1 - cur;
-            let (rs, slope_neg) = (meta.rescale, meta.rescale.slope < 0.0);
-            let (pa, pb) = (&planes[prev], &planes[cur]);
-            let (ma, mb) = (&min_planes[prev], &min_planes[cur]);
-            obj.par_chunks_mut(ncx).enumerate().for_each(|(y, row)| {
-                for (x, o) in row.iter_mut().enumerate() {
-                    let i = y * ncx + x;
-                    let hi = pa[i].max(pb[i]);
-                    let lo = if need_min { ma[i].min(mb[i]) } else { hi };
-                    let (lo, hi) = if slope_neg {
-                        (rs.apply(hi), rs.apply(lo))
-                    } else {
-                        (rs.apply(lo), rs.apply(hi))
-                    };
-                    *o = cls.is_object(lo, hi) as u8;
-                }
-            });
-            summary.one_cells += obj.iter().map(|&o| o as u64).sum::<u64>();
+            summary.one_cells += classify_slice(
+                cls,
+                meta.rescale,
+                [&planes[prev], &planes[cur]],
+                [&min_planes[prev], &min_planes[cur]],
+                ncx,
+                &mut obj,
+            );
             fwd.push(
                 &obj,
                 z == ncz,
@@ -191,6 +188,7 @@ pub fn prep(
             )
             .map_err(spill_err)?;
         }
+        st.classify_forward += lap(&mut t);
         progress.advance(1);
     }
     progress.end();
@@ -237,16 +235,23 @@ pub fn prep(
                 )
                 .map_err(spill_err)?;
             slab_dist[(z - z0) * n_cells_slice..(z - z0 + 1) * n_cells_slice].copy_from_slice(g);
-            for &d in g {
-                if d > 0 {
-                    hist[((d - 1) as usize).min(codes.max_code() as usize)] += 1;
-                }
+            let counts = g
+                .par_chunks(1 << 16)
+                .map(|c| {
+                    let mut h = [0u64; 256];
+                    c.iter().for_each(|&d| h[d as usize] += 1);
+                    h
+                })
+                .reduce(|| [0u64; 256], |a, b| std::array::from_fn(|i| a[i] + b[i]));
+            for (d, &n) in counts.iter().enumerate().skip(1) {
+                hist[(d - 1).min(codes.max_code() as usize)] += n;
             }
             if let Some(bl) = blocks {
                 slab_blocks[(z - z0) / ANISO_BLOCK] = Some(bl);
             }
             progress.advance(1);
         }
+        st.backward += lap(&mut t);
         let ctx = SlabCtx {
             header: &header,
             src,
@@ -256,7 +261,9 @@ pub fn prep(
             z1,
             has_upper: z1 < ncz,
         };
-        let outs = with_word!(storage, W => emit_slab::<W>(&ctx, opts.zstd_level)?);
+        let (outs, embed_s) = with_word!(storage, W => emit_slab::<W>(&ctx, opts.zstd_level)?);
+        st.embed += embed_s;
+        st.compress += lap(&mut t) - embed_s;
         for (id, o) in outs {
             match o {
                 BrickOut::Uniform(c) => {
@@ -274,12 +281,14 @@ pub fn prep(
         }
         // The first slice of this slab is the upper slice of the next one.
         slab_dist.copy_within(0..n_cells_slice, b * n_cells_slice);
+        st.write += lap(&mut t);
     }
     progress.end();
     summary.code_histogram = hist;
     summary.payload_bytes = writer.payload_bytes();
     header.summary = summary;
     writer.finish(&header)?;
+    st.write += lap(&mut t);
     let file_bytes = std::fs::metadata(out)
         .map_err(|source| PrepError::Io {
             path: out.to_path_buf(),
@@ -298,6 +307,7 @@ pub fn prep(
         seconds: t0.elapsed().as_secs_f64(),
         file_bytes,
         temp_bytes,
+        stages: st,
     })
 }
 
@@ -319,7 +329,9 @@ enum BrickOut {
 }
 
 /// Reads the slab's samples, embeds codes and compresses its bricks.
-fn emit_slab<W: Word>(ctx: &SlabCtx, level: i32) -> Result<Vec<(u64, BrickOut)>, PrepError> {
+/// Returns the bricks and the seconds spent reading and embedding.
+fn emit_slab<W: Word>(ctx: &SlabCtx, level: i32) -> Result<(Vec<(u64, BrickOut)>, f64), PrepError> {
+    let t0 = Instant::now();
     let h = ctx.header;
     let [nx, ny, _] = h.dims.map(|d| d as usize);
     let [ncx, ncy, _] = h.cells().map(|c| c as usize);
@@ -359,6 +371,7 @@ fn emit_slab<W: Word>(ctx: &SlabCtx, level: i32) -> Result<Vec<(u64, BrickOut)>,
             }
         });
     }
+    let embed_s = t0.elapsed().as_secs_f64();
     let bz = (ctx.z0 / b) as u64;
     let ids: Vec<u64> = (0..h.bricks[1])
         .flat_map(|by| (0..h.bricks[0]).map(move |bx| h.brick_id([bx, by, bz])))
@@ -409,7 +422,7 @@ fn emit_slab<W: Word>(ctx: &SlabCtx, level: i32) -> Result<Vec<(u64, BrickOut)>,
             )
         })
         .collect();
-    Ok(outs)
+    Ok((outs, embed_s))
 }
 
 /// The 8 octant planes of brick `c`: plane-major, blocks x fastest.

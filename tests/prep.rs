@@ -167,7 +167,7 @@ fn volume() -> impl Strategy<Value = ([usize; 3], Vec<f64>, usize)> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
+    #![proptest_config(ProptestConfig::with_cases(128))]
     #[test]
     fn random_volumes_u8((dims, values, brick) in volume()) {
         check(dims, "u8", &values, 150.0, brick, false);

@@ -3,9 +3,8 @@
 //! untrusted: every size is checked against the file before use.
 
 use std::fs::File;
+use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
-
-use memmap2::Mmap;
 
 use super::word::Word;
 use super::{
@@ -14,11 +13,14 @@ use super::{
 };
 use crate::with_word;
 
-/// An open packed file. Brick payloads are read on demand from a read-only
-/// memory map, so only the bricks asked for are ever paged in.
+/// An open packed file. Brick payloads are read on demand with positioned
+/// reads (`pread`), so only the bricks asked for are ever read, and
+/// resident memory is what the caller keeps, not what it has touched (a
+/// memory map would count every page read towards RSS).
 pub struct PackedVolume {
     path: PathBuf,
-    map: Mmap,
+    file: File,
+    len: u64,
     header: Header,
     index: Vec<IndexEntry>,
 }
@@ -95,19 +97,29 @@ impl PackedVolume {
             what: "cannot open packed file",
             source,
         })?;
-        // SAFETY: read-only map of a file cdvol wrote; callers must not
-        // modify it while it is open (a concurrent writer could make reads
-        // fault, never write through the map).
-        let map = unsafe { Mmap::map(&f) }.map_err(|source| FormatError::Io {
-            path: p(),
-            what: "cannot memory-map packed file",
-            source,
-        })?;
-        let len = map.len() as u64;
-        if len < 8 || &map[..8] != MAGIC {
+        let len = f
+            .metadata()
+            .map_err(|source| FormatError::Io {
+                path: p(),
+                what: "cannot stat packed file",
+                source,
+            })?
+            .len();
+        let read = |off: u64, n: u64, what: &'static str| -> Result<Vec<u8>, FormatError> {
+            let mut buf = vec![0u8; n as usize];
+            f.read_exact_at(&mut buf, off)
+                .map_err(|source| FormatError::Io {
+                    path: p(),
+                    what,
+                    source,
+                })?;
+            Ok(buf)
+        };
+        let pre = read(0, len.min(PREAMBLE_LEN), "cannot read preamble")?;
+        if len < 8 || &pre[..8] != MAGIC {
             return Err(FormatError::NotPacked {
                 path: p(),
-                found: map[..map.len().min(8)].to_vec(),
+                found: pre[..pre.len().min(8)].to_vec(),
             });
         }
         if len < PREAMBLE_LEN + FOOTER_LEN {
@@ -116,14 +128,14 @@ impl PackedVolume {
                 msg: format!("{len} bytes, shorter than preamble and footer"),
             });
         }
-        let version = u32::from_le_bytes(map[8..12].try_into().expect("4 bytes"));
+        let version = u32::from_le_bytes(pre[8..12].try_into().expect("4 bytes"));
         if version != FORMAT_VERSION {
             return Err(FormatError::Version {
                 path: p(),
                 found: version,
             });
         }
-        let foot = &map[(len - FOOTER_LEN) as usize..];
+        let foot = read(len - FOOTER_LEN, FOOTER_LEN, "cannot read footer")?;
         if &foot[32..40] != END_MAGIC {
             return Err(FormatError::Truncated {
                 path: p(),
@@ -149,11 +161,11 @@ impl PackedVolume {
                 ),
             });
         }
-        let json = &map[trailer as usize..(trailer + hlen) as usize];
-        let idx = &map[(trailer + hlen) as usize..(trailer + hlen + ilen) as usize];
+        let json = read(trailer, hlen, "cannot read header")?;
+        let idx = read(trailer + hlen, ilen, "cannot read brick index")?;
         let mut h = crc32fast::Hasher::new();
-        h.update(json);
-        h.update(idx);
+        h.update(&json);
+        h.update(&idx);
         let found = h.finalize();
         if found != crc {
             return Err(FormatError::Header {
@@ -161,7 +173,7 @@ impl PackedVolume {
                 msg: format!("trailer checksum {found:08x}, expected {crc:08x}"),
             });
         }
-        let header: Header = serde_json::from_slice(json).map_err(|e| FormatError::Header {
+        let header: Header = serde_json::from_slice(&json).map_err(|e| FormatError::Header {
             path: p(),
             msg: e.to_string(),
         })?;
@@ -197,7 +209,8 @@ impl PackedVolume {
         }
         Ok(PackedVolume {
             path: p(),
-            map,
+            file: f,
+            len,
             header,
             index,
         })
@@ -216,7 +229,7 @@ impl PackedVolume {
     }
 
     pub fn file_len(&self) -> u64 {
-        self.map.len() as u64
+        self.len
     }
 
     fn brick_err(&self, id: u64, msg: String) -> FormatError {
@@ -237,8 +250,15 @@ impl PackedVolume {
         if e.is_uniform() {
             return Ok(None);
         }
-        let bytes = &self.map[e.offset as usize..e.offset as usize + e.length as usize];
-        let crc = crc32fast::hash(bytes);
+        let mut bytes = vec![0u8; e.length as usize];
+        self.file
+            .read_exact_at(&mut bytes, e.offset)
+            .map_err(|source| FormatError::Io {
+                path: self.path.clone(),
+                what: "cannot read brick payload",
+                source,
+            })?;
+        let crc = crc32fast::hash(&bytes);
         if crc != e.crc32 {
             return Err(self.brick_err(
                 id,
@@ -249,7 +269,7 @@ impl PackedVolume {
             ));
         }
         let want = self.header.payload_len(self.header.brick_coords(id)) as usize;
-        let raw = zstd::bulk::decompress(bytes, want)
+        let raw = zstd::bulk::decompress(&bytes, want)
             .map_err(|x| self.brick_err(id, format!("cannot decompress: {x}")))?;
         if raw.len() != want {
             return Err(self.brick_err(

@@ -108,14 +108,15 @@ impl RawSource {
         &self.sidecar
     }
 
-    fn slice_bytes_of(&self, z: usize) -> &[u8] {
+    /// The map and byte range holding slice `z`.
+    fn slice_range(&self, z: usize) -> (&Mmap, std::ops::Range<usize>) {
         let h = self.sidecar.header_bytes as usize;
         let sb = self.slice_bytes as usize;
         if self.maps.len() == 1 {
             let start = h + z * sb;
-            &self.maps[0][start..start + sb]
+            (&self.maps[0], start..start + sb)
         } else {
-            &self.maps[z][h..h + sb]
+            (&self.maps[z], h..h + sb)
         }
     }
 }
@@ -126,8 +127,26 @@ impl SliceSource for RawSource {
     }
 
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {
-        let bytes = self.slice_bytes_of(z);
-        decode_samples(bytes, self.meta.dtype, self.sidecar.endian, out);
+        let (map, range) = self.slice_range(z);
+        decode_samples(
+            &map[range.clone()],
+            self.meta.dtype,
+            self.sidecar.endian,
+            out,
+        );
+        // Drop the slice's pages from this process (they stay in the page
+        // cache), so resident memory stays one slice, not the whole file.
+        // SAFETY: the map is read-only and file-backed, and no reference
+        // into this range outlives the decode above; a later read faults
+        // the pages back in from the file.
+        #[cfg(unix)]
+        unsafe {
+            let _ = map.unchecked_advise_range(
+                memmap2::UncheckedAdvice::DontNeed,
+                range.start,
+                range.len(),
+            );
+        }
         Ok(())
     }
 }
