@@ -228,6 +228,72 @@ pub fn slice_extrema(
         )
 }
 
+/// Iso fast path of pass 1: `flags[y * (nx-1) + x] = 1` when any of the
+/// four samples `x..=x+1`, `y..=y+1` has a rescaled value `>= iso` (NaN
+/// never does). A cell is a 1-cell exactly when the flag of its column is
+/// set in the sample slice below or above it, so classification needs one
+/// byte per column instead of two f64 extrema. Returns the raw (min, max)
+/// of the slice, NaN excluded.
+pub fn slice_iso_flags(
+    values: &[f64],
+    nx: usize,
+    ny: usize,
+    rescale: crate::input::Rescale,
+    iso: f64,
+    flags: &mut [u8],
+) -> (f64, f64) {
+    use rayon::prelude::*;
+    let ncx = nx - 1;
+    debug_assert_eq!(values.len(), nx * ny);
+    debug_assert_eq!(flags.len(), ncx * (ny - 1));
+    flags
+        .par_chunks_mut(ncx)
+        .enumerate()
+        .with_min_len(8)
+        .map_init(
+            || vec![0u8; nx],
+            |above, (y, out)| {
+                let a = &values[y * nx..(y + 1) * nx];
+                let b = &values[(y + 1) * nx..(y + 2) * nx];
+                for ((f, &p), &q) in above.iter_mut().zip(a).zip(b) {
+                    *f = (rescale.apply(p) >= iso) as u8 | (rescale.apply(q) >= iso) as u8;
+                }
+                let pairs = above[..ncx].iter().zip(&above[1..]);
+                for (o, (&l, &r)) in out.iter_mut().zip(pairs) {
+                    *o = l | r;
+                }
+                // Range of row y (the last row pair also covers row y+1).
+                let mut range = lane_range(a);
+                if y + 2 == ny {
+                    let rb = lane_range(b);
+                    range = (min_nn(range.0, rb.0), max_nn(range.1, rb.1));
+                }
+                range
+            },
+        )
+        .reduce(
+            || (f64::INFINITY, f64::NEG_INFINITY),
+            |a, b| (min_nn(a.0, b.0), max_nn(a.1, b.1)),
+        )
+}
+
+/// (min, max) of a row, NaN skipped, with 8 independent lanes so the loop
+/// vectorizes.
+fn lane_range(row: &[f64]) -> (f64, f64) {
+    let mut hi8 = [f64::NEG_INFINITY; 8];
+    let mut lo8 = [f64::INFINITY; 8];
+    for c in row.chunks(8) {
+        for (i, &v) in c.iter().enumerate() {
+            hi8[i] = max_nn(hi8[i], v);
+            lo8[i] = min_nn(lo8[i], v);
+        }
+    }
+    (
+        lo8.iter().fold(f64::INFINITY, |m, &v| min_nn(m, v)),
+        hi8.iter().fold(f64::NEG_INFINITY, |m, &v| max_nn(m, v)),
+    )
+}
+
 /// Classifies the cell slice between two sample slices from their column
 /// extrema (see [`slice_extrema`]); values are rescaled here, per cell.
 /// Returns the number of 1-cells.

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::classify::{classify_slice, slice_extrema, Classification};
+use crate::classify::{classify_slice, slice_extrema, slice_iso_flags, Classification};
 use crate::dt::{self, BackwardDt, FileSpill, ForwardDt, OctantBlocks, ANISO_BLOCK, FAR};
 use crate::format::word::{choose_encoding, Word};
 use crate::format::writer::PackedWriter;
@@ -142,8 +142,14 @@ pub fn prep(
     // ---- Pass 1: classify and run the forward transform. ----
     let cls = &opts.classification;
     let mut buf = vec![0.0f64; nx * ny];
-    let mut planes = [vec![0.0f64; n_cells_slice], vec![0.0f64; n_cells_slice]];
-    let mut min_planes = [vec![0.0f64; n_cells_slice], vec![0.0f64; n_cells_slice]];
+    // Per-column flags (iso) or extrema (transfer function) of the last
+    // two sample slices.
+    let is_tf = matches!(cls, Classification::TransferFunction { .. });
+    let planes_len = if is_tf { n_cells_slice } else { 0 };
+    let mut planes = [vec![0.0f64; planes_len], vec![0.0f64; planes_len]];
+    let mut min_planes = [vec![0.0f64; planes_len], vec![0.0f64; planes_len]];
+    let flags_len = if is_tf { 0 } else { n_cells_slice };
+    let mut flags = [vec![0u8; flags_len], vec![0u8; flags_len]];
     let mut obj = vec![0u8; n_cells_slice];
     let mut fwd = ForwardDt::new(ncx, ncy, opts.aniso);
     let mut summary = Summary {
@@ -167,19 +173,29 @@ pub fn prep(
             summary.nan_samples += buf.par_iter().filter(|v| v.is_nan()).count() as u64;
         }
         let cur = z % 2;
-        let (lo, hi) = slice_extrema(&buf, nx, ny, &mut planes[cur], &mut min_planes[cur]);
+        let (lo, hi) = match cls {
+            Classification::Iso { iso } => {
+                slice_iso_flags(&buf, nx, ny, meta.rescale, *iso, &mut flags[cur])
+            }
+            Classification::TransferFunction { .. } => {
+                slice_extrema(&buf, nx, ny, &mut planes[cur], &mut min_planes[cur])
+            }
+        };
         raw_min = raw_min.min(lo);
         raw_max = raw_max.max(hi);
         if z > 0 {
             let prev = 1 - cur;
-            summary.one_cells += classify_slice(
-                cls,
-                meta.rescale,
-                [&planes[prev], &planes[cur]],
-                [&min_planes[prev], &min_planes[cur]],
-                ncx,
-                &mut obj,
-            );
+            summary.one_cells += match cls {
+                Classification::Iso { .. } => or_planes(&flags[prev], &flags[cur], &mut obj),
+                Classification::TransferFunction { .. } => classify_slice(
+                    cls,
+                    meta.rescale,
+                    [&planes[prev], &planes[cur]],
+                    [&min_planes[prev], &min_planes[cur]],
+                    ncx,
+                    &mut obj,
+                ),
+            };
             fwd.push(
                 &obj,
                 z == ncz,
@@ -222,6 +238,7 @@ pub fn prep(
     // is the first slice of the slab above, kept from the previous round).
     let mut slab_dist = vec![FAR; (b + 1) * n_cells_slice];
     let mut slab_blocks: Vec<Option<OctantBlocks>> = vec![None; b / ANISO_BLOCK];
+    let mut scratch = SlabScratch::default();
     progress.begin("backward DT + bricks", ncz as u64);
     for bz in (0..bricks[2] as usize).rev() {
         let z0 = bz * b;
@@ -261,7 +278,8 @@ pub fn prep(
             z1,
             has_upper: z1 < ncz,
         };
-        let (outs, embed_s) = with_word!(storage, W => emit_slab::<W>(&ctx, opts.zstd_level)?);
+        let (outs, embed_s) =
+            with_word!(storage, W => emit_slab::<W>(&ctx, opts.zstd_level, &mut scratch)?);
         st.embed += embed_s;
         st.compress += lap(&mut t) - embed_s;
         for (id, o) in outs {
@@ -311,6 +329,14 @@ pub fn prep(
     })
 }
 
+/// Buffers reused from slab to slab.
+#[derive(Default)]
+struct SlabScratch {
+    /// Backing store of the slab's words (u64 for alignment of any type).
+    words: Vec<u64>,
+    raw: Vec<f64>,
+}
+
 struct SlabCtx<'a> {
     header: &'a Header,
     src: &'a dyn SliceSource,
@@ -330,7 +356,15 @@ enum BrickOut {
 
 /// Reads the slab's samples, embeds codes and compresses its bricks.
 /// Returns the bricks and the seconds spent reading and embedding.
-fn emit_slab<W: Word>(ctx: &SlabCtx, level: i32) -> Result<(Vec<(u64, BrickOut)>, f64), PrepError> {
+///
+/// `scratch` keeps the slab's word and sample buffers from one slab to the
+/// next, so the large allocations (and the kernel's page zeroing) happen
+/// once, not once per slab.
+fn emit_slab<W: Word>(
+    ctx: &SlabCtx,
+    level: i32,
+    scratch: &mut SlabScratch,
+) -> Result<(Vec<(u64, BrickOut)>, f64), PrepError> {
     let t0 = Instant::now();
     let h = ctx.header;
     let [nx, ny, _] = h.dims.map(|d| d as usize);
@@ -340,12 +374,20 @@ fn emit_slab<W: Word>(ctx: &SlabCtx, level: i32) -> Result<(Vec<(u64, BrickOut)>
     let enc: CodeEncoding = h.codes;
     let max_code = enc.max_code();
     let n_cells_slice = ncx * ncy;
-    // Sample words of slices z0..=z1, codes embedded.
-    let mut words: Vec<W> = vec![W::from_raw(0.0); nsl * nx * ny];
-    let mut raw = vec![0.0f64; nx * ny];
+    // Sample words of slices z0..=z1, codes embedded (every word below is
+    // written before it is read).
+    let n_words = nsl * nx * ny;
+    let n_u64 = (n_words * std::mem::size_of::<W>()).div_ceil(8);
+    if scratch.words.len() < n_u64 {
+        scratch.words.resize(n_u64, 0);
+    }
+    let words: &mut [W] =
+        &mut bytemuck::cast_slice_mut::<u64, W>(&mut scratch.words[..])[..n_words];
+    scratch.raw.resize(nx * ny, 0.0);
+    let raw = &mut scratch.raw;
     for k in 0..nsl {
         let zs = ctx.z0 + k;
-        ctx.src.read_slice(zs, &mut raw)?;
+        ctx.src.read_slice(zs, raw)?;
         // Cell slice whose minimum corners lie on this sample slice.
         let dist_slot = if zs < ctx.z1 {
             Some(k)
@@ -376,51 +418,60 @@ fn emit_slab<W: Word>(ctx: &SlabCtx, level: i32) -> Result<(Vec<(u64, BrickOut)>
     let ids: Vec<u64> = (0..h.bricks[1])
         .flat_map(|by| (0..h.bricks[0]).map(move |bx| h.brick_id([bx, by, bz])))
         .collect();
+    let words: &[W] = words;
     let outs: Vec<(u64, BrickOut)> = ids
         .par_iter()
-        .map(|&id| {
-            let c = h.brick_coords(id);
-            let (x0, x1) = h.brick_cells(0, c[0]);
-            let (y0, y1) = h.brick_cells(1, c[1]);
-            let (x0, x1, y0, y1) = (x0 as usize, x1 as usize, y0 as usize, y1 as usize);
-            let nzc = ctx.z1 - ctx.z0;
-            // Uniform: every cell a 0-cell with the same saturated code >= 1.
-            let code_of = |d: u8| (d as u32 - 1).min(max_code);
-            let first = ctx.dist[y0 * ncx + x0];
-            let uniform = first >= 2
-                && (0..nzc).all(|k| {
-                    (y0..y1).all(|y| {
-                        let row = &ctx.dist[k * n_cells_slice + y * ncx..];
-                        row[x0..x1]
-                            .iter()
-                            .all(|&d| d >= 2 && code_of(d) == code_of(first))
-                    })
-                });
-            if uniform {
-                return (id, BrickOut::Uniform(code_of(first)));
-            }
-            let mut payload: Vec<W> = Vec::with_capacity((x1 - x0 + 1) * (y1 - y0 + 1) * (nzc + 1));
-            for k in 0..=nzc {
-                for y in y0..=y1 {
-                    let row = &words[(k * ny + y) * nx..];
-                    payload.extend_from_slice(&row[x0..=x1]);
+        .map_init(
+            || zstd::bulk::Compressor::new(level),
+            |comp, &id| {
+                let c = h.brick_coords(id);
+                let (x0, x1) = h.brick_cells(0, c[0]);
+                let (y0, y1) = h.brick_cells(1, c[1]);
+                let (x0, x1, y0, y1) = (x0 as usize, x1 as usize, y0 as usize, y1 as usize);
+                let nzc = ctx.z1 - ctx.z0;
+                // Uniform: every cell a 0-cell with the same saturated code >= 1.
+                let code_of = |d: u8| (d as u32 - 1).min(max_code);
+                let first = ctx.dist[y0 * ncx + x0];
+                let uniform = first >= 2
+                    && (0..nzc).all(|k| {
+                        (y0..y1).all(|y| {
+                            let row = &ctx.dist[k * n_cells_slice + y * ncx..];
+                            row[x0..x1]
+                                .iter()
+                                .all(|&d| d >= 2 && code_of(d) == code_of(first))
+                        })
+                    });
+                if uniform {
+                    return (id, BrickOut::Uniform(code_of(first)));
                 }
-            }
-            let mut bytes: Vec<u8> = bytemuck::cast_slice(&payload).to_vec();
-            if h.aniso_block.is_some() {
-                bytes.extend(octant_payload(ctx, c, max_code));
-            }
-            let raw_len = bytes.len() as u64;
-            let compressed =
-                zstd::bulk::compress(&bytes, level).expect("zstd compress into memory");
-            (
-                id,
-                BrickOut::Payload {
-                    compressed,
-                    raw_len,
-                },
-            )
-        })
+                let n_bytes = h.payload_len(c) as usize;
+                let mut bytes: Vec<u8> = Vec::with_capacity(n_bytes);
+                for k in 0..=nzc {
+                    for y in y0..=y1 {
+                        let row = &words[(k * ny + y) * nx..];
+                        bytes.extend_from_slice(bytemuck::cast_slice(&row[x0..=x1]));
+                    }
+                }
+                if h.aniso_block.is_some() {
+                    bytes.extend(octant_payload(ctx, c, max_code));
+                }
+                debug_assert_eq!(bytes.len(), n_bytes);
+                let raw_len = bytes.len() as u64;
+                // One compression context per rayon job, reused across bricks.
+                let compressed = match comp {
+                    Ok(c) => c.compress(&bytes),
+                    Err(e) => Err(std::io::Error::other(e.to_string())),
+                }
+                .expect("zstd compresses into memory for any level prep accepts");
+                (
+                    id,
+                    BrickOut::Payload {
+                        compressed,
+                        raw_len,
+                    },
+                )
+            },
+        )
         .collect();
     Ok((outs, embed_s))
 }
@@ -448,4 +499,20 @@ fn octant_payload(ctx: &SlabCtx, c: [u64; 3], max_code: u32) -> Vec<u8> {
         }
     }
     out
+}
+
+/// `obj = a | b` (cells flagged from the slice below or above); returns the
+/// number of 1-cells.
+fn or_planes(a: &[u8], b: &[u8], obj: &mut [u8]) -> u64 {
+    obj.par_chunks_mut(1 << 16)
+        .zip(a.par_chunks(1 << 16).zip(b.par_chunks(1 << 16)))
+        .map(|(o, (a, b))| {
+            let mut n = 0u64;
+            for ((o, &a), &b) in o.iter_mut().zip(a).zip(b) {
+                *o = a | b;
+                n += *o as u64;
+            }
+            n
+        })
+        .sum()
 }
