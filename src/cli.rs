@@ -30,8 +30,10 @@ pub enum Command {
     /// Generate test volumes.
     #[command(subcommand)]
     Phantom(PhantomCmd),
-    /// Generate the CT-like phantom and a sphere scene, prepare them and
-    /// report what was written.
+    /// Ray-cast a packed file into a PNG.
+    Render(Box<RenderArgs>),
+    /// Generate the CT-like phantom and a sphere scene, prepare and render
+    /// them, and report what was written.
     Demo(DemoArgs),
 }
 
@@ -44,7 +46,12 @@ pub struct PrepArgs {
     pub output: PathBuf,
     /// Iso value (rescaled units, e.g. HU): a cell is a 1-cell when its
     /// largest vertex value is >= T.
-    #[arg(long, value_name = "T", conflicts_with = "classify_tf")]
+    #[arg(
+        long,
+        value_name = "T",
+        conflicts_with = "classify_tf",
+        allow_negative_numbers = true
+    )]
     pub iso: Option<f64>,
     /// Transfer function (JSON): a cell is a 1-cell when its opacity is
     /// non-zero anywhere between the min and max of its vertex values.
@@ -157,4 +164,118 @@ fn parse_dims(s: &str) -> Result<[usize; 3], String> {
             .map_err(|_| format!("{p:?}: expected a whole number"))?;
     }
     Ok(out)
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModeArg {
+    Surface,
+    Mip,
+    Composite,
+    Cost,
+    Depth,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TraversalArg {
+    Cd,
+    Fvt,
+    CdAniso,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HitArg {
+    Int,
+    Bisect,
+    Newton,
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Packed file from `cdvol prep`.
+    pub file: PathBuf,
+    /// Output PNG.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[arg(long, value_enum, default_value = "surface")]
+    pub mode: ModeArg,
+    /// Ray generator: chessboard distance (default), single-cell steps, or
+    /// CD with anisotropic codes (files prepared with --aniso).
+    #[arg(long, value_enum, default_value = "cd")]
+    pub traversal: TraversalArg,
+    /// CD leaps only over cells with at least this code; smaller codes take
+    /// single-cell steps (1 = the paper).
+    #[arg(long, default_value_t = 1)]
+    pub min_leap: u8,
+    /// Surface intersection inside a 1-cell.
+    #[arg(long, value_enum, default_value = "int")]
+    pub hit: HitArg,
+    /// Shadow rays, traced with the same traversal.
+    #[arg(long)]
+    pub shadows: bool,
+    /// Transfer function (JSON) for --mode composite.
+    #[arg(long)]
+    pub tf: Option<PathBuf>,
+    /// Composite sample distance in mm.
+    #[arg(long, default_value_t = 0.5)]
+    pub step: f64,
+    #[arg(long, default_value_t = 512)]
+    pub width: u32,
+    #[arg(long, default_value_t = 512)]
+    pub height: u32,
+    /// Tile edge in pixels.
+    #[arg(long, default_value_t = 32)]
+    pub tile: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Brick cache budget in MiB.
+    #[arg(long, default_value_t = 512)]
+    pub cache_mb: usize,
+    /// Perspective projection (default orthographic).
+    #[arg(long)]
+    pub persp: bool,
+    /// Perspective field of view in degrees.
+    #[arg(long, default_value_t = 40.0)]
+    pub fov: f64,
+    /// Orbit view: azimuth and elevation in degrees around the volume centre.
+    #[arg(long, value_parser = parse_pair, allow_hyphen_values = true)]
+    pub view: Option<[f64; 2]>,
+    /// Exact camera: eye, target and up in mm (all three needed).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub eye: Option<[f64; 3]>,
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub target: Option<[f64; 3]>,
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub up: Option<[f64; 3]>,
+    /// Orthographic frame height in mm (default: the whole volume).
+    #[arg(long)]
+    pub frame: Option<f64>,
+    /// Write render statistics as JSON.
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+}
+
+fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
+    let v: Vec<&str> = s.split(',').collect();
+    if v.len() != N {
+        return Err(format!("{s:?}: expected {N} comma-separated numbers"));
+    }
+    let mut out = [0.0; N];
+    for (o, p) in out.iter_mut().zip(v) {
+        *o = p
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("{p:?}: expected a finite number"))?;
+    }
+    Ok(out)
+}
+
+fn parse_pair(s: &str) -> Result<[f64; 2], String> {
+    parse_floats::<2>(s)
+}
+
+fn parse_triple(s: &str) -> Result<[f64; 3], String> {
+    parse_floats::<3>(s)
 }

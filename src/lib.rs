@@ -37,3 +37,4 @@ pub mod input;
 pub mod phantom;
 pub mod prep;
 pub mod progress;
+pub mod render;

@@ -20,6 +20,10 @@ use cdvol::input::raw::RawSource;
 use cdvol::phantom;
 use cdvol::prep::{prep, PrepOptions, PrepReport};
 use cdvol::progress::{NoProgress, Progress};
+use cdvol::render::camera::{Camera, Projection};
+use cdvol::render::shade::HitMethod;
+use cdvol::render::traverse::{Method, TGrid};
+use cdvol::render::{render, Mode, RenderOptions, Stats};
 use cli::{Cli, Command, PhantomCmd};
 
 /// indicatif bars on stderr; hidden when stderr is not a terminal.
@@ -73,7 +77,15 @@ fn main() -> ExitCode {
                     return ExitCode::SUCCESS;
                 }
             }
-            eprintln!("cdvol: error: {e:#}");
+            // Causes whose text the message already shows are not repeated.
+            let mut msg = e.to_string();
+            for cause in e.chain().skip(1) {
+                let c = cause.to_string();
+                if !msg.contains(&c) {
+                    msg = format!("{msg}: {c}");
+                }
+            }
+            eprintln!("cdvol: error: {msg}");
             ExitCode::FAILURE
         }
     }
@@ -163,9 +175,130 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 info.bytes as f64 / 1048576.0
             );
         }
+        Command::Render(a) => {
+            let (files, stats) = render_cmd(&a, progress)?;
+            for f in files {
+                println!("wrote {}", f.display());
+            }
+            println!(
+                "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read, {:.2} s",
+                stats.rays,
+                stats.steps,
+                stats.steps as f64 / stats.rays.max(1) as f64,
+                stats.macro_steps,
+                stats.cell_steps,
+                stats.hits,
+                stats.bricks_read,
+                stats.bricks_total,
+                stats.seconds_total
+            );
+        }
         Command::Demo(a) => demo(&a.dir, progress)?,
     }
     Ok(())
+}
+
+fn render_cmd(
+    a: &cli::RenderArgs,
+    progress: &dyn Progress,
+) -> Result<(Vec<std::path::PathBuf>, Stats)> {
+    let vol = PackedVolume::open(&a.file)?;
+    let grid = TGrid::new(&vol.header().axes);
+    let projection = if a.persp {
+        Projection::Persp { fov_deg: a.fov }
+    } else {
+        Projection::Ortho { frame_mm: 1.0 }
+    };
+    let camera = match (a.eye, a.target, a.up) {
+        (Some(eye), Some(target), Some(up)) => {
+            let projection = match projection {
+                Projection::Ortho { .. } => {
+                    let (lo, hi) = grid.bounds();
+                    let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+                    Projection::Ortho {
+                        frame_mm: a.frame.unwrap_or(diag * 1.02),
+                    }
+                }
+                p => p,
+            };
+            Camera::look_at(eye, target, up, projection, a.width, a.height)
+        }
+        (None, None, None) => {
+            let [az, el] = a.view.unwrap_or([0.0, 0.0]);
+            Camera::orbit(
+                grid.bounds(),
+                az,
+                el,
+                a.persp.then_some(a.fov),
+                a.frame,
+                a.width,
+                a.height,
+            )
+        }
+        _ => bail!("--eye, --target and --up go together: give all three or none"),
+    }
+    .map_err(|e| anyhow::anyhow!("camera: {e}"))?;
+    let hit = match a.hit {
+        cli::HitArg::Int => HitMethod::Int,
+        cli::HitArg::Bisect => HitMethod::Bisect,
+        cli::HitArg::Newton => HitMethod::Newton,
+    };
+    let mode = match a.mode {
+        cli::ModeArg::Surface => Mode::Surface {
+            hit,
+            shadows: a.shadows,
+        },
+        cli::ModeArg::Mip => Mode::Mip,
+        cli::ModeArg::Cost => Mode::Cost,
+        cli::ModeArg::Depth => Mode::Depth { hit },
+        cli::ModeArg::Composite => {
+            let tf =
+                a.tf.as_ref()
+                    .ok_or_else(|| anyhow::anyhow!("--mode composite needs --tf FILE"))?;
+            Mode::Composite {
+                tf: TransferFunction::load(tf)?,
+                step_mm: a.step,
+            }
+        }
+    };
+    let method = match a.traversal {
+        cli::TraversalArg::Fvt => Method::Fvt,
+        cli::TraversalArg::Cd => Method::Cd {
+            min_leap: a.min_leap,
+        },
+        cli::TraversalArg::CdAniso => Method::CdAniso {
+            min_leap: a.min_leap,
+        },
+    };
+    let opts = RenderOptions {
+        mode,
+        method,
+        tile: a.tile,
+        cache_bytes: a.cache_mb.saturating_mul(1 << 20),
+    };
+    let run = || render(&vol, &camera, &opts, progress);
+    let (frame, stats) = match a.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .context("cannot start the thread pool")?
+            .install(run)?,
+        None => run()?,
+    };
+    let mut files = cdvol::render::save(&frame, &a.output).map_err(anyhow::Error::msg)?;
+    if let Some(p) = &a.stats {
+        let tmp = tempfile::NamedTempFile::new_in(
+            p.parent()
+                .filter(|d| !d.as_os_str().is_empty())
+                .unwrap_or(Path::new(".")),
+        )
+        .with_context(|| format!("{}: cannot create a temporary file", p.display()))?;
+        serde_json::to_writer_pretty(tmp.as_file(), &stats)?;
+        tmp.persist(p)
+            .with_context(|| format!("{}: cannot write", p.display()))?;
+        files.push(p.clone());
+    }
+    Ok((files, stats))
 }
 
 fn prep_file(

@@ -35,7 +35,7 @@ fn prep_values(
     .to_path_buf();
     // Rectilinear z: replace the placeholder with real gaps.
     let gaps: Vec<String> = (0..dims[2] - 1)
-        .map(|i| format!("{}", 1.0 + i as f64 * 0.25))
+        .map(|i| format!("{}", 1.0 + i as f64 * 0.1 + 1.0 / 3.0))
         .collect();
     let text = std::fs::read_to_string(&side).unwrap().replace(
         "{\"spacing\": null}",
@@ -44,11 +44,21 @@ fn prep_values(
     std::fs::write(&side, text).unwrap();
     let src = RawSource::open(&side).unwrap();
     let out = dir.join("v.cdv");
+    let axes_in = cdvol::input::SliceSource::meta(&src).grid.axes.clone();
     let mut opts = PrepOptions::new(Classification::Iso { iso });
     opts.brick_size = brick;
     opts.aniso = aniso;
     prep(&src, &out, &opts, &NoProgress).unwrap();
-    PackedVolume::open(&out).unwrap()
+    let vol = PackedVolume::open(&out).unwrap();
+    // Axis positions survive the JSON header bit for bit.
+    for k in 0..3 {
+        let (a, b) = (vol.header().axes[k].coords(), axes_in[k].coords());
+        assert!(
+            a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "axis {k} changed"
+        );
+    }
+    vol
 }
 
 fn check(dims: [usize; 3], dtype: &str, values: &[f64], iso: f64, brick: usize, aniso: bool) {

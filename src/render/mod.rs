@@ -1,0 +1,620 @@
+//! `cdvol render`: a tile-parallel CPU ray caster over packed files.
+//!
+//! ```text
+//! BrickCache (cache.rs)    decoded bricks under a byte budget, shared
+//!   -> trace (traverse.rs) fvt | cd | cd-aniso: the 1-cells a ray passes
+//!   -> integrate (here)    surface | mip | composite | cost | depth
+//!   -> tiles (here)        rayon over tiles, assembled in a fixed order
+//! ```
+//! Sampling, hit and shading code (shade.rs) is shared by all traversals,
+//! so their images can differ only if their cell sequences differ.
+//! Output is the same whatever the thread count, tile size or cache budget:
+//! every pixel is computed on its own, from the same values.
+
+pub mod cache;
+pub mod camera;
+pub mod shade;
+pub mod traverse;
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::classify::{Classification, TransferFunction};
+use crate::format::reader::PackedVolume;
+use crate::format::FormatError;
+use crate::progress::Progress;
+use cache::{Accessor, BrickCache, CacheCounters};
+use camera::Camera;
+use shade::{at, find_hit, shade, CellEval, HitMethod};
+use traverse::{trace, Flow, Method, Ray, StepCounts, TGrid};
+
+/// What a pixel shows.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Mode {
+    /// Shaded iso-surface at the file's iso value.
+    Surface { hit: HitMethod, shadows: bool },
+    /// Maximum of the interpolant at the 1-cells' face samples.
+    Mip,
+    /// Front-to-back compositing with a transfer function; `step_mm`
+    /// apart, at `t = k * step_mm` along the ray.
+    Composite { tf: TransferFunction, step_mm: f64 },
+    /// Traversal steps per pixel (paper Fig. 17).
+    Cost,
+    /// Distance to the iso-surface in mm.
+    Depth { hit: HitMethod },
+}
+
+#[derive(Debug, Clone)]
+pub struct RenderOptions {
+    pub mode: Mode,
+    pub method: Method,
+    pub tile: u32,
+    pub cache_bytes: usize,
+}
+
+/// Counters of a render (the `--stats` contract).
+#[derive(Debug, Default, Clone, serde::Serialize)]
+pub struct Stats {
+    pub rays: u64,
+    pub steps: u64,
+    pub macro_steps: u64,
+    pub cell_steps: u64,
+    pub hits: u64,
+    pub bricks_read: u64,
+    pub cache_hits: u64,
+    pub cache_misses: u64,
+    pub bytes_decompressed: u64,
+    pub peak_cache_bytes: u64,
+    pub bricks_total: u64,
+    pub seconds_total: f64,
+    pub traversal: String,
+    pub mode: String,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// A rendered image: RGB8 for display, plus per-pixel data of the depth
+/// and cost modes.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub rgb: Vec<u8>,
+    /// Depth mode: hit distance in mm, NaN where the ray misses.
+    pub depth: Option<Vec<f32>>,
+    /// Steps per pixel.
+    pub steps: Vec<u32>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error("{}: {msg}", path.display())]
+    Incompatible {
+        path: std::path::PathBuf,
+        msg: String,
+    },
+    #[error("option {option}: {msg}")]
+    Option { option: &'static str, msg: String },
+}
+
+/// Per-pixel result before colouring.
+#[derive(Clone, Copy, Default)]
+struct Px {
+    rgb: [f32; 3],
+    depth: f32,
+    steps: u32,
+    hit: bool,
+}
+
+/// Checks that the mode can be rendered exactly from this file's
+/// classification (never render silently wrong).
+fn check_mode(vol: &PackedVolume, mode: &Mode) -> Result<(), RenderError> {
+    let h = vol.header();
+    let path = vol.path().to_path_buf();
+    match (mode, &h.classification) {
+        (Mode::Surface { .. } | Mode::Depth { .. }, Classification::TransferFunction { .. }) => {
+            Err(RenderError::Incompatible {
+                path,
+                msg: "surface and depth modes need a file prepared with --iso T".into(),
+            })
+        }
+        (Mode::Composite { tf, .. }, Classification::Iso { iso }) => {
+            // Cells whose values all lie below iso were leapt over: the
+            // transfer function must be transparent there.
+            if tf.nonzero_on(f64::MIN, iso.next_down()) {
+                Err(RenderError::Incompatible {
+                    path,
+                    msg: format!(
+                        "the transfer function gives opacity to values below {iso}, which this \
+                         file classified as empty (prepared with --iso {iso}); prepare it with \
+                         `cdvol prep --classify-tf` and this transfer function, or --iso at the \
+                         lowest value with opacity"
+                    ),
+                })
+            } else {
+                Ok(())
+            }
+        }
+        (Mode::Composite { tf, .. }, Classification::TransferFunction { tf: file_tf }) => {
+            let mut pts: Vec<f64> = tf
+                .points
+                .iter()
+                .chain(&file_tf.points)
+                .map(|p| p.value)
+                .collect();
+            pts.sort_by(f64::total_cmp);
+            let mut probes = pts.clone();
+            probes.extend(pts.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+            probes.push(pts[0] - 1.0);
+            probes.push(pts[pts.len() - 1] + 1.0);
+            match probes
+                .iter()
+                .find(|&&v| tf.opacity(v) > 0.0 && file_tf.opacity(v) == 0.0)
+            {
+                Some(v) => Err(RenderError::Incompatible {
+                    path,
+                    msg: format!(
+                        "the transfer function gives opacity at value {v}, where the one the file \
+                         was prepared with (--classify-tf) has none; prepare it with this \
+                         transfer function"
+                    ),
+                }),
+                None => Ok(()),
+            }
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Renders `vol` as seen by `camera`.
+pub fn render(
+    vol: &PackedVolume,
+    camera: &Camera,
+    opts: &RenderOptions,
+    progress: &dyn Progress,
+) -> Result<(Frame, Stats), RenderError> {
+    let t0 = Instant::now();
+    check_mode(vol, &opts.mode)?;
+    if opts.tile == 0 {
+        return Err(RenderError::Option {
+            option: "--tile",
+            msg: "0, expected at least 1".into(),
+        });
+    }
+    if let Mode::Composite { step_mm, .. } = opts.mode {
+        if !(step_mm > 0.0 && step_mm.is_finite()) {
+            return Err(RenderError::Option {
+                option: "--step",
+                msg: format!("{step_mm} mm, expected > 0"),
+            });
+        }
+    }
+    if matches!(opts.method, Method::CdAniso { .. }) && vol.header().aniso_block.is_none() {
+        return Err(RenderError::Incompatible {
+            path: vol.path().to_path_buf(),
+            msg: "--traversal cd-aniso needs anisotropic codes: prepare with `cdvol prep --aniso`"
+                .into(),
+        });
+    }
+    let h = vol.header();
+    let grid = TGrid::new(&h.axes);
+    let cache = BrickCache::new(vol, opts.cache_bytes);
+    let (w, hgt) = (camera.width, camera.height);
+    let ts = opts.tile;
+    let (ntx, nty) = (w.div_ceil(ts), hgt.div_ceil(ts));
+    let tiles: Vec<(u32, u32)> = (0..nty)
+        .flat_map(|ty| (0..ntx).map(move |tx| (tx, ty)))
+        .collect();
+    let ctx = Ctx {
+        grid: &grid,
+        camera,
+        opts,
+        iso: match h.classification {
+            Classification::Iso { iso } => iso,
+            _ => f64::NAN,
+        },
+    };
+    progress.begin("render tiles", tiles.len() as u64);
+    let results: Vec<TileOut> = tiles
+        .par_iter()
+        .map(|&(tx, ty)| {
+            let r = render_tile(&ctx, &cache, tx * ts, ty * ts, ts);
+            progress.advance(1);
+            r
+        })
+        .collect();
+    progress.end();
+
+    // Assemble in tile order (deterministic), merge counters.
+    let mut px = vec![Px::default(); (w * hgt) as usize];
+    let mut steps = StepCounts::default();
+    let mut cc = CacheCounters::default();
+    let mut hits = 0u64;
+    for r in results {
+        if let Some(e) = r.error {
+            return Err(e.into());
+        }
+        steps.add(&r.steps);
+        cc.add(&r.cache);
+        hits += r.hits;
+        for (i, p) in r.pixels.into_iter().enumerate() {
+            let (lx, ly) = (i as u32 % r.w, i as u32 / r.w);
+            px[((r.y0 + ly) * w + r.x0 + lx) as usize] = p;
+        }
+    }
+    let frame = colour(&opts.mode, vol, w, hgt, &px);
+    let stats = Stats {
+        rays: (w * hgt) as u64,
+        steps: steps.steps,
+        macro_steps: steps.macro_steps,
+        cell_steps: steps.cell_steps,
+        hits,
+        bricks_read: cc.bricks_read,
+        cache_hits: cc.cache_hits,
+        cache_misses: cc.cache_misses,
+        bytes_decompressed: cc.bytes_decompressed,
+        peak_cache_bytes: cache.peak_bytes() as u64,
+        bricks_total: h.brick_count(),
+        seconds_total: t0.elapsed().as_secs_f64(),
+        traversal: format!("{:?}", opts.method),
+        mode: mode_name(&opts.mode).into(),
+        width: w,
+        height: hgt,
+    };
+    Ok((frame, stats))
+}
+
+pub fn mode_name(m: &Mode) -> &'static str {
+    match m {
+        Mode::Surface { .. } => "surface",
+        Mode::Mip => "mip",
+        Mode::Composite { .. } => "composite",
+        Mode::Cost => "cost",
+        Mode::Depth { .. } => "depth",
+    }
+}
+
+struct Ctx<'a> {
+    grid: &'a TGrid,
+    camera: &'a Camera,
+    opts: &'a RenderOptions,
+    iso: f64,
+}
+
+struct TileOut {
+    x0: u32,
+    y0: u32,
+    w: u32,
+    pixels: Vec<Px>,
+    steps: StepCounts,
+    cache: CacheCounters,
+    hits: u64,
+    error: Option<FormatError>,
+}
+
+fn render_tile(ctx: &Ctx, cache: &BrickCache, x0: u32, y0: u32, ts: u32) -> TileOut {
+    let cam = ctx.camera;
+    let w = ts.min(cam.width - x0);
+    let hh = ts.min(cam.height - y0);
+    let mut acc = Accessor::new(cache);
+    let mut pixels = Vec::with_capacity((w * hh) as usize);
+    let mut steps = StepCounts::default();
+    let mut hits = 0;
+    for y in y0..y0 + hh {
+        for x in x0..x0 + w {
+            let ray = cam.ray(x, y);
+            let (p, s) = pixel(ctx, &ray, &mut acc);
+            steps.add(&s);
+            hits += p.hit as u64;
+            pixels.push(p);
+        }
+    }
+    TileOut {
+        x0,
+        y0,
+        w,
+        pixels,
+        steps,
+        cache: acc.counters,
+        hits,
+        error: acc.error.take(),
+    }
+}
+
+/// The first iso-surface hit along `ray` after `t_min`: `(t, cell values)`.
+fn first_hit(
+    ctx: &Ctx,
+    ray: &Ray,
+    t_min: f64,
+    hit: HitMethod,
+    acc: &mut Accessor,
+) -> (Option<(f64, CellEval)>, StepCounts) {
+    let g = ctx.grid;
+    let coords = [g.coords(0), g.coords(1), g.coords(2)];
+    let mut found = None;
+    let s = trace(g, ray, t_min, ctx.opts.method, acc, |v, brick, local| {
+        let c = CellEval::new(coords, v.cell, brick.vertices(local));
+        match find_hit(ray, v, &c, ctx.iso, hit) {
+            Some(t) => {
+                found = Some((t, c));
+                Flow::Stop
+            }
+            None => Flow::Continue,
+        }
+    });
+    (found, s)
+}
+
+fn pixel(ctx: &Ctx, ray: &Ray, acc: &mut Accessor) -> (Px, StepCounts) {
+    let g = ctx.grid;
+    let coords = [g.coords(0), g.coords(1), g.coords(2)];
+    let mut px = Px {
+        depth: f32::NAN,
+        ..Px::default()
+    };
+    let mut counts;
+    match &ctx.opts.mode {
+        Mode::Surface { hit, shadows } => {
+            let (found, s) = first_hit(ctx, ray, 0.0, *hit, acc);
+            counts = s;
+            if let Some((t, c)) = found {
+                px.hit = true;
+                let p = at(ray, t);
+                let grad = c.gradient(p);
+                let to_eye = ray.dir.map(|d| -d);
+                let cam = ctx.camera;
+                let to_light = if *shadows {
+                    // A key light above and to the left of the viewer.
+                    shade::normalize(std::array::from_fn(|k| {
+                        to_eye[k] + 0.8 * cam.up[k] - 0.6 * cam.right[k]
+                    }))
+                } else {
+                    to_eye
+                };
+                let mut lit = true;
+                if *shadows {
+                    // Shadow ray from just outside the surface, traced with
+                    // the same traversal, starting inside the volume.
+                    let gl = shade::dot(grad, grad).sqrt();
+                    let eps = 1e-3 * c.size.iter().cloned().fold(f64::INFINITY, f64::min);
+                    let out = if gl > 0.0 {
+                        grad.map(|x| -x / gl)
+                    } else {
+                        to_light
+                    };
+                    let sign = if shade::dot(out, to_light) >= 0.0 {
+                        1.0
+                    } else {
+                        -1.0
+                    };
+                    let origin =
+                        std::array::from_fn(|k| p[k] + sign * eps * out[k] + eps * to_light[k]);
+                    let sray = Ray {
+                        origin,
+                        dir: to_light,
+                    };
+                    let (sh, s2) = first_hit(ctx, &sray, 0.0, HitMethod::Int, acc);
+                    counts.add(&s2);
+                    lit = sh.is_none();
+                }
+                let v = shade(grad, to_light, to_eye, lit) as f32;
+                px.rgb = [v, v, v];
+                px.depth = t as f32;
+            }
+        }
+        Mode::Depth { hit } => {
+            let (found, s) = first_hit(ctx, ray, 0.0, *hit, acc);
+            counts = s;
+            if let Some((t, _)) = found {
+                px.hit = true;
+                px.depth = t as f32;
+            }
+        }
+        Mode::Mip => {
+            let mut best = f64::NEG_INFINITY;
+            counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, brick, local| {
+                let c = CellEval::new(coords, v.cell, brick.vertices(local));
+                best = best
+                    .max(c.value(at(ray, v.t_enter)))
+                    .max(c.value(at(ray, v.t_exit)));
+                Flow::Continue
+            });
+            if best > f64::NEG_INFINITY {
+                px.hit = true;
+                px.rgb = [best as f32; 3];
+            }
+        }
+        Mode::Cost => {
+            counts = trace(g, ray, 0.0, ctx.opts.method, acc, |_, _, _| Flow::Continue);
+        }
+        Mode::Composite { tf, step_mm } => {
+            let mut col = [0.0f64; 3];
+            let mut alpha = 0.0f64;
+            counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, brick, local| {
+                let c = CellEval::new(coords, v.cell, brick.vertices(local));
+                // Samples at t = k * step inside [t_enter, t_exit).
+                let mut k = (v.t_enter / step_mm).ceil();
+                while k * step_mm < v.t_exit {
+                    let val = c.value(at(ray, k * step_mm));
+                    let (rgb, a) = tf_sample(tf, val);
+                    // Opacity is per mm; corrected for the step length.
+                    let a = 1.0 - (1.0 - a).powf(*step_mm);
+                    for i in 0..3 {
+                        col[i] += (1.0 - alpha) * a * rgb[i];
+                    }
+                    alpha += (1.0 - alpha) * a;
+                    if alpha > 0.99 {
+                        return Flow::Stop;
+                    }
+                    k += 1.0;
+                }
+                Flow::Continue
+            });
+            px.hit = alpha > 0.0;
+            px.rgb = col.map(|x| x as f32);
+        }
+    }
+    px.steps = counts.steps.min(u32::MAX as u64) as u32;
+    (px, counts)
+}
+
+/// Colour and opacity of the transfer function at `v`.
+fn tf_sample(tf: &TransferFunction, v: f64) -> ([f64; 3], f64) {
+    let p = &tf.points;
+    let a = tf.opacity(v);
+    let rgb = if v <= p[0].value {
+        p[0].color
+    } else if v >= p[p.len() - 1].value {
+        p[p.len() - 1].color
+    } else {
+        let i = p.partition_point(|q| q.value <= v);
+        let f = (v - p[i - 1].value) / (p[i].value - p[i - 1].value);
+        std::array::from_fn(|k| p[i - 1].color[k] + f * (p[i].color[k] - p[i - 1].color[k]))
+    };
+    (rgb, a)
+}
+
+fn colour(mode: &Mode, vol: &PackedVolume, w: u32, h: u32, px: &[Px]) -> Frame {
+    let n = (w * h) as usize;
+    let mut rgb = vec![0u8; 3 * n];
+    let to8 = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let mut depth = None;
+    match mode {
+        Mode::Surface { .. } | Mode::Composite { .. } => {
+            for (i, p) in px.iter().enumerate() {
+                for k in 0..3 {
+                    rgb[3 * i + k] = to8(p.rgb[k]);
+                }
+            }
+        }
+        Mode::Mip => {
+            let s = &vol.header().summary;
+            let rs = vol.header().rescale;
+            let (a, b) = (
+                rs.apply(s.raw_min.unwrap_or(0.0)),
+                rs.apply(s.raw_max.unwrap_or(1.0)),
+            );
+            let (lo, hi) = (a.min(b), a.max(b));
+            for (i, p) in px.iter().enumerate() {
+                let g = if p.hit {
+                    ((p.rgb[0] as f64 - lo) / (hi - lo).max(1e-300)) as f32
+                } else {
+                    0.0
+                };
+                rgb[3 * i..3 * i + 3].fill(to8(g));
+            }
+        }
+        Mode::Cost => {
+            let max = px.iter().map(|p| p.steps).max().unwrap_or(1).max(1) as f32;
+            for (i, p) in px.iter().enumerate() {
+                let c = heat(p.steps as f32 / max);
+                rgb[3 * i..3 * i + 3].copy_from_slice(&c);
+            }
+        }
+        Mode::Depth { .. } => {
+            let d: Vec<f32> = px.iter().map(|p| p.depth).collect();
+            let (lo, hi) = d
+                .iter()
+                .filter(|x| x.is_finite())
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            for (i, &x) in d.iter().enumerate() {
+                let g = if x.is_finite() {
+                    1.0 - (x - lo) / (hi - lo).max(1e-30) * 0.9
+                } else {
+                    0.0
+                };
+                rgb[3 * i..3 * i + 3].fill(to8(g));
+            }
+            depth = Some(d);
+        }
+    }
+    Frame {
+        width: w,
+        height: h,
+        rgb,
+        depth,
+        steps: px.iter().map(|p| p.steps).collect(),
+    }
+}
+
+/// Black -> purple -> orange -> yellow-white heat map.
+fn heat(x: f32) -> [u8; 3] {
+    let stops: [(f32, [f32; 3]); 4] = [
+        (0.0, [0.0, 0.0, 0.0]),
+        (0.35, [0.45, 0.05, 0.55]),
+        (0.7, [0.95, 0.45, 0.1]),
+        (1.0, [1.0, 1.0, 0.75]),
+    ];
+    let x = x.clamp(0.0, 1.0);
+    let i = stops.iter().position(|s| s.0 >= x).unwrap_or(3).max(1);
+    let (a, b) = (stops[i - 1], stops[i]);
+    let f = (x - a.0) / (b.0 - a.0);
+    std::array::from_fn(|k| ((a.1[k] + f * (b.1[k] - a.1[k])) * 255.0).round() as u8)
+}
+
+/// Writes `frame` as PNG to `path` (temporary file beside it, renamed when
+/// complete); the depth mode also writes `path` with `.f32` (raw
+/// little-endian f32, NaN = miss) and a 16-bit PNG `*.depth16.png`.
+pub fn save(frame: &Frame, path: &std::path::Path) -> Result<Vec<std::path::PathBuf>, String> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let write = |target: &std::path::Path, bytes: &[u8]| -> Result<(), String> {
+        let tmp = tempfile::Builder::new()
+            .prefix(".cdvol-partial-")
+            .tempfile_in(&dir)
+            .map_err(|e| format!("{}: cannot create a temporary file: {e}", target.display()))?;
+        std::fs::write(tmp.path(), bytes).map_err(|e| format!("{}: {e}", target.display()))?;
+        tmp.persist(target)
+            .map_err(|e| format!("{}: {}", target.display(), e.error))?;
+        Ok(())
+    };
+    let png = |img: image::DynamicImage| -> Result<Vec<u8>, String> {
+        let mut buf = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut buf, image::ImageFormat::Png)
+            .map_err(|e| e.to_string())?;
+        Ok(buf.into_inner())
+    };
+    let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
+        .ok_or("image size does not match its pixels")?;
+    write(path, &png(image::DynamicImage::ImageRgb8(rgb))?)?;
+    let mut out = vec![path.to_path_buf()];
+    if let Some(d) = &frame.depth {
+        let raw: Vec<u8> = d.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let f32_path = path.with_extension("f32");
+        write(&f32_path, &raw)?;
+        let (lo, hi) = d
+            .iter()
+            .filter(|x| x.is_finite())
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        let px16: Vec<u16> = d
+            .iter()
+            .map(|&x| {
+                if x.is_finite() {
+                    1 + ((x - lo) / (hi - lo).max(1e-30) * 65534.0) as u16
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(
+            frame.width,
+            frame.height,
+            px16,
+        )
+        .ok_or("depth size does not match")?;
+        let p16 = path.with_extension("depth16.png");
+        write(&p16, &png(image::DynamicImage::ImageLuma16(img))?)?;
+        out.push(f32_path);
+        out.push(p16);
+    }
+    Ok(out)
+}
