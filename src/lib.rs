@@ -22,6 +22,10 @@
 //! Samples sit on grid points and a cell spans 2x2x2 samples, so n samples
 //! give n-1 cells per axis ([`grid`]). Codes live on the cells.
 
+// `!(x > 0.0)` is deliberate throughout: it is true for NaN, which is
+// what the checks of untrusted numbers want.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 #[cfg(target_endian = "big")]
 compile_error!(
     "cdvol's packed format is little-endian and is only built for little-endian targets"

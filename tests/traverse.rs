@@ -260,11 +260,7 @@ fn axis_parallel_rays_on_every_sample_plane() {
 fn origin_inside_a_one_cell_and_far_away() {
     let dims = [9, 9, 9];
     let mut values = vec![0.0; 729];
-    for i in [
-        (4 * 9 + 4) * 9 + 4,
-        (1 * 9 + 7) * 9 + 2,
-        (8 * 9 + 0) * 9 + 8,
-    ] {
+    for i in [(4 * 9 + 4) * 9 + 4, (9 + 7) * 9 + 2, 8 * 9 * 9 + 8] {
         values[i] = 250.0;
     }
     let s = scene(dims, [vec![1.0; 8], vec![0.7; 8], vec![1.3; 8]], values, 4);
