@@ -51,12 +51,13 @@ fn prep_values(
     prep(&src, &out, &opts, &NoProgress).unwrap();
     let vol = PackedVolume::open(&out).unwrap();
     // Axis positions survive the JSON header bit for bit.
-    for k in 0..3 {
-        let (a, b) = (vol.header().axes[k].coords(), axes_in[k].coords());
-        assert!(
-            a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
-            "axis {k} changed"
-        );
+    for (k, (got, want)) in vol.header().axes.iter().zip(&axes_in).enumerate() {
+        let same = got
+            .coords()
+            .iter()
+            .zip(want.coords())
+            .all(|(x, y)| x.to_bits() == y.to_bits());
+        assert!(same, "axis {k} changed");
     }
     vol
 }

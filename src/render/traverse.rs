@@ -267,16 +267,15 @@ where
     if !(t_in < t_out) {
         return counts;
     }
-    let mut v = [0u32; 3];
-    for k in 0..3 {
-        v[k] = if w.d[k] == 0.0 {
+    let mut v: [u32; 3] = std::array::from_fn(|k| {
+        if w.d[k] == 0.0 {
             // Largest sample position <= o, kept inside the last cell.
             let s = w.s[k];
             (s.partition_point(|&x| x <= w.o[k]).max(1) - 1).min(w.n[k] as usize - 1) as u32
         } else {
             w.locate(k, t_in, 0, w.n[k] - 1)
-        };
-    }
+        }
+    });
     let mut t_enter = t_in;
     let mut next = [
         w.plane_t(0, v[0] + 1),
