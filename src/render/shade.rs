@@ -137,22 +137,23 @@ pub fn find_hit(ray: &Ray, v: &Visit, c: &CellEval, iso: f64, method: HitMethod)
             let mut t = t_int.clamp(t0, t1);
             for _ in 0..NEWTON_ITERS {
                 let gt = g(t);
-                if gt >= 0.0 {
+                if gt.abs() <= 1e-12 * iso.abs().max(1.0) {
+                    break;
+                }
+                if gt > 0.0 {
                     b = t;
                 } else {
                     a = t;
                 }
-                let p = at(ray, t);
-                let gr = c.gradient(p);
+                let gr = c.gradient(at(ray, t));
                 let dg = gr[0] * ray.dir[0] + gr[1] * ray.dir[1] + gr[2] * ray.dir[2];
                 let nt = t - gt / dg;
-                t = if nt.is_finite() && nt > a && nt < b {
+                t = if nt.is_finite() && nt >= a && nt <= b {
                     nt
                 } else {
                     0.5 * (a + b)
                 };
-                if (b - a) <= 1e-12 * (t1 - t0).max(1e-300) || gt.abs() < 1e-12 * iso.abs().max(1.0)
-                {
+                if b - a <= 1e-12 * (t1 - t0) {
                     break;
                 }
             }
@@ -249,5 +250,51 @@ mod tests {
             assert!((t - 1.3).abs() < 1e-7, "{m:?}: {t}");
         }
         assert_eq!(find_hit(&ray, &v, &c, 1.5, HitMethod::Int), None);
+    }
+
+    #[test]
+    fn newton_and_bisect_agree_on_a_nonlinear_field() {
+        // A distance-like field: the trilinear interpolant is not linear
+        // along the ray, so the three methods differ; Newton and bisection
+        // must converge to the same root, including when the linear guess
+        // is already the root.
+        let coords: [Vec<f64>; 3] = [vec![0.0, 1.0], vec![0.0, 1.0], vec![0.0, 1.5]];
+        let fun = |p: [f64; 3]| {
+            10.0 - ((p[0] - 3.0).powi(2) + (p[1] + 1.0).powi(2) + (p[2] - 0.2).powi(2)).sqrt()
+        };
+        let mut f = [0f32; 8];
+        for (i, v) in f.iter_mut().enumerate() {
+            *v = fun([coords[0][i & 1], coords[1][i >> 1 & 1], coords[2][i >> 2]]) as f32;
+        }
+        let c = CellEval::new([&coords[0], &coords[1], &coords[2]], [0, 0, 0], f);
+        let ray = Ray {
+            origin: [-1.0, 0.3, 0.4],
+            dir: normalize([1.0, 0.1, 0.2]),
+        };
+        let v = Visit {
+            cell: [0; 3],
+            t_enter: 1.0 / ray.dir[0],
+            t_exit: 2.0 / ray.dir[0],
+        };
+        for frac in [0.1, 0.5, 0.93] {
+            let iso = c.value(at(&ray, (1.0 + frac) / ray.dir[0]));
+            let tb = find_hit(&ray, &v, &c, iso, HitMethod::Bisect).unwrap();
+            let tn = find_hit(&ray, &v, &c, iso, HitMethod::Newton).unwrap();
+            assert!((tb - tn).abs() < 1e-8, "bisect {tb} newton {tn}");
+            assert!((c.value(at(&ray, tn)) - iso).abs() < 1e-9);
+        }
+        // The linear guess is exact on a linear field: Newton must keep it.
+        let lin = [0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0];
+        let c = CellEval::new([&coords[0], &coords[1], &coords[2]], [0, 0, 0], lin);
+        let ray = Ray {
+            origin: [-1.0, 0.5, 0.5],
+            dir: [1.0, 0.0, 0.0],
+        };
+        let v = Visit {
+            cell: [0; 3],
+            t_enter: 1.0,
+            t_exit: 2.0,
+        };
+        assert_eq!(find_hit(&ray, &v, &c, 0.25, HitMethod::Newton), Some(1.25));
     }
 }
