@@ -63,7 +63,8 @@ fn scene(dims: [usize; 3], gaps: [Vec<f64>; 3], values: Vec<f64>, brick: usize) 
 
 /// Exact enumeration: every 1-cell whose closed box meets the ray over a
 /// positive length after t = 0 (half-open along axes the ray is parallel
-/// to), with the same plane formula `(S - o) / d` the traversal uses.
+/// to), with the same plane formula `(S - o) * (1 / |d|)` (sign-adjusted)
+/// the traversal uses, so entry and exit must match bit for bit.
 fn oracle(s: &Scene, ray: &Ray) -> Vec<Visit> {
     let n = s.axes.each_ref().map(|a| a.len() - 1);
     let mut out = Vec::new();
@@ -83,7 +84,12 @@ fn oracle(s: &Scene, ray: &Ray) -> Vec<Visit> {
                         let last = c[k] + 1 == n[k];
                         inside &= a <= o && (o < b || (last && o == b));
                     } else {
-                        let (t0, t1) = ((a - o) / d, (b - o) / d);
+                        let inv = 1.0 / d.abs();
+                        let (t0, t1) = if d > 0.0 {
+                            ((a - o) * inv, (b - o) * inv)
+                        } else {
+                            ((o - a) * inv, (o - b) * inv)
+                        };
                         let (e, x) = if d > 0.0 { (t0, t1) } else { (t1, t0) };
                         lo = lo.max(e);
                         hi = hi.min(x);

@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-use crate::format::reader::{BrickData, CellClass, PackedVolume, Sample};
+use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
 /// Code of a 1-cell in the decoded code plane.
@@ -87,62 +87,113 @@ impl RBrick {
     }
 
     fn decode(vol: &PackedVolume, id: u64) -> Result<(RBrick, u64), FormatError> {
-        let b = vol.read_brick(id)?;
         let h = vol.header();
-        let cells = b.samples.map(|s| (s - 1) as u32);
-        let first = b.first.map(|f| f as u32);
-        let raw_len = h.payload_len(b.coords);
-        let (codes, values, octants) = match &b.data {
-            BrickData::Uniform(c) => (Codes::Uniform((*c).min(254) as u8), Vec::new(), Vec::new()),
-            BrickData::Words { samples, octants } => {
-                let mut plane = Vec::with_capacity((cells[0] * cells[1] * cells[2]) as usize);
-                for z in 0..cells[2] as usize {
-                    for y in 0..cells[1] as usize {
-                        for x in 0..cells[0] as usize {
-                            plane.push(match vol.cell_class(&b, [x, y, z]) {
-                                CellClass::Object => OBJECT,
-                                CellClass::Empty(c) => c.min(254) as u8,
-                            });
-                        }
-                    }
+        let coords = h.brick_coords(id);
+        let cells = h.brick_samples(coords).map(|s| (s - 1) as u32);
+        let first = std::array::from_fn(|k| (coords[k] * h.brick_size as u64) as u32);
+        let Some(raw) = vol.read_payload(id)? else {
+            let code = vol.index()[id as usize].uniform_code.min(254) as u8;
+            let b = RBrick {
+                first,
+                cells,
+                codes: Codes::Uniform(code),
+                values: Vec::new(),
+                octants: Vec::new(),
+                bytes: std::mem::size_of::<RBrick>(),
+            };
+            return Ok((b, 0));
+        };
+        let raw_len = raw.len() as u64;
+        let [sx, sy, sz] = cells.map(|c| (c + 1) as usize);
+        let n = sx * sy * sz;
+        // Rescaled values in f64 (the precision prep classified with) and
+        // the code carried by each word, if any.
+        let rs = h.rescale;
+        let enc = h.codes;
+        let mut vals = vec![0.0f64; n];
+        let mut word_code = vec![u32::MAX; n];
+        crate::with_word!(h.storage, W => {
+            use crate::format::word::Word;
+            let words: Vec<W> = bytemuck::pod_collect_to_vec(&raw[..n * std::mem::size_of::<W>()]);
+            for (i, w) in words.into_iter().enumerate() {
+                match w.as_code(&enc) {
+                    Some(c) => word_code[i] = c,
+                    None => vals[i] = rs.apply(w.to_raw()),
                 }
-                let rs = h.rescale;
-                let values = samples
-                    .iter()
-                    .map(|s| match s {
-                        Sample::Value(v) => rs.apply(*v) as f32,
-                        Sample::Code(_) => f32::NAN,
-                    })
-                    .collect();
-                (
-                    Codes::Plane(plane),
-                    values,
-                    octants.clone().unwrap_or_default(),
-                )
             }
-        };
-        let bytes = std::mem::size_of::<RBrick>()
-            + match &codes {
-                Codes::Plane(p) => p.len(),
-                Codes::Uniform(_) => 0,
+        });
+        // Cell codes: a code word at the minimum corner gives the code; a
+        // code word at any other vertex means a 0-cell with code 0;
+        // otherwise the classification decides from the 8 values.
+        let cls = &h.classification;
+        let mut plane = Vec::with_capacity((cells[0] * cells[1] * cells[2]) as usize);
+        let offs = [
+            0,
+            1,
+            sx,
+            sx + 1,
+            sx * sy,
+            sx * sy + 1,
+            sx * sy + sx,
+            sx * sy + sx + 1,
+        ];
+        for z in 0..sz - 1 {
+            for y in 0..sy - 1 {
+                for x in 0..sx - 1 {
+                    let b = (z * sy + y) * sx + x;
+                    let corner = word_code[b];
+                    let code = if corner != u32::MAX {
+                        corner.min(254) as u8
+                    } else if offs.iter().any(|&o| word_code[b + o] != u32::MAX) {
+                        0
+                    } else {
+                        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                        for &o in &offs {
+                            let v = vals[b + o];
+                            if v < lo {
+                                lo = v;
+                            }
+                            if v > hi {
+                                hi = v;
+                            }
+                        }
+                        if cls.is_object(lo, hi) {
+                            OBJECT
+                        } else {
+                            0
+                        }
+                    };
+                    plane.push(code);
+                }
             }
-            + values.len() * 4
-            + octants.len() * 8;
-        let raw = if matches!(codes, Codes::Uniform(_)) {
-            0
-        } else {
-            raw_len
+        }
+        let values: Vec<f32> = vals
+            .iter()
+            .zip(&word_code)
+            .map(|(&v, &c)| if c == u32::MAX { v as f32 } else { f32::NAN })
+            .collect();
+        let octants = match h.brick_blocks(coords) {
+            Some(nb) => {
+                let nb = (nb[0] * nb[1] * nb[2]) as usize;
+                let a = &raw[n * h.storage.size()..];
+                (0..nb)
+                    .map(|i| std::array::from_fn(|o| a[o * nb + i]))
+                    .collect()
+            }
+            None => Vec::new(),
         };
+        let bytes =
+            std::mem::size_of::<RBrick>() + plane.len() + values.len() * 4 + octants.len() * 8;
         Ok((
             RBrick {
                 first,
                 cells,
-                codes,
+                codes: Codes::Plane(plane),
                 values,
                 octants,
                 bytes,
             },
-            raw,
+            raw_len,
         ))
     }
 }
@@ -274,6 +325,22 @@ impl<'a, 'v> Accessor<'a, 'v> {
     /// image.
     #[inline]
     pub fn brick(&mut self, c: [u32; 3]) -> (&RBrick, [u32; 3]) {
+        // Fast path: the cell is in the current brick (no division).
+        if let Some(b) = &self.cur {
+            let l = [
+                c[0].wrapping_sub(b.first[0]),
+                c[1].wrapping_sub(b.first[1]),
+                c[2].wrapping_sub(b.first[2]),
+            ];
+            if l[0] < b.cells[0] && l[1] < b.cells[1] && l[2] < b.cells[2] {
+                return (self.cur.as_deref().expect("checked"), l);
+            }
+        }
+        self.brick_slow(c)
+    }
+
+    #[cold]
+    fn brick_slow(&mut self, c: [u32; 3]) -> (&RBrick, [u32; 3]) {
         let bs = self.brick_size;
         let bc = [c[0] / bs, c[1] / bs, c[2] / bs];
         let id = (bc[2] as u64 * self.bricks[1] + bc[1] as u64) * self.bricks[0] + bc[0] as u64;
