@@ -12,7 +12,7 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use cdvol::classify::{Classification, TransferFunction};
+use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::export::{export, ExportWhat};
 use cdvol::format::reader::PackedVolume;
 use cdvol::info::Info;
@@ -389,7 +389,98 @@ fn demo(dir: &Path, progress: &dyn Progress) -> Result<()> {
     let vol = PackedVolume::open(&head_packed)?;
     print!("{}", Info::of(&vol).to_text());
     println!();
-    println!("Rendering is not part of cdvol yet (issue 3); the packed files above are its input.");
-    println!("Inspect them with: cdvol info {}", head_packed.display());
+
+    // Renders of the head: shaded bone with shadows, the traversal cost
+    // map, and a composite of skin and bone from a transfer-function prep.
+    let grid = TGrid::new(&vol.header().axes);
+    let camera = Camera::orbit(grid.bounds(), 35.0, 15.0, None, None, 768, 768)
+        .map_err(anyhow::Error::msg)?;
+    let mut outputs = Vec::new();
+    let mut show = |name: &str, vol: &PackedVolume, mode: Mode| -> Result<()> {
+        let opts = RenderOptions {
+            mode,
+            method: Method::Cd { min_leap: 1 },
+            tile: 32,
+            cache_bytes: 512 << 20,
+        };
+        let (frame, stats) = render(vol, &camera, &opts, progress)?;
+        let path = dir.join(format!("{name}.png"));
+        cdvol::render::save(&frame, &path).map_err(anyhow::Error::msg)?;
+        println!(
+            "render    {} ({} rays, {:.1} steps per ray, {} of {} bricks read, {:.2} s)",
+            path.display(),
+            stats.rays,
+            stats.steps as f64 / stats.rays.max(1) as f64,
+            stats.bricks_read,
+            stats.bricks_total,
+            stats.seconds_total
+        );
+        outputs.push(path);
+        Ok(())
+    };
+    show(
+        "head-surface",
+        &vol,
+        Mode::Surface {
+            hit: HitMethod::Newton,
+            shadows: true,
+        },
+    )?;
+    show("head-cost", &vol, Mode::Cost)?;
+    let tf = TransferFunction {
+        points: vec![
+            TfPoint {
+                value: -300.0,
+                opacity: 0.0,
+                color: [0.9, 0.6, 0.5],
+            },
+            TfPoint {
+                value: -100.0,
+                opacity: 0.02,
+                color: [0.9, 0.6, 0.5],
+            },
+            TfPoint {
+                value: 100.0,
+                opacity: 0.02,
+                color: [0.9, 0.7, 0.6],
+            },
+            TfPoint {
+                value: 300.0,
+                opacity: 0.0,
+                color: [1.0, 1.0, 0.9],
+            },
+            TfPoint {
+                value: 600.0,
+                opacity: 0.3,
+                color: [1.0, 1.0, 0.95],
+            },
+        ],
+    };
+    let tf_path = dir.join("head-tf.json");
+    std::fs::write(&tf_path, serde_json::to_vec_pretty(&tf)?)
+        .with_context(|| format!("{}: cannot write", tf_path.display()))?;
+    let tf_packed = dir.join("head-tf.cdv");
+    let opts = PrepOptions::new(Classification::TransferFunction { tf: tf.clone() });
+    let r = prep_file(&head, &tf_packed, &opts, progress)?;
+    print_prep(&tf_packed, &r)?;
+    let tf_vol = PackedVolume::open(&tf_packed)?;
+    show(
+        "head-composite",
+        &tf_vol,
+        Mode::Composite { tf, step_mm: 0.5 },
+    )?;
+    println!();
+    println!(
+        "Images: {}",
+        outputs
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    println!(
+        "Try: cdvol render {} -o view.png --view 120,30 --shadows",
+        head_packed.display()
+    );
     Ok(())
 }
