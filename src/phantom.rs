@@ -15,7 +15,8 @@
 //! - [`ct`]: a CT-like head in Hounsfield units (air, scalp, skull, brain,
 //!   ventricles, eyes, neck with a spine) whose slice thickness varies along
 //!   z like the paper's data set 2 (section 4.3: thin slices through the
-//!   central part of the skull, 4x thicker ones at the top).
+//!   central part of the skull, 4x thicker ones at the top). Tissue
+//!   boundaries are partial-volume ramps about 1.5 sample spacings wide.
 //!
 //! Both write to temporary files beside the target and rename them into
 //! place at the end, so a failure leaves nothing partial behind. Slices are
@@ -552,7 +553,16 @@ fn ct_z_positions(nz: usize) -> Vec<f64> {
 }
 
 /// An axis-aligned ellipsoid (or, with `semi[2]` infinite, a vertical
-/// elliptic cylinder), evaluated as `sum ((p - centre) / semi)^2`.
+/// elliptic cylinder) with the normalised radius
+/// `r(p) = sqrt(sum ((p - centre) / semi)^2)`.
+///
+/// The signed distance (mm, positive outside) of `p` to the level set
+/// `r = r0` is approximated by the implicit value over its gradient norm,
+/// `(r - r0) / |grad r| = (r - r0) r / G` with
+/// `G = sqrt(sum ((p - centre) / semi^2)^2)`: exact along the semi-axes and
+/// to first order at the surface, linear in `r` along every ray from the
+/// centre (so monotone across the surface), and `r / G` lies between the
+/// smallest and largest (finite) semi-axis, so `|d| >= |r - r0| min_semi`.
 #[derive(Clone, Copy)]
 struct Ellipsoid {
     centre: [f64; 3],
@@ -560,11 +570,109 @@ struct Ellipsoid {
 }
 
 impl Ellipsoid {
+    /// One axis' part of `r^2`.
     #[inline]
     fn term(&self, k: usize, p: f64) -> f32 {
         let t = (p - self.centre[k]) / self.semi[k];
         (t * t) as f32
     }
+
+    /// One axis' part of `G^2` (0 along an infinite semi-axis).
+    #[inline]
+    fn grad_term(&self, k: usize, p: f64) -> f32 {
+        let t = (p - self.centre[k]) / (self.semi[k] * self.semi[k]);
+        (t * t) as f32
+    }
+}
+
+/// An [`Ellipsoid`] with the x parts of `r^2` and `G^2` precomputed per
+/// column, for the fractions of samples inside its level sets.
+struct Shape {
+    e: Ellipsoid,
+    /// The smallest and largest finite semi-axis: the range of `r / G`.
+    semi_lo: f32,
+    semi_hi: f32,
+    r2_x: Vec<f32>,
+    g2_x: Vec<f32>,
+}
+
+/// The part of a [`Shape`] shared by one row of samples.
+#[derive(Clone, Copy)]
+struct ShapeRow {
+    /// The y and z parts of `r^2` and `G^2`.
+    r2: f32,
+    g2: f32,
+    /// Samples with `r^2 >= out2` are beyond the ramp of the outermost
+    /// level, those with `r^2 <= in2` inside the ramp of the innermost one.
+    out2: f32,
+    in2: f32,
+}
+
+impl Shape {
+    fn new(e: Ellipsoid, xs: &[f64]) -> Shape {
+        let finite = || e.semi.iter().copied().filter(|s| s.is_finite());
+        Shape {
+            e,
+            semi_lo: finite().fold(f64::INFINITY, f64::min) as f32,
+            semi_hi: finite().fold(0.0, f64::max) as f32,
+            r2_x: xs.iter().map(|&x| e.term(0, x)).collect(),
+            g2_x: xs.iter().map(|&x| e.grad_term(0, x)).collect(),
+        }
+    }
+
+    /// The row at `(py, pz)`, for the levels `r = lo ..= hi` blended over
+    /// ramps of half width `hw` mm.
+    fn row(&self, py: f64, pz: f64, lo: f32, hi: f32, hw: f32) -> ShapeRow {
+        let m = hw / self.semi_lo;
+        ShapeRow {
+            r2: self.e.term(1, py) + self.e.term(2, pz),
+            g2: self.e.grad_term(1, py) + self.e.grad_term(2, pz),
+            out2: (hi + m) * (hi + m),
+            in2: if lo > m { (lo - m) * (lo - m) } else { -1.0 },
+        }
+    }
+
+    /// `r` and `r / G` of sample `x` of a row, given its `r^2`: the signed
+    /// distance to the level `r0` is `(r - r0) * (r / G)`.
+    #[inline]
+    fn radius_scale(&self, row: &ShapeRow, r2: f32, x: usize) -> (f32, f32) {
+        let r = r2.sqrt();
+        let g = (row.g2 + self.g2_x[x]).sqrt();
+        let s = if g > 0.0 {
+            (r / g).clamp(self.semi_lo, self.semi_hi)
+        } else {
+            self.semi_lo
+        };
+        (r, s)
+    }
+
+    /// The fraction of sample `x` of a row inside the surface `r = 1`
+    /// (a row made with `lo = hi = 1`), for ramps of width `1 / inv_w`.
+    #[inline]
+    fn inside(&self, row: &ShapeRow, x: usize, inv_w: f32) -> f32 {
+        let r2 = row.r2 + self.r2_x[x];
+        if r2 >= row.out2 {
+            0.0
+        } else if r2 <= row.in2 {
+            1.0
+        } else {
+            let (r, s) = self.radius_scale(row, r2, x);
+            ramp((r - 1.0) * s, inv_w)
+        }
+    }
+}
+
+/// The fraction inside a surface of a sample at signed distance `d` (mm,
+/// positive outside): a clamped linear ramp of width `1 / inv_w` centred on
+/// the surface (partial volume).
+#[inline]
+fn ramp(d: f32, inv_w: f32) -> f32 {
+    (0.5 - d * inv_w).clamp(0.0, 1.0)
+}
+
+#[inline]
+fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    a + (b - a) * t
 }
 
 /// Writes a CT-like head phantom: `out_json` (sidecar) and `<stem>.raw`.
@@ -577,10 +685,23 @@ impl Ellipsoid {
 /// and `seed`. Suggested iso values: [`CT_BONE_ISO`] (300 HU) for the skull,
 /// [`CT_SKIN_ISO`] (-300 HU) for the skin.
 ///
+/// Boundaries are partial-volume ramps, not steps: every surface (each
+/// ellipsoid, shell and cylinder, and the planes ending the neck and the
+/// spine) blends the layers on either side by a clamped linear ramp of the
+/// approximate signed distance to it (see [`Ellipsoid`]), centred on the
+/// surface, `1.5 x` the largest of the x and y spacings and the z gaps
+/// beside the slice wide. The layers nest (brain and ventricles inside the
+/// skull, inside the scalp, inside the head, over the neck and spine; the
+/// eyes over everything), so the field is continuous and about linear
+/// across each surface and iso surfaces of its trilinear interpolant are
+/// smooth. Shells thinner than the ramp (the skull on coarse grids) keep
+/// only part of their contrast, as in a real scan.
+///
 /// The x and y spacings are `0.9 mm * 256 / n` (a field of view of about
 /// 230 mm for any dims); z positions have 2, 1 and 4 mm gaps over the
-/// lower 30 %, middle 45 % and top 25 % of the slices and are written as `{"positions": [...]}`. The head is
-/// centred at 55 % of the z extent with a semi-axis of 40 % of it.
+/// lower 30 %, middle 45 % and top 25 % of the slices and are written as
+/// `{"positions": [...]}`. The head is centred at 55 % of the z extent with
+/// a semi-axis of 40 % of it.
 pub fn ct(
     out_json: &Path,
     opts: &CtOptions,
@@ -653,61 +774,108 @@ pub fn ct(
     });
 
     // Per-column terms, shared by all rows.
-    let col = |e: &Ellipsoid| -> Vec<f32> { xs.iter().map(|&x| e.term(0, x)).collect() };
-    let head_x = col(&head);
-    let neck_x = col(&neck);
-    let spine_x = col(&spine);
-    let eye_x = eyes.each_ref().map(col);
-    let vent_x = ventricles.each_ref().map(col);
+    let head = Shape::new(head, &xs);
+    let neck = Shape::new(neck, &xs);
+    let spine = Shape::new(spine, &xs);
+    let eyes = eyes.map(|e| Shape::new(e, &xs));
+    let ventricles = ventricles.map(|e| Shape::new(e, &xs));
+    // Half the ramp width per slice: 0.75 x the largest of the x and y
+    // spacings and the z gaps on either side of the slice.
+    let half_widths: Vec<f32> = (0..nz)
+        .map(|z| {
+            let below = if z > 0 { zs[z] - zs[z - 1] } else { 0.0 };
+            let above = if z + 1 < nz { zs[z + 1] - zs[z] } else { 0.0 };
+            (0.75 * sx.max(sy).max(below).max(above)) as f32
+        })
+        .collect();
     let seed_key = mix64(opts.seed ^ 0x5EED_C7C7_0000_0001);
     let u16_out = opts.dtype == CtDtype::U16;
     let (ys, zs_ref) = (&ys, &zs);
 
     let fill = |_: &mut (), z: usize, y: usize, row: &mut [u8]| {
         let (py, pz) = (ys[y], zs_ref[z]);
+        let hw = half_widths[z];
+        let inv_w = 0.5 / hw;
         // Per-row terms.
-        let head_q = head.term(1, py) + head.term(2, pz);
         let rel_z = ((pz - cz) / az).clamp(-1.0, 1.0) as f32;
         let scalp_t = 0.05f32;
         let skull_t = 0.06 + 0.02 * rel_z;
-        let scalp_in2 = (1.0 - scalp_t) * (1.0 - scalp_t);
-        let skull_in2 = (1.0 - scalp_t - skull_t) * (1.0 - scalp_t - skull_t);
+        let (scalp_in, skull_in) = (1.0 - scalp_t, 1.0 - scalp_t - skull_t);
         let bone_row = 1150.0 + 100.0 * rel_z;
-        let neck_row = pz < neck_top;
-        let neck_q = neck.term(1, py);
-        let spine_row = pz < spine_top;
-        let spine_q = spine.term(1, py);
-        let eye_q = eyes[0].term(1, py) + eyes[0].term(2, pz);
-        let eye_row = eye_q <= 1.0;
-        let vent_q = ventricles[0].term(1, py) + ventricles[0].term(2, pz);
-        let vent_row = vent_q <= 1.0;
+        let head_row = head.row(py, pz, skull_in, 1.0, hw);
+        // The neck and the spine end in planes (inside the head).
+        let neck_cap = ramp((pz - neck_top) as f32, inv_w);
+        let neck_row = neck.row(py, pz, 1.0, 1.0, hw);
+        let spine_cap = ramp((pz - spine_top) as f32, inv_w);
+        let spine_row = spine.row(py, pz, 1.0, 1.0, hw);
+        let eye_rows = eyes.each_ref().map(|e| e.row(py, pz, 1.0, 1.0, hw));
+        let eye_any = eye_rows.iter().any(|r| r.r2 < r.out2);
+        let vent_rows = ventricles.each_ref().map(|e| e.row(py, pz, 1.0, 1.0, hw));
+        let vent_any = vent_rows.iter().any(|r| r.r2 < r.out2);
         let row_key = mix64(seed_key ^ (((z as u64) << 32) | y as u64));
 
-        for (x, out) in row.chunks_exact_mut(2).enumerate() {
-            let hx = head_x[x];
-            let r2 = head_q + hx;
-            let mut hu = if r2 <= 1.0 {
-                if r2 > scalp_in2 {
-                    HU_SOFT
-                } else if r2 > skull_in2 {
-                    bone_row + 80.0 * hx
-                } else if vent_row && (vent_q + vent_x[0][x] <= 1.0 || vent_q + vent_x[1][x] <= 1.0)
-                {
-                    HU_CSF
-                } else {
-                    HU_BRAIN
-                }
-            } else if neck_row && neck_q + neck_x[x] <= 1.0 {
-                if spine_row && spine_q + spine_x[x] <= 1.0 {
-                    HU_SPINE
-                } else {
-                    HU_SOFT
-                }
+        // Outside the head: air, the neck, the spine.
+        let outside = |x: usize| -> f32 {
+            let f_neck = if neck_cap > 0.0 {
+                neck_cap * neck.inside(&neck_row, x, inv_w)
             } else {
-                HU_AIR
+                0.0
             };
-            if eye_row && (eye_q + eye_x[0][x] <= 1.0 || eye_q + eye_x[1][x] <= 1.0) {
-                hu = HU_EYE;
+            if f_neck == 0.0 {
+                return HU_AIR;
+            }
+            let f_spine = if spine_cap > 0.0 {
+                spine_cap * spine.inside(&spine_row, x, inv_w)
+            } else {
+                0.0
+            };
+            lerp(HU_AIR, lerp(HU_SOFT, HU_SPINE, f_spine), f_neck)
+        };
+        // Inside the skull: brain and ventricles.
+        let brain = |x: usize| -> f32 {
+            if vent_any {
+                let f = ventricles[0]
+                    .inside(&vent_rows[0], x, inv_w)
+                    .max(ventricles[1].inside(&vent_rows[1], x, inv_w));
+                lerp(HU_BRAIN, HU_CSF, f)
+            } else {
+                HU_BRAIN
+            }
+        };
+
+        for (x, out) in row.chunks_exact_mut(2).enumerate() {
+            let hx = head.r2_x[x];
+            let r2 = head_row.r2 + hx;
+            let mut hu = if r2 >= head_row.out2 {
+                outside(x)
+            } else if r2 <= head_row.in2 {
+                brain(x)
+            } else {
+                // Within the ramps of the skin, the scalp or the skull:
+                // nested layers, blended from the inside out.
+                let (r, s) = head.radius_scale(&head_row, r2, x);
+                let f_brain = ramp((r - skull_in) * s, inv_w);
+                let f_bone = ramp((r - scalp_in) * s, inv_w);
+                let f_head = ramp((r - 1.0) * s, inv_w);
+                let bone = bone_row + 80.0 * hx;
+                let mut v = if f_brain > 0.0 {
+                    lerp(bone, brain(x), f_brain)
+                } else {
+                    bone
+                };
+                v = lerp(HU_SOFT, v, f_bone);
+                if f_head < 1.0 {
+                    v = lerp(outside(x), v, f_head);
+                }
+                v
+            };
+            if eye_any {
+                let f = eyes[0].inside(&eye_rows[0], x, inv_w).max(eyes[1].inside(
+                    &eye_rows[1],
+                    x,
+                    inv_w,
+                ));
+                hu = lerp(hu, HU_EYE, f);
             }
             let noise = ((mix64(row_key ^ x as u64) >> 32) * (2 * NOISE_HU + 1)) >> 32;
             let v = hu.round() as i32 + noise as i32 - NOISE_HU as i32;

@@ -257,3 +257,125 @@ fn same_bytes_whatever_the_thread_count() {
         "prep output depends on the thread count"
     );
 }
+
+/// Transfer-function classification against an oracle that samples the
+/// opacity densely over each cell's [min, max] (NaN skipped).
+#[test]
+fn transfer_function_classification() {
+    use cdvol::classify::{TfPoint, TransferFunction};
+    let tf = TransferFunction {
+        points: vec![
+            TfPoint {
+                value: 10.0,
+                opacity: 0.0,
+                color: [1.0; 3],
+            },
+            TfPoint {
+                value: 20.0,
+                opacity: 0.5,
+                color: [1.0; 3],
+            },
+            TfPoint {
+                value: 30.0,
+                opacity: 0.0,
+                color: [1.0; 3],
+            },
+            TfPoint {
+                value: 70.0,
+                opacity: 0.0,
+                color: [1.0; 3],
+            },
+            TfPoint {
+                value: 80.0,
+                opacity: 1.0,
+                color: [1.0; 3],
+            },
+        ],
+    };
+    let dims = [17, 13, 11];
+    let n = 17 * 13 * 11;
+    let values: Vec<f64> = (0..n)
+        .map(|i| {
+            if i % 13 == 5 {
+                f64::NAN
+            } else {
+                ((i * 7919 + i / 3) % 97) as f64
+            }
+        })
+        .map(|v: f64| if v.is_nan() { v } else { (v as f32) as f64 })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let side = write_stack(dir.path(), "tf", dims, "f32", &values, ["1", "1", "1"], "");
+    let src = RawSource::open(&side).unwrap();
+    let out = dir.path().join("tf.cdv");
+    let mut opts = PrepOptions::new(Classification::TransferFunction { tf: tf.clone() });
+    opts.brick_size = 8;
+    prep(&src, &out, &opts, &NoProgress).unwrap();
+    let vol = PackedVolume::open(&out).unwrap();
+    let [nx, ny, _] = dims;
+    let cells = dims.map(|d| d - 1);
+    let mut obj = vec![0u8; cells.iter().product()];
+    for z in 0..cells[2] {
+        for y in 0..cells[1] {
+            for x in 0..cells[0] {
+                let vs: Vec<f64> = (0..8)
+                    .map(|i| values[((z + (i >> 2)) * ny + y + (i >> 1 & 1)) * nx + x + (i & 1)])
+                    .filter(|v| !v.is_nan())
+                    .collect();
+                let hit = if vs.is_empty() {
+                    false
+                } else {
+                    let lo = vs.iter().cloned().fold(f64::INFINITY, f64::min);
+                    let hi = vs.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+                    (0..=2000).any(|k| tf.opacity(lo + (hi - lo) * k as f64 / 2000.0) > 0.0)
+                };
+                obj[(z * cells[1] + y) * cells[0] + x] = hit as u8;
+            }
+        }
+    }
+    assert!(obj.iter().any(|&o| o == 1) && obj.iter().any(|&o| o == 0));
+    let back = read_back(&vol, &values);
+    let dist = chessboard_bfs(&obj, cells);
+    assert_eq!(
+        back.codes,
+        expected_codes(&dist, vol.header().codes.max_code())
+    );
+}
+
+#[test]
+fn big_endian_and_per_slice_files_read_the_same_values() {
+    let v: Vec<u16> = (0..60).map(|i| (i * 1000 + 7) as u16).collect();
+    let dir = tempfile::tempdir().unwrap();
+    let mut names = Vec::new();
+    for z in 0..3 {
+        let bytes: Vec<u8> = v[z * 20..(z + 1) * 20]
+            .iter()
+            .flat_map(|x| x.to_be_bytes())
+            .collect();
+        let name = format!("s{z}.raw");
+        let mut with_header = vec![0xAAu8; 6];
+        with_header.extend(bytes);
+        std::fs::write(dir.path().join(&name), with_header).unwrap();
+        names.push(format!("\"{name}\""));
+    }
+    let side = dir.path().join("be.json");
+    std::fs::write(
+        &side,
+        format!(
+            r#"{{"data": [{}], "dims": [5, 4, 3], "dtype": "u16", "endian": "big", "header_bytes": 6,
+                "x": 1, "y": 1, "z": {{"positions": [0, 1, 5]}}, "rescale": {{"slope": 2, "intercept": -3}}}}"#,
+            names.join(",")
+        ),
+    )
+    .unwrap();
+    let src = RawSource::open(&side).unwrap();
+    let mut buf = vec![0.0; 20];
+    for z in 0..3 {
+        cdvol::input::SliceSource::read_slice(&src, z, &mut buf).unwrap();
+        let want: Vec<f64> = v[z * 20..(z + 1) * 20].iter().map(|&x| x as f64).collect();
+        assert_eq!(buf, want);
+    }
+    let m = cdvol::input::SliceSource::meta(&src);
+    assert_eq!(m.rescale.apply(7.0), 11.0);
+    assert_eq!(m.grid.axes[2].coords(), &[0.0, 1.0, 5.0]);
+}
