@@ -291,8 +291,9 @@ pub fn prep(
                 BrickOut::Payload {
                     compressed,
                     raw_len,
+                    no_object,
                 } => {
-                    writer.put_brick(id, &compressed)?;
+                    writer.put_brick(id, &compressed, no_object)?;
                     summary.raw_payload_bytes += raw_len;
                 }
             }
@@ -351,7 +352,11 @@ struct SlabCtx<'a> {
 
 enum BrickOut {
     Uniform(u32),
-    Payload { compressed: Vec<u8>, raw_len: u64 },
+    Payload {
+        compressed: Vec<u8>,
+        raw_len: u64,
+        no_object: bool,
+    },
 }
 
 /// Reads the slab's samples, embeds codes and compresses its bricks.
@@ -463,11 +468,18 @@ fn emit_slab<W: Word>(
                     Err(e) => Err(std::io::Error::other(e.to_string())),
                 }
                 .expect("zstd compresses into memory for any level prep accepts");
+                let no_object = (0..nzc).all(|k| {
+                    (y0..y1).all(|y| {
+                        let row = &ctx.dist[k * n_cells_slice + y * ncx..];
+                        row[x0..x1].iter().all(|&d| d > 0)
+                    })
+                });
                 (
                     id,
                     BrickOut::Payload {
                         compressed,
                         raw_len,
+                        no_object,
                     },
                 )
             },

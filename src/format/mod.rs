@@ -173,17 +173,26 @@ pub struct IndexEntry {
     /// CRC-32 (IEEE) of the compressed payload.
     pub crc32: u32,
     /// Bit 0: uniform (no payload; every cell is a 0-cell with
-    /// `uniform_code`).
+    /// `uniform_code`). Bit 1: no 1-cell in the brick.
     pub flags: u32,
     pub uniform_code: u32,
     pub reserved: u64,
 }
 
 pub const FLAG_UNIFORM: u32 = 1;
+/// Index flag bit 1: the brick holds no 1-cell, so a reader needs only its
+/// codes (on write: set by prep from the distances; on read: a hint that
+/// lets the renderer skip values and classification).
+pub const FLAG_NO_OBJECT: u32 = 2;
 
 impl IndexEntry {
     pub fn is_uniform(&self) -> bool {
         self.flags & FLAG_UNIFORM != 0
+    }
+
+    /// True when the brick holds no 1-cell.
+    pub fn has_no_object(&self) -> bool {
+        self.flags & FLAG_NO_OBJECT != 0
     }
 
     pub fn to_bytes(&self) -> [u8; INDEX_ENTRY_LEN] {

@@ -6,7 +6,8 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use super::{
-    FormatError, Header, IndexEntry, END_MAGIC, FLAG_UNIFORM, FORMAT_VERSION, MAGIC, PREAMBLE_LEN,
+    FormatError, Header, IndexEntry, END_MAGIC, FLAG_NO_OBJECT, FLAG_UNIFORM, FORMAT_VERSION,
+    MAGIC, PREAMBLE_LEN,
 };
 
 pub struct PackedWriter {
@@ -57,8 +58,14 @@ impl PackedWriter {
         }
     }
 
-    /// Appends the compressed payload of brick `id`.
-    pub fn put_brick(&mut self, id: u64, compressed: &[u8]) -> Result<(), FormatError> {
+    /// Appends the compressed payload of brick `id`; `no_object` marks a
+    /// brick without 1-cells (index flag bit 1).
+    pub fn put_brick(
+        &mut self,
+        id: u64,
+        compressed: &[u8],
+        no_object: bool,
+    ) -> Result<(), FormatError> {
         let length = u32::try_from(compressed.len()).map_err(|_| FormatError::Brick {
             path: self.target.clone(),
             brick: id,
@@ -75,7 +82,7 @@ impl PackedWriter {
             offset: self.pos,
             length,
             crc32: crc32fast::hash(compressed),
-            flags: 0,
+            flags: if no_object { FLAG_NO_OBJECT } else { 0 },
             uniform_code: 0,
             reserved: 0,
         };
@@ -90,7 +97,7 @@ impl PackedWriter {
             offset: self.pos,
             length: 0,
             crc32: 0,
-            flags: FLAG_UNIFORM,
+            flags: FLAG_UNIFORM | FLAG_NO_OBJECT,
             uniform_code: code,
             reserved: 0,
         };

@@ -110,6 +110,9 @@ impl RBrick {
         // the code carried by each word, if any.
         let rs = h.rescale;
         let enc = h.codes;
+        // A brick without 1-cells needs only its codes: a cell is coded at
+        // its minimum corner or has code 0; no values, no classification.
+        let no_object = vol.index()[id as usize].has_no_object();
         let mut vals = vec![0.0f64; n];
         let mut word_code = vec![u32::MAX; n];
         crate::with_word!(h.storage, W => {
@@ -118,7 +121,8 @@ impl RBrick {
             for (i, w) in words.into_iter().enumerate() {
                 match w.as_code(&enc) {
                     Some(c) => word_code[i] = c,
-                    None => vals[i] = rs.apply(w.to_raw()),
+                    None if !no_object => vals[i] = rs.apply(w.to_raw()),
+                    None => {}
                 }
             }
         });
@@ -144,6 +148,8 @@ impl RBrick {
                     let corner = word_code[b];
                     let code = if corner != u32::MAX {
                         corner.min(254) as u8
+                    } else if no_object {
+                        0
                     } else if offs.iter().any(|&o| word_code[b + o] != u32::MAX) {
                         0
                     } else {
@@ -167,11 +173,14 @@ impl RBrick {
                 }
             }
         }
-        let values: Vec<f32> = vals
-            .iter()
-            .zip(&word_code)
-            .map(|(&v, &c)| if c == u32::MAX { v as f32 } else { f32::NAN })
-            .collect();
+        let values: Vec<f32> = if no_object {
+            Vec::new()
+        } else {
+            vals.iter()
+                .zip(&word_code)
+                .map(|(&v, &c)| if c == u32::MAX { v as f32 } else { f32::NAN })
+                .collect()
+        };
         let octants = match h.brick_blocks(coords) {
             Some(nb) => {
                 let nb = (nb[0] * nb[1] * nb[2]) as usize;

@@ -137,6 +137,7 @@ pub fn read_back(vol: &PackedVolume, values: &[f64]) -> ReadBack {
     let mut checked = 0;
     for id in 0..h.brick_count() {
         let b = vol.read_brick(id).unwrap();
+        let no_object = vol.index()[id as usize].has_no_object();
         let [sx, sy, sz] = b.samples;
         for lz in 0..sz - 1 {
             for ly in 0..sy - 1 {
@@ -151,6 +152,10 @@ pub fn read_back(vol: &PackedVolume, values: &[f64]) -> ReadBack {
                     seen[ci] = true;
                     match vol.cell_class(&b, [lx, ly, lz]) {
                         CellClass::Object => {
+                            assert!(
+                                !no_object,
+                                "brick {id} is flagged without 1-cells but has {g:?}"
+                            );
                             codes[ci] = 255;
                             let v = b.vertices([lx, ly, lz]).unwrap();
                             for (i, s) in v.iter().enumerate() {
