@@ -333,7 +333,7 @@ fn transfer_function_classification() {
             }
         }
     }
-    assert!(obj.iter().any(|&o| o == 1) && obj.iter().any(|&o| o == 0));
+    assert!(obj.contains(&1) && obj.contains(&0));
     let back = read_back(&vol, &values);
     let dist = chessboard_bfs(&obj, cells);
     assert_eq!(

@@ -148,9 +148,7 @@ impl RBrick {
                     let corner = word_code[b];
                     let code = if corner != u32::MAX {
                         corner.min(254) as u8
-                    } else if no_object {
-                        0
-                    } else if offs.iter().any(|&o| word_code[b + o] != u32::MAX) {
+                    } else if no_object || offs.iter().any(|&o| word_code[b + o] != u32::MAX) {
                         0
                     } else {
                         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
