@@ -451,7 +451,7 @@ fn demo(dir: &Path, progress: &dyn Progress) -> Result<()> {
             },
             TfPoint {
                 value: 600.0,
-                opacity: 0.3,
+                opacity: 0.08,
                 color: [1.0, 1.0, 0.95],
             },
         ],
