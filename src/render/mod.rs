@@ -39,7 +39,8 @@ pub enum Mode {
     /// Front-to-back compositing with a transfer function; `step_mm`
     /// apart, at `t = k * step_mm` along the ray.
     Composite { tf: TransferFunction, step_mm: f64 },
-    /// Traversal steps per pixel (paper Fig. 17).
+    /// Traversal steps per pixel until the surface is found (paper Fig.
+    /// 17), as a heat map scaled to the largest count in the image.
     Cost,
     /// Distance to the iso-surface in mm.
     Depth { hit: HitMethod },
@@ -428,7 +429,16 @@ fn pixel(ctx: &Ctx, ray: &Ray, acc: &mut Accessor) -> (Px, StepCounts) {
             }
         }
         Mode::Cost => {
-            counts = trace(g, ray, 0.0, ctx.opts.method, acc, |_, _, _| Flow::Continue);
+            // Steps needed to find the surface, or to leave the volume on a
+            // miss (paper Fig. 17); on files classified by a transfer
+            // function, steps to the first 1-cell.
+            if ctx.iso.is_nan() {
+                counts = trace(g, ray, 0.0, ctx.opts.method, acc, |_, _, _| Flow::Stop);
+            } else {
+                let (found, s) = first_hit(ctx, ray, 0.0, HitMethod::Int, acc);
+                counts = s;
+                px.hit = found.is_some();
+            }
         }
         Mode::Composite { tf, step_mm } => {
             let mut col = [0.0f64; 3];
