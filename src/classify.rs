@@ -96,6 +96,10 @@ impl TransferFunction {
     /// Opacity at `v` (linear between points, constant beyond the ends).
     pub fn opacity(&self, v: f64) -> f64 {
         let p = &self.points;
+        if v.is_nan() {
+            // NaN samples are background (module docs).
+            return 0.0;
+        }
         if v <= p[0].value {
             return p[0].opacity;
         }
@@ -139,7 +143,8 @@ impl Classification {
     pub fn is_object(&self, min: f64, max: f64) -> bool {
         match self {
             Classification::Iso { iso } => max >= *iso,
-            Classification::TransferFunction { tf } => !max.is_nan() && tf.nonzero_on(min, max),
+            // An empty range (all 8 NaN: min > max, or NaN) is background.
+            Classification::TransferFunction { tf } => min <= max && tf.nonzero_on(min, max),
         }
     }
 

@@ -61,6 +61,13 @@ pub fn export(
         .unwrap_or_else(|| "export".into());
     let raw_name = format!("{stem}.raw");
     let raw_path = dir.join(&raw_name);
+    if raw_path == out_json {
+        return Err(ExportError::Io {
+            path: out_json.to_path_buf(),
+            what: "the sidecar would overwrite its own raw data; use a .json name",
+            source: std::io::Error::from(std::io::ErrorKind::InvalidInput),
+        });
+    }
     let io = |path: &Path, what| {
         let path = path.to_path_buf();
         move |source| ExportError::Io { path, what, source }

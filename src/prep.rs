@@ -231,6 +231,17 @@ pub fn prep(
         source: meta.origin_desc.clone(),
         summary: Summary::default(),
     };
+    if header.max_payload_len() > crate::format::MAX_PAYLOAD_LEN {
+        return Err(PrepError::Option {
+            option: "--brick",
+            msg: format!(
+                "{b} gives bricks of {} bytes of {} words, expected at most {}; use a smaller brick",
+                header.max_payload_len(),
+                storage.name(),
+                crate::format::MAX_PAYLOAD_LEN
+            ),
+        });
+    }
     let mut writer = PackedWriter::create(out, header.brick_count())?;
     let mut hist = vec![0u64; codes.max_code() as usize + 1];
     let mut bwd = BackwardDt::new(ncx, ncy, ncz, opts.aniso);

@@ -286,3 +286,106 @@ fn damaged_packed_files_are_refused() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("truncated"));
 }
+
+/// Rewrites the JSON header of a packed file and fixes up the trailer
+/// checksum and footer, so only the reader's header checks can refuse it.
+fn rewrite_header(bytes: &[u8], f: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
+    let n = bytes.len();
+    let foot = &bytes[n - 40..];
+    let u64_at = |i: usize| u64::from_le_bytes(foot[i..i + 8].try_into().unwrap()) as usize;
+    let (trailer, hlen, ilen) = (u64_at(0), u64_at(8), u64_at(16));
+    let mut header: serde_json::Value =
+        serde_json::from_slice(&bytes[trailer..trailer + hlen]).unwrap();
+    f(&mut header);
+    let json = serde_json::to_vec(&header).unwrap();
+    let index = &bytes[trailer + hlen..trailer + hlen + ilen];
+    let mut out = bytes[..trailer].to_vec();
+    out.extend_from_slice(&json);
+    out.extend_from_slice(index);
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(&json);
+    crc.update(index);
+    out.extend_from_slice(&(trailer as u64).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u64).to_le_bytes());
+    out.extend_from_slice(&(ilen as u64).to_le_bytes());
+    out.extend_from_slice(&crc.finalize().to_le_bytes());
+    out.extend_from_slice(&foot[28..40]);
+    out
+}
+
+#[test]
+fn inconsistent_headers_with_valid_checksums_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = packed(dir.path());
+    let bytes = std::fs::read(&good).unwrap();
+    // The rewrite itself keeps a good file good.
+    let same = rewrite_header(&bytes, |_| {});
+    let bad = dir.path().join("bad.cdv");
+    std::fs::write(&bad, &same).unwrap();
+    PackedVolume::open(&bad).unwrap();
+    type Edit = Box<dyn Fn(&mut serde_json::Value)>;
+    let cases: Vec<(Edit, &str)> = vec![
+        (
+            Box::new(|h| {
+                h["classification"] =
+                    serde_json::json!({"transfer_function": {"tf": {"points": []}}})
+            }),
+            "points",
+        ),
+        (
+            Box::new(|h| h["bricks"] = serde_json::json!([1, 1, 1])),
+            "bricks",
+        ),
+        (
+            Box::new(|h| h["dims"][0] = serde_json::json!(7)),
+            "positions",
+        ),
+        (
+            Box::new(|h| h["axes"][1][2] = serde_json::json!(-5.0)),
+            "increasing",
+        ),
+        (
+            Box::new(|h| h["brick_size"] = serde_json::json!(6)),
+            "brick_size",
+        ),
+        (
+            Box::new(|h| h["brick_size"] = serde_json::json!(1024)),
+            "bricks",
+        ),
+        (
+            Box::new(|h| h["storage"] = serde_json::json!("f32")),
+            "storage",
+        ),
+        (
+            Box::new(|h| h["classification"] = serde_json::json!({"iso": {"iso": null}})),
+            "expected f64",
+        ),
+        (
+            Box::new(|h| h["format_version"] = serde_json::json!(9)),
+            "format_version",
+        ),
+    ];
+    for (edit, needle) in cases {
+        std::fs::write(&bad, rewrite_header(&bytes, edit)).unwrap();
+        let m = PackedVolume::open(&bad)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_else(|| panic!("accepted ({needle})"));
+        assert!(m.contains("bad.cdv") && m.contains(needle), "{needle}: {m}");
+    }
+    // A payload offset that overflows.
+    let n = bytes.len();
+    let trailer = u64::from_le_bytes(bytes[n - 40..n - 32].try_into().unwrap()) as usize;
+    let hlen = u64::from_le_bytes(bytes[n - 32..n - 24].try_into().unwrap()) as usize;
+    let mut b = bytes.clone();
+    let first_entry = trailer + hlen;
+    b[first_entry..first_entry + 8].copy_from_slice(&u64::MAX.to_le_bytes());
+    b[first_entry + 16..first_entry + 20].copy_from_slice(&0u32.to_le_bytes()); // not uniform
+    let b = rewrite_header(&b, |_| {});
+    std::fs::write(&bad, b).unwrap();
+    let m = PackedVolume::open(&bad).err().unwrap().to_string();
+    assert!(
+        m.contains("brick 0") && m.contains("outside the payload area"),
+        "{m}"
+    );
+}

@@ -379,3 +379,91 @@ fn big_endian_and_per_slice_files_read_the_same_values() {
     assert_eq!(m.rescale.apply(7.0), 11.0);
     assert_eq!(m.grid.axes[2].coords(), &[0.0, 1.0, 5.0]);
 }
+
+#[test]
+fn codes_saturate_inside_a_narrow_free_range() {
+    // u8 data 0..=155 leaves 100 free words above: codes saturate at 99
+    // without widening; a 130-cell run from one object reaches past it.
+    let dims = [131, 2, 3];
+    let mut v = vec![0.0; 131 * 2 * 3];
+    v[0] = 155.0;
+    let dir = tempfile::tempdir().unwrap();
+    let vol = prep_values(dir.path(), dims, "u8", &v, 100.0, 8, false);
+    assert_eq!(vol.header().storage, cdvol::input::Dtype::U8);
+    assert_eq!(vol.header().codes.max_code(), 99);
+    check(dims, "u8", &v, 100.0, 8, true);
+}
+
+/// Cells whose 8 samples are all NaN are background under both
+/// classifications, even with a transfer function that is opaque beyond
+/// its last point.
+#[test]
+fn all_nan_cells_are_background() {
+    use cdvol::classify::{TfPoint, TransferFunction};
+    let dims = [12, 11, 10];
+    let mut v: Vec<f64> = (0..12 * 11 * 10).map(|i| ((i * 37) % 50) as f64).collect();
+    for z in 2..7 {
+        for y in 3..8 {
+            for x in 1..6 {
+                v[(z * 11 + y) * 12 + x] = f64::NAN;
+            }
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let side = write_stack(dir.path(), "nan", dims, "f32", &v, ["1", "1", "1"], "");
+    let tf = TransferFunction {
+        points: vec![
+            TfPoint {
+                value: 40.0,
+                opacity: 0.0,
+                color: [1.0; 3],
+            },
+            TfPoint {
+                value: 45.0,
+                opacity: 1.0,
+                color: [1.0; 3],
+            },
+        ],
+    };
+    for cls in [
+        Classification::Iso { iso: 45.0 },
+        Classification::TransferFunction { tf: tf.clone() },
+    ] {
+        let src = RawSource::open(&side).unwrap();
+        let out = dir.path().join("nan.cdv");
+        let mut opts = PrepOptions::new(cls.clone());
+        opts.brick_size = 4;
+        prep(&src, &out, &opts, &NoProgress).unwrap();
+        let vol = PackedVolume::open(&out).unwrap();
+        let back = read_back(&vol, &v);
+        // Oracle: 1-cell when some non-NaN vertex reaches 45 (iso, and the
+        // transfer function is non-zero exactly above 40 up to any value).
+        let cells = dims.map(|d| d - 1);
+        let mut obj = vec![0u8; cells.iter().product()];
+        for z in 0..cells[2] {
+            for y in 0..cells[1] {
+                for x in 0..cells[0] {
+                    let vs: Vec<f64> = (0..8)
+                        .map(|i| v[((z + (i >> 2)) * 11 + y + (i >> 1 & 1)) * 12 + x + (i & 1)])
+                        .filter(|x| !x.is_nan())
+                        .collect();
+                    let hit = match &cls {
+                        Classification::Iso { iso } => vs.iter().any(|&x| x >= *iso),
+                        _ => vs.iter().any(|&x| x > 40.0),
+                    };
+                    obj[(z * cells[1] + y) * cells[0] + x] = hit as u8;
+                }
+            }
+        }
+        assert_eq!(
+            back.codes,
+            expected_codes(&chessboard_bfs(&obj, cells), vol.header().codes.max_code())
+        );
+        // Cell (3, 5, 4) has 8 NaN vertices.
+        assert_ne!(
+            back.codes[(4 * cells[1] + 5) * cells[0] + 3],
+            255,
+            "all-NaN cell classified as a 1-cell"
+        );
+    }
+}

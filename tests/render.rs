@@ -210,7 +210,7 @@ fn depth_matches_analytic_spheres() {
             let c = cam(&vol, view, false, 96);
             let (f, _) = run(&vol, &c, &Mode::Depth { hit }, Method::Cd { min_leap: 1 });
             let d = f.depth.unwrap();
-            let (mut n, mut sum, mut max) = (0usize, 0.0f64, 0.0f64);
+            let (mut n, mut sum, mut max, mut missed) = (0usize, 0.0f64, 0.0f64, 0usize);
             for py in 0..96 {
                 for px in 0..96 {
                     let r = c.ray(px, py);
@@ -231,6 +231,8 @@ fn depth_matches_analytic_spheres() {
                     }
                     let got = d[(py * 96 + px) as usize];
                     if let Some((t, cos)) = best {
+                        // A ray that meets a sphere squarely must hit it.
+                        missed += (cos > 0.3 && !got.is_finite()) as usize;
                         if cos > 0.3 && got.is_finite() {
                             let e = (got as f64 - t).abs();
                             n += 1;
@@ -245,6 +247,10 @@ fn depth_matches_analytic_spheres() {
                 "{hit:?} view {view:?}: {n} pixels, mean error {mean:.4} mm, max {max:.4} mm"
             );
             assert!(n > 500, "too few hits ({n})");
+            assert_eq!(
+                missed, 0,
+                "{hit:?}: {missed} rays missed a sphere they meet squarely"
+            );
             assert!(
                 mean < tol_mean && max < tol_max,
                 "{hit:?}: mean {mean}, max {max}"
@@ -358,4 +364,58 @@ fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
         e.contains("--classify-tf") && e.contains("below 300"),
         "{e}"
     );
+}
+
+/// Float data with NaN regions: composite and surface renders work (NaN
+/// samples are background and never reach the transfer function as NaN).
+#[test]
+fn nan_samples_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = [20, 18, 16];
+    let mut v: Vec<f64> = (0..20 * 18 * 16).map(|i| ((i * 37) % 50) as f64).collect();
+    for (i, x) in v.iter_mut().enumerate() {
+        if i % 5 == 0 || (i / 20 % 18) < 6 {
+            *x = f64::NAN;
+        }
+    }
+    let side = common::write_stack(dir.path(), "nan", dims, "f32", &v, ["1", "1", "1"], "");
+    let tf = TransferFunction {
+        points: vec![
+            TfPoint {
+                value: 30.0,
+                opacity: 0.0,
+                color: [1.0; 3],
+            },
+            TfPoint {
+                value: 45.0,
+                opacity: 0.5,
+                color: [1.0; 3],
+            },
+        ],
+    };
+    let src = RawSource::open(&side).unwrap();
+    let out = dir.path().join("nan.cdv");
+    let mut o = PrepOptions::new(Classification::TransferFunction { tf: tf.clone() });
+    o.brick_size = 8;
+    prep(&src, &out, &o, &NoProgress).unwrap();
+    let vol = PackedVolume::open(&out).unwrap();
+    let c = cam(&vol, [20.0, 10.0], false, 32);
+    let (f, s) = run(
+        &vol,
+        &c,
+        &Mode::Composite { tf, step_mm: 0.3 },
+        Method::Cd { min_leap: 1 },
+    );
+    assert!(s.hits > 0 && f.rgb.iter().any(|&x| x > 0));
+    let vol = packed(&side, &dir.path().join("iso.cdv"), 45.0, false);
+    let (f, s) = run(
+        &vol,
+        &c,
+        &Mode::Surface {
+            hit: HitMethod::Newton,
+            shadows: true,
+        },
+        Method::Cd { min_leap: 1 },
+    );
+    assert!(s.hits > 0 && f.rgb.iter().any(|&x| x > 0));
 }

@@ -34,6 +34,10 @@ pub const INDEX_ENTRY_LEN: usize = 32;
 /// Largest JSON header a reader accepts (axes of 2^31 samples would need
 /// more, but such a header is not something we allocate blindly).
 pub const MAX_HEADER_LEN: u64 = 1 << 32;
+/// Largest decompressed brick payload (prep refuses brick sizes beyond it;
+/// readers refuse headers that imply more, so a crafted header cannot make
+/// them allocate without bound).
+pub const MAX_PAYLOAD_LEN: u64 = 1 << 30;
 
 /// How distance codes are stored in sample words.
 ///
@@ -152,6 +156,15 @@ impl Header {
             let (lo, hi) = self.brick_cells(k, c[k]);
             (hi - lo).div_ceil(g)
         }))
+    }
+
+    /// Decompressed payload size of a full (not edge) brick: the largest.
+    pub fn max_payload_len(&self) -> u64 {
+        let s = self.brick_size as u64 + 1;
+        let aniso = self.aniso_block.map_or(0, |g| {
+            8 * (self.brick_size as u64).div_ceil(g as u64).pow(3)
+        });
+        s * s * s * self.storage.size() as u64 + aniso
     }
 
     /// Exact decompressed payload size of brick `c`.

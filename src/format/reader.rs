@@ -142,6 +142,13 @@ impl PackedVolume {
                 msg: "no footer at the end of the file (was the write interrupted?)".into(),
             });
         }
+        let foot_version = u32::from_le_bytes(foot[28..32].try_into().expect("4 bytes"));
+        if foot_version != version {
+            return Err(FormatError::Truncated {
+                path: p(),
+                msg: format!("footer says format version {foot_version}, preamble {version}"),
+            });
+        }
         let u64_at = |i: usize| u64::from_le_bytes(foot[i..i + 8].try_into().expect("8 bytes"));
         let (trailer, hlen, ilen) = (u64_at(0), u64_at(8), u64_at(16));
         let crc = u32::from_le_bytes(foot[24..28].try_into().expect("4 bytes"));
@@ -193,8 +200,8 @@ impl PackedVolume {
             .map(IndexEntry::from_bytes)
             .collect();
         for (i, e) in index.iter().enumerate() {
-            if !e.is_uniform() && (e.offset < PREAMBLE_LEN || e.offset + e.length as u64 > trailer)
-            {
+            let end = e.offset.checked_add(e.length as u64);
+            if !e.is_uniform() && (e.offset < PREAMBLE_LEN || end.is_none_or(|end| end > trailer)) {
                 return Err(FormatError::Brick {
                     path: p(),
                     brick: i as u64,
@@ -202,7 +209,7 @@ impl PackedVolume {
                     msg: format!(
                         "payload at {}..{} lies outside the payload area {PREAMBLE_LEN}..{trailer}",
                         e.offset,
-                        e.offset + e.length as u64
+                        e.offset.saturating_add(e.length as u64)
                     ),
                 });
             }
@@ -390,6 +397,26 @@ fn check_header(h: &Header) -> Result<(), String> {
             return Err(format!(
                 "aniso_block {g}, expected {}",
                 crate::dt::ANISO_BLOCK
+            ));
+        }
+    }
+    if h.max_payload_len() > super::MAX_PAYLOAD_LEN {
+        return Err(format!(
+            "brick_size {} with {} words needs {} bytes per brick, expected at most {}",
+            h.brick_size,
+            h.storage.name(),
+            h.max_payload_len(),
+            super::MAX_PAYLOAD_LEN
+        ));
+    }
+    if let crate::classify::Classification::TransferFunction { tf } = &h.classification {
+        tf.check()
+            .map_err(|e| format!("classification transfer function: {e}"))?;
+    }
+    if let crate::classify::Classification::Iso { iso } = h.classification {
+        if !iso.is_finite() {
+            return Err(format!(
+                "classification iso {iso}, expected a finite number"
             ));
         }
     }

@@ -27,11 +27,25 @@ impl RawSource {
             .checked_mul(ny as u64)
             .and_then(|n| n.checked_mul(sidecar.dtype.size() as u64))
             .ok_or_else(|| InputError::field(path, "dims", "slice size overflows 64 bits"))?;
+        let per_slice_need = sidecar
+            .header_bytes
+            .checked_add(slice_bytes)
+            .ok_or_else(|| {
+                InputError::field(
+                    path,
+                    "header_bytes",
+                    "header_bytes + slice size overflows 64 bits",
+                )
+            })?;
         let files: Vec<(String, PathBuf, u64, String)> = match &sidecar.data {
             DataFiles::One(f) => vec![(
                 "data".to_string(),
                 f.clone(),
-                sidecar.header_bytes + slice_bytes * nz as u64,
+                (slice_bytes.checked_mul(nz as u64))
+                    .and_then(|b| b.checked_add(sidecar.header_bytes))
+                    .ok_or_else(|| {
+                        InputError::field(path, "dims", "volume size overflows 64 bits")
+                    })?,
                 format!(
                     "header_bytes {} + {nx} x {ny} x {nz} samples of {}",
                     sidecar.header_bytes,
@@ -45,7 +59,7 @@ impl RawSource {
                     (
                         format!("data[{i}]"),
                         f.clone(),
-                        sidecar.header_bytes + slice_bytes,
+                        per_slice_need,
                         format!(
                             "header_bytes {} + one {nx} x {ny} slice of {}",
                             sidecar.header_bytes,

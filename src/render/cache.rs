@@ -184,7 +184,7 @@ impl RBrick {
                 let nb = (nb[0] * nb[1] * nb[2]) as usize;
                 let a = &raw[n * h.storage.size()..];
                 (0..nb)
-                    .map(|i| std::array::from_fn(|o| a[o * nb + i]))
+                    .map(|i| std::array::from_fn(|o| a[o * nb + i].min(254)))
                     .collect()
             }
             None => Vec::new(),

@@ -170,6 +170,11 @@ fn check_mode(vol: &PackedVolume, mode: &Mode) -> Result<(), RenderError> {
     }
 }
 
+/// Smallest composite sample distance.
+pub const MIN_STEP_MM: f64 = 1e-4;
+/// Largest image (2^28 pixels, 16384 x 16384).
+pub const MAX_PIXELS: u64 = 1 << 28;
+
 /// Renders `vol` as seen by `camera`.
 pub fn render(
     vol: &PackedVolume,
@@ -186,12 +191,23 @@ pub fn render(
         });
     }
     if let Mode::Composite { step_mm, .. } = opts.mode {
-        if !(step_mm > 0.0 && step_mm.is_finite()) {
+        // Samples sit at t = k * step; k must stay far below 2^53.
+        if !(step_mm >= MIN_STEP_MM && step_mm.is_finite()) {
             return Err(RenderError::Option {
                 option: "--step",
-                msg: format!("{step_mm} mm, expected > 0"),
+                msg: format!("{step_mm} mm, expected at least {MIN_STEP_MM} mm"),
             });
         }
+    }
+    let pixels = camera.width as u64 * camera.height as u64;
+    if pixels > MAX_PIXELS {
+        return Err(RenderError::Option {
+            option: "--width/--height",
+            msg: format!(
+                "{} x {} = {pixels} pixels, expected at most {MAX_PIXELS}",
+                camera.width, camera.height
+            ),
+        });
     }
     if matches!(opts.method, Method::CdAniso { .. }) && vol.header().aniso_block.is_none() {
         return Err(RenderError::Incompatible {
@@ -474,6 +490,10 @@ fn pixel(ctx: &Ctx, ray: &Ray, acc: &mut Accessor) -> (Px, StepCounts) {
 /// Colour and opacity of the transfer function at `v`.
 fn tf_sample(tf: &TransferFunction, v: f64) -> ([f64; 3], f64) {
     let p = &tf.points;
+    if v.is_nan() {
+        // Interpolated from a NaN sample: background, transparent.
+        return ([0.0; 3], 0.0);
+    }
     let a = tf.opacity(v);
     let rgb = if v <= p[0].value {
         p[0].color

@@ -297,7 +297,9 @@ where
         let (brick, local) = acc.brick(real);
         let mut code = brick.code(local);
         if aniso && code != OBJECT {
-            code = brick.octant_code(local, octant);
+            // The cell's isotropic cube and its block's octant box are both
+            // empty, so the larger of the two leaps is safe.
+            code = code.max(brick.octant_code(local, octant));
         }
         counts.steps += 1;
         if code == OBJECT {
