@@ -9,7 +9,10 @@
 //!
 //! NaN policy: a NaN sample is background. It never reaches an iso value
 //! and is left out of a cell's [min, max]; a cell whose 8 samples are all
-//! NaN is a 0-cell.
+//! NaN is a 0-cell, and a transfer function gives NaN no opacity. A 1-cell
+//! with some NaN vertices keeps them; its trilinear interpolant is NaN, so
+//! the renderer finds no surface and no colour inside that cell (the
+//! neighbouring cells without NaN vertices still render).
 
 use std::path::Path;
 

@@ -38,31 +38,29 @@ impl Camera {
         let f = std::array::from_fn(|k| target[k] - eye[k]);
         if !(dot(f, f) > 0.0) || f.iter().any(|x| !x.is_finite()) {
             return Err(format!(
-                "eye {eye:?} and target {target:?} must differ and be finite"
+                "--eye {eye:?} and --target {target:?} (or the orbit) must differ and be finite"
             ));
         }
         let forward = normalize(f);
         let r = cross(forward, up);
         if !(dot(r, r) > 1e-20) {
             return Err(format!(
-                "up {up:?} is parallel to the view direction or zero"
+                "--up {up:?} is parallel to the view direction or zero"
             ));
         }
         let right = normalize(r);
         let up = cross(right, forward);
         if width == 0 || height == 0 {
             return Err(format!(
-                "image size {width}x{height}, expected at least 1x1"
+                "--width {width} --height {height}, expected at least 1 each"
             ));
         }
         match projection {
             Projection::Ortho { frame_mm } if !(frame_mm > 0.0 && frame_mm.is_finite()) => {
-                return Err(format!("frame {frame_mm} mm, expected > 0"))
+                return Err(format!("--frame {frame_mm} mm, expected > 0"))
             }
             Projection::Persp { fov_deg } if !(fov_deg > 0.0 && fov_deg < 180.0) => {
-                return Err(format!(
-                    "field of view {fov_deg} degrees, expected 0 < fov < 180"
-                ))
+                return Err(format!("--fov {fov_deg} degrees, expected 0 < fov < 180"))
             }
             _ => {}
         }
