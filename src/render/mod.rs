@@ -222,9 +222,12 @@ pub fn render(
     let (w, hgt) = (camera.width, camera.height);
     let ts = opts.tile;
     let (ntx, nty) = (w.div_ceil(ts), hgt.div_ceil(ts));
-    let tiles: Vec<(u32, u32)> = (0..nty)
+    // Tiles in Morton (Z) order: rayon hands each thread contiguous runs,
+    // which are then compact squares of the image whose rays share bricks.
+    let mut tiles: Vec<(u32, u32)> = (0..nty)
         .flat_map(|ty| (0..ntx).map(move |tx| (tx, ty)))
         .collect();
+    tiles.sort_by_key(|&(tx, ty)| morton(tx, ty));
     let ctx = Ctx {
         grid: &grid,
         camera,
@@ -282,6 +285,19 @@ pub fn render(
         height: hgt,
     };
     Ok((frame, stats))
+}
+
+/// Interleaves the bits of `x` and `y` (Z-order curve).
+fn morton(x: u32, y: u32) -> u64 {
+    let spread = |v: u32| {
+        let mut v = v as u64;
+        v = (v | (v << 16)) & 0x0000_ffff_0000_ffff;
+        v = (v | (v << 8)) & 0x00ff_00ff_00ff_00ff;
+        v = (v | (v << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
+        v = (v | (v << 2)) & 0x3333_3333_3333_3333;
+        (v | (v << 1)) & 0x5555_5555_5555_5555
+    };
+    spread(x) | (spread(y) << 1)
 }
 
 pub fn mode_name(m: &Mode) -> &'static str {
@@ -611,6 +627,13 @@ pub fn save(frame: &Frame, path: &std::path::Path) -> Result<Vec<std::path::Path
             .map_err(|e| e.to_string())?;
         Ok(buf.into_inner())
     };
+    if frame.depth.is_some() && path.extension().is_some_and(|e| e == "f32") {
+        return Err(format!(
+            "{}: the depth mode writes its raw f32 beside the PNG with the extension .f32; \
+             use a .png name",
+            path.display()
+        ));
+    }
     let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
         .ok_or("image size does not match its pixels")?;
     write(path, &png(image::DynamicImage::ImageRgb8(rgb))?)?;
