@@ -303,8 +303,9 @@ pub fn prep(
                     compressed,
                     raw_len,
                     no_object,
+                    min_code,
                 } => {
-                    writer.put_brick(id, &compressed, no_object)?;
+                    writer.put_brick(id, &compressed, no_object.then_some(min_code))?;
                     summary.raw_payload_bytes += raw_len;
                 }
             }
@@ -367,6 +368,7 @@ enum BrickOut {
         compressed: Vec<u8>,
         raw_len: u64,
         no_object: bool,
+        min_code: u32,
     },
 }
 
@@ -479,18 +481,25 @@ fn emit_slab<W: Word>(
                     Err(e) => Err(std::io::Error::other(e.to_string())),
                 }
                 .expect("zstd compresses into memory for any level prep accepts");
-                let no_object = (0..nzc).all(|k| {
-                    (y0..y1).all(|y| {
+                // Smallest distance in the brick: 0 means it holds a 1-cell;
+                // otherwise its code is the smallest code of its cells.
+                let min_d = (0..nzc)
+                    .flat_map(|k| (y0..y1).map(move |y| (k, y)))
+                    .map(|(k, y)| {
                         let row = &ctx.dist[k * n_cells_slice + y * ncx..];
-                        row[x0..x1].iter().all(|&d| d > 0)
+                        row[x0..x1].iter().copied().min().unwrap_or(u8::MAX)
                     })
-                });
+                    .min()
+                    .unwrap_or(u8::MAX);
+                let no_object = min_d > 0;
+                let min_code = if no_object { code_of(min_d) } else { 0 };
                 (
                     id,
                     BrickOut::Payload {
                         compressed,
                         raw_len,
                         no_object,
+                        min_code,
                     },
                 )
             },

@@ -186,7 +186,8 @@ pub struct IndexEntry {
     /// CRC-32 (IEEE) of the compressed payload.
     pub crc32: u32,
     /// Bit 0: uniform (no payload; every cell is a 0-cell with
-    /// `uniform_code`). Bit 1: no 1-cell in the brick.
+    /// `uniform_code`). Bit 1: no 1-cell in the brick; `uniform_code` is
+    /// then the smallest code of its cells.
     pub flags: u32,
     pub uniform_code: u32,
     pub reserved: u64,

@@ -58,13 +58,14 @@ impl PackedWriter {
         }
     }
 
-    /// Appends the compressed payload of brick `id`; `no_object` marks a
-    /// brick without 1-cells (index flag bit 1).
+    /// Appends the compressed payload of brick `id`. `no_object` is the
+    /// smallest code of its cells when the brick holds no 1-cell (index
+    /// flag bit 1, code in `uniform_code`).
     pub fn put_brick(
         &mut self,
         id: u64,
         compressed: &[u8],
-        no_object: bool,
+        no_object: Option<u32>,
     ) -> Result<(), FormatError> {
         let length = u32::try_from(compressed.len()).map_err(|_| FormatError::Brick {
             path: self.target.clone(),
@@ -82,8 +83,12 @@ impl PackedWriter {
             offset: self.pos,
             length,
             crc32: crc32fast::hash(compressed),
-            flags: if no_object { FLAG_NO_OBJECT } else { 0 },
-            uniform_code: 0,
+            flags: if no_object.is_some() {
+                FLAG_NO_OBJECT
+            } else {
+                0
+            },
+            uniform_code: no_object.unwrap_or(0),
             reserved: 0,
         };
         self.pos += compressed.len() as u64;

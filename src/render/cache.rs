@@ -209,6 +209,8 @@ impl RBrick {
 #[derive(Debug, Default, Clone, Copy, serde::Serialize)]
 pub struct CacheCounters {
     pub bricks_read: u64,
+    /// Bricks without 1-cells stood in by their smallest code, unread.
+    pub bricks_skipped: u64,
     pub cache_hits: u64,
     pub cache_misses: u64,
     pub bytes_decompressed: u64,
@@ -217,6 +219,7 @@ pub struct CacheCounters {
 impl CacheCounters {
     pub fn add(&mut self, o: &CacheCounters) {
         self.bricks_read += o.bricks_read;
+        self.bricks_skipped += o.bricks_skipped;
         self.cache_hits += o.cache_hits;
         self.cache_misses += o.cache_misses;
         self.bytes_decompressed += o.bytes_decompressed;
@@ -263,24 +266,54 @@ impl<'v> BrickCache<'v> {
     /// The decoded brick `id`, from the cache or read now. Decoding happens
     /// outside the lock; two threads may decode the same brick at once, and
     /// the first to insert wins.
-    pub fn get(&self, id: u64, c: &mut CacheCounters) -> Result<Arc<RBrick>, FormatError> {
+    ///
+    /// With `lazy_min = Some(m)`, a brick that holds no 1-cell and whose
+    /// smallest code is at least `m` is not read at all: it stands in as a
+    /// uniform brick of that smallest code, which is conservative (every
+    /// cell's empty cube is at least that large) and needs no payload.
+    pub fn get(
+        &self,
+        id: u64,
+        lazy_min: Option<u8>,
+        c: &mut CacheCounters,
+    ) -> Result<Arc<RBrick>, FormatError> {
+        let e = self.vol.index()[id as usize];
+        let lazy = !e.is_uniform()
+            && e.has_no_object()
+            && lazy_min.is_some_and(|m| e.uniform_code >= m as u32);
+        let key = id * 2 + lazy as u64;
         {
             let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
             l.clock += 1;
             let now = l.clock;
-            if let Some(e) = l.map.get_mut(&id) {
+            if let Some(e) = l.map.get_mut(&key) {
                 e.1 = now;
                 c.cache_hits += 1;
                 return Ok(e.0.clone());
             }
         }
         c.cache_misses += 1;
-        let (b, raw) = RBrick::decode(self.vol, id)?;
-        c.bricks_read += 1;
-        c.bytes_decompressed += raw;
+        let b = if lazy {
+            let h = self.vol.header();
+            let coords = h.brick_coords(id);
+            c.bricks_skipped += 1;
+            RBrick {
+                first: std::array::from_fn(|k| (coords[k] * h.brick_size as u64) as u32),
+                cells: h.brick_samples(coords).map(|s| (s - 1) as u32),
+                codes: Codes::Uniform(e.uniform_code.min(254) as u8),
+                values: Vec::new(),
+                octants: Vec::new(),
+                bytes: std::mem::size_of::<RBrick>(),
+            }
+        } else {
+            let (b, raw) = RBrick::decode(self.vol, id)?;
+            c.bricks_read += 1;
+            c.bytes_decompressed += raw;
+            b
+        };
         let b = Arc::new(b);
         let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(e) = l.map.get(&id) {
+        if let Some(e) = l.map.get(&key) {
             return Ok(e.0.clone());
         }
         // Evict least recently used bricks until the new one fits.
@@ -295,7 +328,7 @@ impl<'v> BrickCache<'v> {
             let now = l.clock;
             l.bytes += b.bytes;
             l.peak = l.peak.max(l.bytes);
-            l.map.insert(id, (b.clone(), now));
+            l.map.insert(key, (b.clone(), now));
         }
         Ok(b)
     }
@@ -308,12 +341,38 @@ pub struct Accessor<'a, 'v> {
     bricks: [u64; 3],
     cur_id: u64,
     cur: Option<Arc<RBrick>>,
+    /// See [`BrickCache::get`].
+    lazy_min: Option<u8>,
     pub counters: CacheCounters,
     pub error: Option<FormatError>,
 }
 
+/// Smallest code for which CD stands an unread brick in by its smallest
+/// code: below it, reading the brick's own (larger) codes pays off.
+pub const LAZY_MIN_CODE_CD: u8 = 4;
+
 impl<'a, 'v> Accessor<'a, 'v> {
+    /// An accessor that decodes every brick it enters.
     pub fn new(cache: &'a BrickCache<'v>) -> Accessor<'a, 'v> {
+        Accessor::with_lazy(cache, None)
+    }
+
+    /// An accessor for `method`: FVT never needs the codes of a brick
+    /// without 1-cells, so it reads none; CD reads them unless the brick's
+    /// smallest code is already [`LAZY_MIN_CODE_CD`] or more.
+    pub fn for_method(
+        cache: &'a BrickCache<'v>,
+        method: super::traverse::Method,
+    ) -> Accessor<'a, 'v> {
+        use super::traverse::Method;
+        let lazy = match method {
+            Method::Fvt => Some(0),
+            Method::Cd { .. } | Method::CdAniso { .. } => Some(LAZY_MIN_CODE_CD),
+        };
+        Accessor::with_lazy(cache, lazy)
+    }
+
+    pub fn with_lazy(cache: &'a BrickCache<'v>, lazy_min: Option<u8>) -> Accessor<'a, 'v> {
         let h = cache.volume().header();
         Accessor {
             cache,
@@ -321,6 +380,7 @@ impl<'a, 'v> Accessor<'a, 'v> {
             bricks: h.bricks,
             cur_id: u64::MAX,
             cur: None,
+            lazy_min,
             counters: CacheCounters::default(),
             error: None,
         }
@@ -353,7 +413,7 @@ impl<'a, 'v> Accessor<'a, 'v> {
         let id = (bc[2] as u64 * self.bricks[1] + bc[1] as u64) * self.bricks[0] + bc[0] as u64;
         if id != self.cur_id {
             self.cur_id = id;
-            self.cur = match self.cache.get(id, &mut self.counters) {
+            self.cur = match self.cache.get(id, self.lazy_min, &mut self.counters) {
                 Ok(b) => Some(b),
                 Err(e) => {
                     if self.error.is_none() {

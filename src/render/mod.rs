@@ -63,6 +63,8 @@ pub struct Stats {
     pub cell_steps: u64,
     pub hits: u64,
     pub bricks_read: u64,
+    /// Bricks without 1-cells the traversal crossed without reading them.
+    pub bricks_skipped: u64,
     pub cache_hits: u64,
     pub cache_misses: u64,
     pub bytes_decompressed: u64,
@@ -273,6 +275,7 @@ pub fn render(
         cell_steps: steps.cell_steps,
         hits,
         bricks_read: cc.bricks_read,
+        bricks_skipped: cc.bricks_skipped,
         cache_hits: cc.cache_hits,
         cache_misses: cc.cache_misses,
         bytes_decompressed: cc.bytes_decompressed,
@@ -332,7 +335,7 @@ fn render_tile(ctx: &Ctx, cache: &BrickCache, x0: u32, y0: u32, ts: u32) -> Tile
     let cam = ctx.camera;
     let w = ts.min(cam.width - x0);
     let hh = ts.min(cam.height - y0);
-    let mut acc = Accessor::new(cache);
+    let mut acc = Accessor::for_method(cache, ctx.opts.method);
     let mut pixels = Vec::with_capacity((w * hh) as usize);
     let mut steps = StepCounts::default();
     let mut hits = 0;

@@ -138,6 +138,7 @@ pub fn read_back(vol: &PackedVolume, values: &[f64]) -> ReadBack {
     for id in 0..h.brick_count() {
         let b = vol.read_brick(id).unwrap();
         let no_object = vol.index()[id as usize].has_no_object();
+        let mut brick_min_code = u32::MAX;
         let [sx, sy, sz] = b.samples;
         for lz in 0..sz - 1 {
             for ly in 0..sy - 1 {
@@ -175,10 +176,17 @@ pub fn read_back(vol: &PackedVolume, values: &[f64]) -> ReadBack {
                             }
                             checked += 1;
                         }
-                        CellClass::Empty(c) => codes[ci] = c.min(254) as u8,
+                        CellClass::Empty(c) => {
+                            codes[ci] = c.min(254) as u8;
+                            brick_min_code = brick_min_code.min(c);
+                        }
                     }
                 }
             }
+        }
+        let e = vol.index()[id as usize];
+        if no_object && !e.is_uniform() {
+            assert_eq!(e.uniform_code, brick_min_code, "brick {id}: index min code");
         }
         if let BrickData::Uniform(_) = b.data {
             assert!(h.summary.uniform_bricks > 0);
