@@ -228,6 +228,10 @@ pub struct RenderArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// CD leaves a brick without 1-cells unread when the smallest code in
+    /// it (from the index) is at least this; 255 reads every brick entered.
+    #[arg(long, default_value_t = 16)]
+    pub cd_lazy_min: u8,
     /// Brick cache budget in MiB.
     #[arg(long, default_value_t = 512)]
     pub cache_mb: usize,

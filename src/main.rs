@@ -275,6 +275,7 @@ fn render_cmd(
         method,
         tile: a.tile,
         cache_bytes: a.cache_mb.saturating_mul(1 << 20),
+        cd_lazy_min: a.cd_lazy_min,
     };
     let run = || render(&vol, &camera, &opts, progress);
     let (frame, stats) = match a.threads {
@@ -402,6 +403,7 @@ fn demo(dir: &Path, progress: &dyn Progress) -> Result<()> {
             method: Method::Cd { min_leap: 1 },
             tile: 32,
             cache_bytes: 512 << 20,
+            cd_lazy_min: cdvol::render::cache::LAZY_MIN_CODE_CD,
         };
         let (frame, stats) = render(vol, &camera, &opts, progress)?;
         let path = dir.join(format!("{name}.png"));

@@ -46,6 +46,7 @@ fn run(vol: &PackedVolume, c: &Camera, mode: &Mode, method: Method) -> (Frame, S
         method,
         tile: 16,
         cache_bytes: 64 << 20,
+        cd_lazy_min: 4,
     };
     render(vol, c, &o, &NoProgress).unwrap()
 }
@@ -274,6 +275,7 @@ fn same_image_whatever_cache_threads_and_tiles() {
         method: Method::Cd { min_leap: 1 },
         tile: 32,
         cache_bytes: 512 << 20,
+        cd_lazy_min: 16,
     };
     let (want, ws) = render(&vol, &c, &big, &NoProgress).unwrap();
     // A budget of about two bricks.
@@ -325,6 +327,7 @@ fn corrupt_brick_is_an_error_not_pixels() {
         method: Method::Cd { min_leap: 1 },
         tile: 16,
         cache_bytes: 1 << 20,
+        cd_lazy_min: 16,
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(
@@ -358,6 +361,7 @@ fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
         method: Method::Fvt,
         tile: 16,
         cache_bytes: 1 << 20,
+        cd_lazy_min: 16,
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(

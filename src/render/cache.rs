@@ -347,9 +347,10 @@ pub struct Accessor<'a, 'v> {
     pub error: Option<FormatError>,
 }
 
-/// Smallest code for which CD stands an unread brick in by its smallest
-/// code: below it, reading the brick's own (larger) codes pays off.
-pub const LAZY_MIN_CODE_CD: u8 = 4;
+/// Default smallest code for which CD stands an unread brick in by its
+/// smallest code: below it, reading the brick's own (larger) codes pays
+/// off (docs/BENCHMARKS.md, "Render levers").
+pub const LAZY_MIN_CODE_CD: u8 = 16;
 
 impl<'a, 'v> Accessor<'a, 'v> {
     /// An accessor that decodes every brick it enters.
@@ -359,15 +360,16 @@ impl<'a, 'v> Accessor<'a, 'v> {
 
     /// An accessor for `method`: FVT never needs the codes of a brick
     /// without 1-cells, so it reads none; CD reads them unless the brick's
-    /// smallest code is already [`LAZY_MIN_CODE_CD`] or more.
+    /// smallest code is already `cd_lazy_min` or more.
     pub fn for_method(
         cache: &'a BrickCache<'v>,
         method: super::traverse::Method,
+        cd_lazy_min: u8,
     ) -> Accessor<'a, 'v> {
         use super::traverse::Method;
         let lazy = match method {
             Method::Fvt => Some(0),
-            Method::Cd { .. } | Method::CdAniso { .. } => Some(LAZY_MIN_CODE_CD),
+            Method::Cd { .. } | Method::CdAniso { .. } => Some(cd_lazy_min),
         };
         Accessor::with_lazy(cache, lazy)
     }

@@ -52,6 +52,9 @@ pub struct RenderOptions {
     pub method: Method,
     pub tile: u32,
     pub cache_bytes: usize,
+    /// CD leaves a brick without 1-cells unread when its smallest code is
+    /// at least this (255: read every brick CD enters).
+    pub cd_lazy_min: u8,
 }
 
 /// Counters of a render (the `--stats` contract).
@@ -335,7 +338,7 @@ fn render_tile(ctx: &Ctx, cache: &BrickCache, x0: u32, y0: u32, ts: u32) -> Tile
     let cam = ctx.camera;
     let w = ts.min(cam.width - x0);
     let hh = ts.min(cam.height - y0);
-    let mut acc = Accessor::for_method(cache, ctx.opts.method);
+    let mut acc = Accessor::for_method(cache, ctx.opts.method, ctx.opts.cd_lazy_min);
     let mut pixels = Vec::with_capacity((w * hh) as usize);
     let mut steps = StepCounts::default();
     let mut hits = 0;
