@@ -41,7 +41,7 @@ fn scene(dir: &std::path::Path, n: usize) -> PackedVolume {
 fn background(grid: &TGrid, rays: &[Ray], m: Method, acc: &mut Accessor) -> u64 {
     let mut steps = 0;
     for r in rays {
-        steps += trace(grid, r, 0.0, m, acc, |_, _, _| Flow::Stop).steps;
+        steps += trace(grid, r, 0.0, m, acc, |_, _| Flow::Stop).steps;
     }
     steps
 }
@@ -52,7 +52,7 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     for n in [2usize, 5, 10, 21] {
         let vol = scene(dir.path(), n);
-        let grid = TGrid::new(&vol.header().axes);
+        let grid = TGrid::<f64>::new(&vol.header().axes);
         let (lo, hi) = grid.bounds();
         let centre: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
         let cam = Camera::look_at(

@@ -187,6 +187,13 @@ pub enum HitArg {
     Int,
     Bisect,
     Newton,
+    Exact,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PrecisionArg {
+    F32,
+    F64,
 }
 
 #[derive(Args, Debug)]
@@ -209,6 +216,19 @@ pub struct RenderArgs {
     /// Surface intersection inside a 1-cell.
     #[arg(long, value_enum, default_value = "int")]
     pub hit: HitArg,
+    /// Bisection iterations for --hit bisect (each halves the bracket).
+    #[arg(long, default_value_t = 30)]
+    pub bisect_iters: u32,
+    /// Largest number of Newton iterations for --hit newton.
+    #[arg(long, default_value_t = 8)]
+    pub newton_iters: u32,
+    /// Newton's relative tolerance on the bracket and on the residual.
+    #[arg(long, default_value_t = 1e-12)]
+    pub newton_tol: f64,
+    /// Arithmetic of the traversal: f64 never misses a 1-cell; f32 is
+    /// measured in docs/TRADEOFFS.md.
+    #[arg(long, value_enum, default_value = "f64")]
+    pub precision: PrecisionArg,
     /// Shadow rays, traced with the same traversal.
     #[arg(long)]
     pub shadows: bool,

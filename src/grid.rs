@@ -7,9 +7,12 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Largest number of samples the format allows along one axis. Cell indices
-/// and brick counts then fit in `u32` (see docs/FORMAT.md).
-pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 31;
+/// Largest number of samples the format allows along one axis (2^20).
+/// The header lists every sample position, so this keeps a header below
+/// 100 MB; it is 500 times the slices of any CT series, and small enough
+/// that the extreme-case suite reaches it with a thin slab
+/// (tests/extremes.rs). Cell and brick indices fit in `u32`.
+pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 20;
 
 /// Why a list of coordinates is not a valid axis.
 #[derive(Debug, Clone, PartialEq)]

@@ -32,6 +32,7 @@ compile_error!(
 );
 
 pub mod classify;
+pub mod corpus;
 pub mod dt;
 pub mod export;
 pub mod format;

@@ -21,9 +21,9 @@ use cdvol::phantom;
 use cdvol::prep::{prep, PrepOptions, PrepReport};
 use cdvol::progress::{NoProgress, Progress};
 use cdvol::render::camera::{Camera, Projection};
-use cdvol::render::shade::HitMethod;
+use cdvol::render::shade::{HitMethod, HitParams};
 use cdvol::render::traverse::{Method, TGrid};
-use cdvol::render::{render, Mode, RenderOptions, Stats};
+use cdvol::render::{render, Mode, Precision, RenderOptions, Stats};
 use cli::{Cli, Command, PhantomCmd};
 
 /// indicatif bars on stderr; hidden when stderr is not a terminal.
@@ -203,7 +203,7 @@ fn render_cmd(
     progress: &dyn Progress,
 ) -> Result<(Vec<std::path::PathBuf>, Stats)> {
     let vol = PackedVolume::open(&a.file)?;
-    let grid = TGrid::new(&vol.header().axes);
+    let grid = TGrid::<f64>::new(&vol.header().axes);
     let projection = if a.persp {
         Projection::Persp { fov_deg: a.fov }
     } else {
@@ -242,6 +242,7 @@ fn render_cmd(
         cli::HitArg::Int => HitMethod::Int,
         cli::HitArg::Bisect => HitMethod::Bisect,
         cli::HitArg::Newton => HitMethod::Newton,
+        cli::HitArg::Exact => HitMethod::Exact,
     };
     let mode = match a.mode {
         cli::ModeArg::Surface => Mode::Surface {
@@ -276,6 +277,15 @@ fn render_cmd(
         tile: a.tile,
         cache_bytes: a.cache_mb.saturating_mul(1 << 20),
         cd_lazy_min: a.cd_lazy_min,
+        hit_params: HitParams {
+            bisect_iters: a.bisect_iters,
+            newton_iters: a.newton_iters,
+            newton_tol: a.newton_tol,
+        },
+        precision: match a.precision {
+            cli::PrecisionArg::F32 => Precision::F32,
+            cli::PrecisionArg::F64 => Precision::F64,
+        },
     };
     let run = || render(&vol, &camera, &opts, progress);
     let (frame, stats) = match a.threads {
@@ -393,7 +403,7 @@ fn demo(dir: &Path, progress: &dyn Progress) -> Result<()> {
 
     // Renders of the head: shaded bone with shadows, the traversal cost
     // map, and a composite of skin and bone from a transfer-function prep.
-    let grid = TGrid::new(&vol.header().axes);
+    let grid = TGrid::<f64>::new(&vol.header().axes);
     let camera = Camera::orbit(grid.bounds(), 35.0, 15.0, None, None, 768, 768)
         .map_err(anyhow::Error::msg)?;
     let mut outputs = Vec::new();
@@ -404,6 +414,8 @@ fn demo(dir: &Path, progress: &dyn Progress) -> Result<()> {
             tile: 32,
             cache_bytes: 512 << 20,
             cd_lazy_min: cdvol::render::cache::LAZY_MIN_CODE_CD,
+            precision: Precision::F64,
+            hit_params: HitParams::default(),
         };
         let (frame, stats) = render(vol, &camera, &opts, progress)?;
         let path = dir.join(format!("{name}.png"));

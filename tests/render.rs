@@ -27,7 +27,7 @@ fn packed(sidecar: &Path, out: &Path, iso: f64, aniso: bool) -> PackedVolume {
 }
 
 fn cam(vol: &PackedVolume, view: [f64; 2], persp: bool, size: u32) -> Camera {
-    let g = TGrid::new(&vol.header().axes);
+    let g = TGrid::<f64>::new(&vol.header().axes);
     Camera::orbit(
         g.bounds(),
         view[0],
@@ -47,6 +47,8 @@ fn run(vol: &PackedVolume, c: &Camera, mode: &Mode, method: Method) -> (Frame, S
         tile: 16,
         cache_bytes: 64 << 20,
         cd_lazy_min: 4,
+        precision: Default::default(),
+        hit_params: Default::default(),
     };
     render(vol, c, &o, &NoProgress).unwrap()
 }
@@ -276,6 +278,8 @@ fn same_image_whatever_cache_threads_and_tiles() {
         tile: 32,
         cache_bytes: 512 << 20,
         cd_lazy_min: 16,
+        precision: Default::default(),
+        hit_params: Default::default(),
     };
     let (want, ws) = render(&vol, &c, &big, &NoProgress).unwrap();
     // A budget of about two bricks.
@@ -328,6 +332,8 @@ fn corrupt_brick_is_an_error_not_pixels() {
         tile: 16,
         cache_bytes: 1 << 20,
         cd_lazy_min: 16,
+        precision: Default::default(),
+        hit_params: Default::default(),
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(
@@ -362,6 +368,8 @@ fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
         tile: 16,
         cache_bytes: 1 << 20,
         cd_lazy_min: 16,
+        precision: Default::default(),
+        hit_params: Default::default(),
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(

@@ -31,9 +31,9 @@ pub const PREAMBLE_LEN: u64 = 16;
 pub const FOOTER_LEN: u64 = 40;
 /// Bytes of one brick index entry.
 pub const INDEX_ENTRY_LEN: usize = 32;
-/// Largest JSON header a reader accepts (axes of 2^31 samples would need
-/// more, but such a header is not something we allocate blindly).
-pub const MAX_HEADER_LEN: u64 = 1 << 32;
+/// Largest JSON header a reader accepts: three axes of 2^20 positions of
+/// at most 25 characters each fit in 80 MB.
+pub const MAX_HEADER_LEN: u64 = 1 << 28;
 /// Largest decompressed brick payload (prep refuses brick sizes beyond it;
 /// readers refuse headers that imply more, so a crafted header cannot make
 /// them allocate without bound).

@@ -433,6 +433,28 @@ impl<'a, 'v> Accessor<'a, 'v> {
     }
 }
 
+impl super::traverse::CodeSource for Accessor<'_, '_> {
+    #[inline(always)]
+    fn code(&mut self, c: [u32; 3], octant: Option<usize>) -> u8 {
+        let (b, l) = self.brick(c);
+        let code = b.code(l);
+        match octant {
+            Some(o) if code != OBJECT => code.max(b.octant_code(l, o)),
+            _ => code,
+        }
+    }
+}
+
+impl Accessor<'_, '_> {
+    /// The 8 vertex values of global cell `c`, x fastest (all finite or
+    /// NaN as stored; exact for a 1-cell).
+    #[inline]
+    pub fn vertices(&mut self, c: [u32; 3]) -> [f32; 8] {
+        let (b, l) = self.brick(c);
+        b.vertices(l)
+    }
+}
+
 static EMPTY: RBrick = RBrick {
     first: [0; 3],
     cells: [1; 3],

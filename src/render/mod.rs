@@ -26,8 +26,8 @@ use crate::format::FormatError;
 use crate::progress::Progress;
 use cache::{Accessor, BrickCache, CacheCounters};
 use camera::Camera;
-use shade::{at, find_hit, shade, CellEval, HitMethod};
-use traverse::{trace, Flow, Method, Ray, StepCounts, TGrid};
+use shade::{at, find_hit_with, shade, CellEval, HitMethod, HitParams};
+use traverse::{trace, Flow, Method, Ray, Real, StepCounts, TGrid};
 
 /// What a pixel shows.
 #[derive(Debug, Clone, PartialEq)]
@@ -55,6 +55,19 @@ pub struct RenderOptions {
     /// CD leaves a brick without 1-cells unread when its smallest code is
     /// at least this (255: read every brick CD enters).
     pub cd_lazy_min: u8,
+    /// Arithmetic of the traversal (f64 by default; see docs/TRADEOFFS.md).
+    pub precision: Precision,
+    /// Iterations and tolerance of the bisect and newton hit methods.
+    pub hit_params: HitParams,
+}
+
+/// Arithmetic of the traversal. Shading and hits are always f64.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Precision {
+    F32,
+    /// Never misses a 1-cell in tests/extremes.rs (f32 does).
+    #[default]
+    F64,
 }
 
 /// Counters of a render (the `--stats` contract).
@@ -204,6 +217,13 @@ pub fn render(
             });
         }
     }
+    let tol = opts.hit_params.newton_tol;
+    if !(0.0..1.0).contains(&tol) {
+        return Err(RenderError::Option {
+            option: "--newton-tol",
+            msg: format!("{tol}, expected a relative tolerance in [0, 1)"),
+        });
+    }
     let pixels = camera.width as u64 * camera.height as u64;
     if pixels > MAX_PIXELS {
         return Err(RenderError::Option {
@@ -222,36 +242,12 @@ pub fn render(
         });
     }
     let h = vol.header();
-    let grid = TGrid::new(&h.axes);
     let cache = BrickCache::new(vol, opts.cache_bytes);
     let (w, hgt) = (camera.width, camera.height);
-    let ts = opts.tile;
-    let (ntx, nty) = (w.div_ceil(ts), hgt.div_ceil(ts));
-    // Tiles in Morton (Z) order: rayon hands each thread contiguous runs,
-    // which are then compact squares of the image whose rays share bricks.
-    let mut tiles: Vec<(u32, u32)> = (0..nty)
-        .flat_map(|ty| (0..ntx).map(move |tx| (tx, ty)))
-        .collect();
-    tiles.sort_by_key(|&(tx, ty)| morton(tx, ty));
-    let ctx = Ctx {
-        grid: &grid,
-        camera,
-        opts,
-        iso: match h.classification {
-            Classification::Iso { iso } => iso,
-            _ => f64::NAN,
-        },
+    let results = match opts.precision {
+        Precision::F64 => render_tiles::<f64>(vol, &cache, camera, opts, progress),
+        Precision::F32 => render_tiles::<f32>(vol, &cache, camera, opts, progress),
     };
-    progress.begin("render tiles", tiles.len() as u64);
-    let results: Vec<TileOut> = tiles
-        .par_iter()
-        .map(|&(tx, ty)| {
-            let r = render_tile(&ctx, &cache, tx * ts, ty * ts, ts);
-            progress.advance(1);
-            r
-        })
-        .collect();
-    progress.end();
 
     // Assemble in tile order (deterministic), merge counters.
     let mut px = vec![Px::default(); (w * hgt) as usize];
@@ -293,6 +289,48 @@ pub fn render(
     Ok((frame, stats))
 }
 
+/// Renders every tile in the traversal arithmetic `T`.
+fn render_tiles<T: Real>(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    progress: &dyn Progress,
+) -> Vec<TileOut> {
+    let h = vol.header();
+    let grid = TGrid::<T>::new(&h.axes);
+    let (w, hgt) = (camera.width, camera.height);
+    let ts = opts.tile;
+    let (ntx, nty) = (w.div_ceil(ts), hgt.div_ceil(ts));
+    // Tiles in Morton (Z) order: rayon hands each thread contiguous runs,
+    // which are then compact squares of the image whose rays share bricks.
+    let mut tiles: Vec<(u32, u32)> = (0..nty)
+        .flat_map(|ty| (0..ntx).map(move |tx| (tx, ty)))
+        .collect();
+    tiles.sort_by_key(|&(tx, ty)| morton(tx, ty));
+    let ctx = Ctx {
+        grid: &grid,
+        coords: [h.axes[0].coords(), h.axes[1].coords(), h.axes[2].coords()],
+        camera,
+        opts,
+        iso: match h.classification {
+            Classification::Iso { iso } => iso,
+            _ => f64::NAN,
+        },
+    };
+    progress.begin("render tiles", tiles.len() as u64);
+    let results = tiles
+        .par_iter()
+        .map(|&(tx, ty)| {
+            let r = render_tile(&ctx, cache, tx * ts, ty * ts, ts);
+            progress.advance(1);
+            r
+        })
+        .collect();
+    progress.end();
+    results
+}
+
 /// Interleaves the bits of `x` and `y` (Z-order curve).
 fn morton(x: u32, y: u32) -> u64 {
     let spread = |v: u32| {
@@ -316,8 +354,10 @@ pub fn mode_name(m: &Mode) -> &'static str {
     }
 }
 
-struct Ctx<'a> {
-    grid: &'a TGrid,
+struct Ctx<'a, T> {
+    grid: &'a TGrid<T>,
+    /// Sample positions in f64 for hits and shading.
+    coords: [&'a [f64]; 3],
     camera: &'a Camera,
     opts: &'a RenderOptions,
     iso: f64,
@@ -334,7 +374,7 @@ struct TileOut {
     error: Option<FormatError>,
 }
 
-fn render_tile(ctx: &Ctx, cache: &BrickCache, x0: u32, y0: u32, ts: u32) -> TileOut {
+fn render_tile<T: Real>(ctx: &Ctx<T>, cache: &BrickCache, x0: u32, y0: u32, ts: u32) -> TileOut {
     let cam = ctx.camera;
     let w = ts.min(cam.width - x0);
     let hh = ts.min(cam.height - y0);
@@ -364,19 +404,19 @@ fn render_tile(ctx: &Ctx, cache: &BrickCache, x0: u32, y0: u32, ts: u32) -> Tile
 }
 
 /// The first iso-surface hit along `ray` after `t_min`: `(t, cell values)`.
-fn first_hit(
-    ctx: &Ctx,
+fn first_hit<T: Real>(
+    ctx: &Ctx<T>,
     ray: &Ray,
     t_min: f64,
     hit: HitMethod,
     acc: &mut Accessor,
 ) -> (Option<(f64, CellEval)>, StepCounts) {
     let g = ctx.grid;
-    let coords = [g.coords(0), g.coords(1), g.coords(2)];
+    let coords = ctx.coords;
     let mut found = None;
-    let s = trace(g, ray, t_min, ctx.opts.method, acc, |v, brick, local| {
-        let c = CellEval::new(coords, v.cell, brick.vertices(local));
-        match find_hit(ray, v, &c, ctx.iso, hit) {
+    let s = trace(g, ray, t_min, ctx.opts.method, acc, |v, acc| {
+        let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+        match find_hit_with(ray, v, &c, ctx.iso, hit, &ctx.opts.hit_params) {
             Some(t) => {
                 found = Some((t, c));
                 Flow::Stop
@@ -387,9 +427,9 @@ fn first_hit(
     (found, s)
 }
 
-fn pixel(ctx: &Ctx, ray: &Ray, acc: &mut Accessor) -> (Px, StepCounts) {
+fn pixel<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (Px, StepCounts) {
     let g = ctx.grid;
-    let coords = [g.coords(0), g.coords(1), g.coords(2)];
+    let coords = ctx.coords;
     let mut px = Px {
         depth: f32::NAN,
         ..Px::default()
@@ -454,8 +494,8 @@ fn pixel(ctx: &Ctx, ray: &Ray, acc: &mut Accessor) -> (Px, StepCounts) {
         }
         Mode::Mip => {
             let mut best = f64::NEG_INFINITY;
-            counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, brick, local| {
-                let c = CellEval::new(coords, v.cell, brick.vertices(local));
+            counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, acc| {
+                let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
                 best = best
                     .max(c.value(at(ray, v.t_enter)))
                     .max(c.value(at(ray, v.t_exit)));
@@ -471,7 +511,7 @@ fn pixel(ctx: &Ctx, ray: &Ray, acc: &mut Accessor) -> (Px, StepCounts) {
             // miss (paper Fig. 17); on files classified by a transfer
             // function, steps to the first 1-cell.
             if ctx.iso.is_nan() {
-                counts = trace(g, ray, 0.0, ctx.opts.method, acc, |_, _, _| Flow::Stop);
+                counts = trace(g, ray, 0.0, ctx.opts.method, acc, |_, _| Flow::Stop);
             } else {
                 let (found, s) = first_hit(ctx, ray, 0.0, HitMethod::Int, acc);
                 counts = s;
@@ -481,8 +521,8 @@ fn pixel(ctx: &Ctx, ray: &Ray, acc: &mut Accessor) -> (Px, StepCounts) {
         Mode::Composite { tf, step_mm } => {
             let mut col = [0.0f64; 3];
             let mut alpha = 0.0f64;
-            counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, brick, local| {
-                let c = CellEval::new(coords, v.cell, brick.vertices(local));
+            counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, acc| {
+                let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
                 // Samples at t = k * step inside [t_enter, t_exit).
                 let mut k = (v.t_enter / step_mm).ceil();
                 while k * step_mm < v.t_exit {

@@ -20,11 +20,63 @@
 //! (cells a ray only grazes at an edge or corner have `t_exit == t_enter`
 //! and are skipped by every traversal alike).
 //!
-//! Termination: every step raises at least one cell index by one, so a ray
-//! takes at most `ncx + ncy + ncz` steps.
+//! Termination: every step raises at least one cell index by one and lowers
+//! none, so a ray takes at most `ncx + ncy + ncz - 2` steps (the suite in
+//! tests/extremes.rs checks this bound on every ray).
+//!
+//! Precision: [`trace`] is generic over [`Real`] (`f64` or `f32`). In f64
+//! every computed crossing is the exact one times `(1 + e)`, `|e| <= 3u`
+//! (`u = 2^-53`), and crossings are compared only through these values, so
+//! the walk equals the exact one except for cells whose exact length along
+//! the ray is within `6u * |t|` of zero; tests/extremes.rs checks exactly
+//! this against rational arithmetic. f32 adds the rounding of origins and
+//! sample positions to 24 bits, relative to their magnitude: it misses
+//! cells (docs/TRADEOFFS.md), so f64 is the default.
 
-use super::cache::{Accessor, RBrick, OBJECT};
+use num_traits::Float;
+
+use super::cache::OBJECT;
 use crate::grid::Axis;
+
+/// Arithmetic the walk runs in: `f64` (the default: it never misses a
+/// 1-cell in the extreme-case suite) or `f32` (measured in
+/// docs/TRADEOFFS.md). One generic walk, not two copies.
+pub trait Real: Float + Send + Sync + std::fmt::Debug + 'static {
+    /// Nearest value of this type (f64 -> f32 rounds; may overflow to inf).
+    fn of(x: f64) -> Self;
+    fn f64(self) -> f64;
+}
+
+impl Real for f64 {
+    #[inline(always)]
+    fn of(x: f64) -> f64 {
+        x
+    }
+    #[inline(always)]
+    fn f64(self) -> f64 {
+        self
+    }
+}
+
+impl Real for f32 {
+    #[inline(always)]
+    fn of(x: f64) -> f32 {
+        x as f32
+    }
+    #[inline(always)]
+    fn f64(self) -> f64 {
+        self as f64
+    }
+}
+
+/// Where the walk reads cell codes: the renderer's brick accessor, or an
+/// in-memory volume in tests and the fuzz target.
+pub trait CodeSource {
+    /// Code of cell `c` ([`OBJECT`] for a 1-cell). With `Some(octant)`, the
+    /// larger of its isotropic code and its block's code for that octant
+    /// (section 4.2.1): both cubes are empty, so the larger leap is safe.
+    fn code(&mut self, c: [u32; 3], octant: Option<usize>) -> u8;
+}
 
 /// Which ray generator to use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -40,30 +92,31 @@ pub enum Method {
 
 /// One axis in both orientations.
 #[derive(Debug, Clone)]
-struct TAxis {
+struct TAxis<T> {
     /// Increasing sample positions, as given and mirrored.
-    s: [Vec<f64>; 2],
-    /// `(s0, h)` of a uniform axis (both orientations share `h`).
-    uniform: Option<f64>,
+    s: [Vec<T>; 2],
+    /// Spacing `h` of a uniform axis (both orientations share it).
+    uniform: Option<T>,
 }
 
 /// The grid as the traversal sees it: per axis the positions in both
-/// orientations, computed once per image.
+/// orientations, in the walk's arithmetic, computed once per image.
 #[derive(Debug, Clone)]
-pub struct TGrid {
-    axes: [TAxis; 3],
+pub struct TGrid<T = f64> {
+    axes: [TAxis<T>; 3],
     pub ncells: [u32; 3],
 }
 
-impl TGrid {
-    pub fn new(axes: &[Axis; 3]) -> TGrid {
+impl<T: Real> TGrid<T> {
+    pub fn new(axes: &[Axis; 3]) -> TGrid<T> {
         let ta = |a: &Axis| {
-            let c = a.coords().to_vec();
-            let m: Vec<f64> = c.iter().rev().map(|x| -x).collect();
-            let h = (c[c.len() - 1] - c[0]) / (c.len() - 1) as f64;
+            let c: Vec<T> = a.coords().iter().map(|&x| T::of(x)).collect();
+            let m: Vec<T> = c.iter().rev().map(|&x| -x).collect();
+            let co = a.coords();
+            let h = (co[co.len() - 1] - co[0]) / (co.len() - 1) as f64;
             TAxis {
                 s: [c, m],
-                uniform: a.is_uniform().then_some(h),
+                uniform: a.is_uniform().then_some(T::of(h)),
             }
         };
         TGrid {
@@ -76,15 +129,11 @@ impl TGrid {
         }
     }
 
-    /// Sample positions of axis `k` in the original orientation.
-    pub fn coords(&self, k: usize) -> &[f64] {
-        &self.axes[k].s[0]
-    }
-
-    /// Lower and upper corner of the volume in mm.
+    /// Lower and upper corner of the volume in mm (as this arithmetic
+    /// holds them).
     pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
-        let lo = std::array::from_fn(|k| self.axes[k].s[0][0]);
-        let hi = std::array::from_fn(|k| *self.axes[k].s[0].last().expect("axis"));
+        let lo = std::array::from_fn(|k| self.axes[k].s[0][0].f64());
+        let hi = std::array::from_fn(|k| self.axes[k].s[0].last().expect("axis").f64());
         (lo, hi)
     }
 }
@@ -94,6 +143,57 @@ impl TGrid {
 pub struct Ray {
     pub origin: [f64; 3],
     pub dir: [f64; 3],
+}
+
+/// Smallest largest-component of a direction [`Ray::new`] accepts
+/// (2^-600): below it, `t` across a volume could overflow f64.
+pub const MIN_DIR: f64 = 2.409919865102884e-181;
+
+/// Why a ray cannot be traced.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RayError {
+    #[error("ray direction {0:?} is zero, expected a non-zero direction")]
+    ZeroDirection([f64; 3]),
+    #[error("ray direction {0:?} is too short (largest component below {MIN_DIR:e}); scale it up")]
+    TinyDirection([f64; 3]),
+    #[error("ray {what} {value:?} is not finite, expected finite numbers")]
+    NotFinite { what: &'static str, value: [f64; 3] },
+}
+
+impl Ray {
+    /// A checked ray: finite origin, finite non-zero direction whose
+    /// largest component is at least [`MIN_DIR`]. Directions need not be
+    /// normalised; components may be 0.0, -0.0, subnormal or huge.
+    pub fn new(origin: [f64; 3], dir: [f64; 3]) -> Result<Ray, RayError> {
+        let r = Ray { origin, dir };
+        r.check()?;
+        Ok(r)
+    }
+
+    /// The checks of [`Ray::new`]; [`trace`] visits nothing on a ray that
+    /// fails them.
+    pub fn check(&self) -> Result<(), RayError> {
+        if !self.origin.iter().all(|x| x.is_finite()) {
+            return Err(RayError::NotFinite {
+                what: "origin",
+                value: self.origin,
+            });
+        }
+        if !self.dir.iter().all(|x| x.is_finite()) {
+            return Err(RayError::NotFinite {
+                what: "direction",
+                value: self.dir,
+            });
+        }
+        let m = self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+        if m == 0.0 {
+            return Err(RayError::ZeroDirection(self.dir));
+        }
+        if m < MIN_DIR {
+            return Err(RayError::TinyDirection(self.dir));
+        }
+        Ok(())
+    }
 }
 
 /// A 1-cell the ray passes through with positive length.
@@ -131,39 +231,46 @@ pub enum Flow {
     Stop,
 }
 
-/// Per-ray state of the walk (mirrored frame).
-struct Walk<'g> {
-    s: [&'g [f64]; 3],
-    uniform: [Option<f64>; 3],
-    o: [f64; 3],
-    d: [f64; 3],
-    /// `1 / |d|` (+inf where `d == 0`).
-    inv_d: [f64; 3],
+/// Per-ray state of the walk (mirrored, scaled frame).
+struct Walk<'g, T> {
+    s: [&'g [T]; 3],
+    uniform: [Option<T>; 3],
+    o: [T; 3],
+    /// `|d|`, divided by a power of two where `T` needs it (see [`trace`]).
+    d: [T; 3],
+    /// `1 / d` (+inf where `d == 0`).
+    inv_d: [T; 3],
+    /// Axes whose `1 / d` overflows (subnormal `d`): divide instead.
+    div: [bool; 3],
     mirror: [bool; 3],
     n: [u32; 3],
 }
 
-impl<'g> Walk<'g> {
+impl<'g, T: Real> Walk<'g, T> {
     /// `t` at which the ray crosses plane `j` of axis `k` (+inf if the ray
     /// is parallel to it). The one formula every traversal uses:
     /// `(S'[j] - o') * (1 / d')`, a multiplication rather than a division
     /// in the step (paper section 4.1, last paragraph), monotone in `j`.
     #[inline(always)]
-    fn plane_t(&self, k: usize, j: u32) -> f64 {
-        if self.d[k] == 0.0 {
-            f64::INFINITY
+    fn plane_t(&self, k: usize, j: u32) -> T {
+        if self.d[k] == T::zero() {
+            T::infinity()
+        } else if self.div[k] {
+            (self.s[k][j as usize] - self.o[k]) / self.d[k]
         } else {
             (self.s[k][j as usize] - self.o[k]) * self.inv_d[k]
         }
     }
 
     /// Largest `j` in `[lo, hi]` with `plane_t(k, j) <= t` (`plane_t(k,
-    /// lo) <= t` must hold). Direct on uniform axes, binary search otherwise.
+    /// lo) <= t` must hold). Locate of Fig. 11: direct on uniform axes
+    /// (an estimate corrected by the same `plane_t`), binary search
+    /// bounded by the cube otherwise.
     #[inline(always)]
-    fn locate(&self, k: usize, t: f64, lo: u32, hi: u32) -> u32 {
+    fn locate(&self, k: usize, t: T, lo: u32, hi: u32) -> u32 {
         if let Some(h) = self.uniform[k] {
             let p = self.o[k] + t * self.d[k];
-            let est = ((p - self.s[k][0]) / h).floor();
+            let est = ((p - self.s[k][0]) / h).floor().f64();
             let mut j = if est.is_nan() {
                 lo as f64
             } else {
@@ -205,7 +312,7 @@ impl<'g> Walk<'g> {
 
 /// Axis of the smallest `t`, ties to x, then y (paper Fig. 11a).
 #[inline(always)]
-fn argmin(t: [f64; 3]) -> usize {
+fn argmin<T: Real>(t: [T; 3]) -> usize {
     if t[0] <= t[1] && t[0] <= t[2] {
         0
     } else if t[1] <= t[2] {
@@ -215,53 +322,105 @@ fn argmin(t: [f64; 3]) -> usize {
     }
 }
 
+/// Power of two `p` with `max |d_k| / p` in [1, 2) (exact scaling).
+fn pow2_scale(m: f64) -> f64 {
+    let e = m.log2().floor().clamp(-1022.0, 1023.0) as i32;
+    let mut p = 2f64.powi(e);
+    // log2 may round across a power of two; fix up exactly.
+    if m / p >= 2.0 {
+        p *= 2.0;
+    } else if m / p < 1.0 {
+        p *= 0.5;
+    }
+    p
+}
+
 /// Walks `ray` through the grid from `t_min` on, calling `visit` for every
 /// 1-cell it passes with positive length, in order, until `visit` says
-/// stop or the ray leaves the volume. Returns the step counts.
-pub fn trace<F>(
-    grid: &TGrid,
+/// stop or the ray leaves the volume. Returns the step counts. A ray that
+/// fails [`Ray::check`], or a non-finite `t_min`, visits nothing.
+///
+/// Where the largest direction component `m` or `1 / m` is not a normal
+/// number of `T` (always for f32 outside its range; in f64 only for
+/// `m > 2^1022`), the direction is divided by a power of two `p` so that
+/// `m / p` lies in [1, 2); the walk's parameter is then `t * p`, and is
+/// reported divided by `p`. Both are exact, so in f64 any direction
+/// [`Ray::new`] accepts is walked without loss. A component whose inverse
+/// overflows (subnormal) is divided by rather than multiplied with. A
+/// component that underflows to 0 in `T` (f32, or f64 after scaling down
+/// by more than 2^1022) is treated as parallel, keeping its sign for
+/// mirroring and leaving at once from the far face.
+///
+/// Termination: every step raises one cell index by at least one and
+/// never lowers another, so a ray takes at most `ncx + ncy + ncz - 2`
+/// steps.
+pub fn trace<T, S, F>(
+    grid: &TGrid<T>,
     ray: &Ray,
     t_min: f64,
     method: Method,
-    acc: &mut Accessor,
+    src: &mut S,
     mut visit: F,
 ) -> StepCounts
 where
-    F: FnMut(&Visit, &RBrick, [u32; 3]) -> Flow,
+    T: Real,
+    S: CodeSource,
+    F: FnMut(&Visit, &mut S) -> Flow,
 {
     let mut counts = StepCounts::default();
+    if ray.check().is_err() || !t_min.is_finite() {
+        return counts;
+    }
+    let m = ray.dir.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+    let p = if T::of(m).is_normal() && T::of(1.0 / m).is_normal() {
+        1.0
+    } else {
+        pow2_scale(m)
+    };
     // Mirror axes with negative components (-0.0 is not negative).
     let mirror = ray.dir.map(|d| d < 0.0);
+    let d: [T; 3] = std::array::from_fn(|k| T::of(ray.dir[k].abs() / p));
+    let inv_d = d.map(|x| T::one() / x);
+    let div = std::array::from_fn(|k| d[k] != T::zero() && !inv_d[k].is_finite());
+    let o: [T; 3] = std::array::from_fn(|k| {
+        T::of(if mirror[k] {
+            -ray.origin[k]
+        } else {
+            ray.origin[k]
+        })
+    });
+    if !o.iter().all(|x| x.is_finite()) {
+        // Only in f32: an origin beyond its range.
+        return counts;
+    }
     let w = Walk {
         s: std::array::from_fn(|k| &grid.axes[k].s[mirror[k] as usize][..]),
         uniform: std::array::from_fn(|k| grid.axes[k].uniform),
-        o: std::array::from_fn(|k| {
-            if mirror[k] {
-                -ray.origin[k]
-            } else {
-                ray.origin[k]
-            }
-        }),
-        d: std::array::from_fn(|k| {
-            if mirror[k] {
-                -ray.dir[k]
-            } else {
-                ray.dir[k].abs()
-            }
-        }),
-        inv_d: std::array::from_fn(|k| 1.0 / ray.dir[k].abs()),
+        o,
+        d,
+        inv_d,
+        div,
         mirror,
         n: grid.ncells,
     };
     let octant = (mirror[0] as usize) | (mirror[1] as usize) << 1 | (mirror[2] as usize) << 2;
+    let to_t = |t: T| t.f64() / p;
 
     // Enter the volume: slab test, then the starting cell by the t rule.
-    let mut t_in = t_min;
-    let mut t_out = f64::INFINITY;
+    let mut t_in = T::of(t_min * p);
+    let mut t_out = T::infinity();
     for k in 0..3 {
         let s = w.s[k];
-        if w.d[k] == 0.0 {
-            if !(w.o[k] >= s[0] && w.o[k] <= s[s.len() - 1]) {
+        if w.d[k] == T::zero() {
+            // Parallel: inside the closed slab. A flushed component still
+            // moves the ray, so on the far face it leaves at once.
+            let top = s[s.len() - 1];
+            let below_top = if ray.dir[k] == 0.0 {
+                w.o[k] <= top
+            } else {
+                w.o[k] < top
+            };
+            if !(w.o[k] >= s[0] && below_top) {
                 return counts;
             }
         } else {
@@ -273,7 +432,7 @@ where
         return counts;
     }
     let mut v: [u32; 3] = std::array::from_fn(|k| {
-        if w.d[k] == 0.0 {
+        if w.d[k] == T::zero() {
             // Largest sample position <= o, kept inside the last cell.
             let s = w.s[k];
             (s.partition_point(|&x| x <= w.o[k]).max(1) - 1).min(w.n[k] as usize - 1) as u32
@@ -288,29 +447,23 @@ where
         w.plane_t(2, v[2] + 1),
     ];
     let (min_leap, aniso) = match method {
-        Method::Fvt => (u8::MAX, false),
-        Method::Cd { min_leap } => (min_leap.max(1), false),
-        Method::CdAniso { min_leap } => (min_leap.max(1), true),
+        Method::Fvt => (u8::MAX, None),
+        Method::Cd { min_leap } => (min_leap.max(1), None),
+        Method::CdAniso { min_leap } => (min_leap.max(1), Some(octant)),
     };
     loop {
         let real = w.real(v);
-        let (brick, local) = acc.brick(real);
-        let mut code = brick.code(local);
-        if aniso && code != OBJECT {
-            // The cell's isotropic cube and its block's octant box are both
-            // empty, so the larger of the two leaps is safe.
-            code = code.max(brick.octant_code(local, octant));
-        }
+        let code = src.code(real, aniso);
         counts.steps += 1;
         if code == OBJECT {
             let t_exit = next[0].min(next[1]).min(next[2]).min(t_out);
             if t_exit > t_enter {
                 let vis = Visit {
                     cell: real,
-                    t_enter,
-                    t_exit,
+                    t_enter: to_t(t_enter),
+                    t_exit: to_t(t_exit),
                 };
-                if visit(&vis, brick, local) == Flow::Stop {
+                if visit(&vis, src) == Flow::Stop {
                     return counts;
                 }
             }
@@ -333,7 +486,7 @@ where
             for k in 0..3 {
                 if k == m {
                     v[k] = far[k];
-                } else if w.d[k] != 0.0 {
+                } else if w.d[k] != T::zero() {
                     v[k] = w.locate(k, t, v[k], far[k]);
                     if v[k] >= w.n[k] {
                         return counts;

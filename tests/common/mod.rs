@@ -205,6 +205,9 @@ pub fn real_ct() -> PathBuf {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let dir = root.join("target").join("ct");
     let sidecar = dir.join("cranium.json");
+    // Tests run in parallel: one fetches, the others wait for it.
+    static FETCH: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = FETCH.lock().unwrap_or_else(|e| e.into_inner());
     if !sidecar.exists() {
         let st = std::process::Command::new("bash")
             .arg(root.join("tools/fetch-ct.sh"))
