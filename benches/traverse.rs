@@ -18,7 +18,7 @@ use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::cache::{Accessor, BrickCache};
 use cdvol::render::camera::Camera;
-use cdvol::render::traverse::{trace, Flow, Method, Ray, TGrid};
+use cdvol::render::traverse::{trace, Flow, Method, Ray, Real, TGrid};
 
 fn scene(dir: &std::path::Path, n: usize) -> PackedVolume {
     let side = dir.join(format!("n{n}.json"));
@@ -38,7 +38,7 @@ fn scene(dir: &std::path::Path, n: usize) -> PackedVolume {
 }
 
 /// Traces every ray to its first 1-cell; returns total steps.
-fn background(grid: &TGrid, rays: &[Ray], m: Method, acc: &mut Accessor) -> u64 {
+fn background<T: Real>(grid: &TGrid<T>, rays: &[Ray], m: Method, acc: &mut Accessor) -> u64 {
     let mut steps = 0;
     for r in rays {
         steps += trace(grid, r, 0.0, m, acc, |_, _| Flow::Stop).steps;
@@ -92,5 +92,37 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+/// The same background traversal in f32 and f64 arithmetic
+/// (`--precision`), on the sparsest and a dense scene.
+fn precision(c: &mut Criterion) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = c.benchmark_group("precision");
+    g.sample_size(10);
+    for n in [2usize, 10] {
+        let vol = scene(dir.path(), n);
+        let g64 = TGrid::<f64>::new(&vol.header().axes);
+        let g32 = TGrid::<f32>::new(&vol.header().axes);
+        let (lo, hi) = g64.bounds();
+        let cam = Camera::orbit((lo, hi), 30.0, 20.0, None, None, 250, 250).unwrap();
+        let rays: Vec<Ray> = (0..250)
+            .flat_map(|y| (0..250).map(move |x| (x, y)))
+            .map(|(x, y)| cam.ray(x, y))
+            .collect();
+        let cache = BrickCache::new(&vol, 1 << 30);
+        g.throughput(Throughput::Elements(rays.len() as u64));
+        for (name, m) in [("fvt", Method::Fvt), ("cd", Method::Cd { min_leap: 1 })] {
+            let mut acc = Accessor::new(&cache);
+            background(&g64, &rays, m, &mut acc);
+            g.bench_function(BenchmarkId::new(format!("{name}-f64"), n), |b| {
+                b.iter(|| background(&g64, &rays, m, &mut acc))
+            });
+            g.bench_function(BenchmarkId::new(format!("{name}-f32"), n), |b| {
+                b.iter(|| background(&g32, &rays, m, &mut acc))
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench, precision);
 criterion_main!(benches);

@@ -35,6 +35,33 @@ pub enum Command {
     /// Generate the CT-like phantom and a sphere scene, prepare and render
     /// them, and report what was written.
     Demo(DemoArgs),
+    /// Reproducible measurements, written as reports under docs/.
+    #[command(subcommand)]
+    Experiment(ExperimentCmd),
+}
+
+#[derive(Subcommand, Debug)]
+pub enum ExperimentCmd {
+    /// Time against error for every hit method, traversal precision and
+    /// composite step, on the sphere phantom (analytic truth) and the real
+    /// CT: writes docs/TRADEOFFS.md, tradeoffs.csv and tradeoffs.svg.
+    Tradeoffs(TradeoffsArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct TradeoffsArgs {
+    /// The Markdown report (CSV and SVG go beside it).
+    #[arg(long, default_value = "docs/TRADEOFFS.md")]
+    pub out: PathBuf,
+    /// Sidecar of the real CT (tools/fetch-ct.sh DIR writes DIR/cranium.json).
+    #[arg(long)]
+    pub ct: Option<PathBuf>,
+    /// Image edge in pixels.
+    #[arg(long, default_value_t = 384)]
+    pub size: u32,
+    /// Runs per setting; the median is reported.
+    #[arg(long, default_value_t = 5)]
+    pub runs: usize,
 }
 
 #[derive(Args, Debug)]

@@ -34,6 +34,7 @@ compile_error!(
 pub mod classify;
 pub mod corpus;
 pub mod dt;
+pub mod experiment;
 pub mod export;
 pub mod format;
 pub mod grid;

@@ -194,6 +194,20 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             );
         }
         Command::Demo(a) => demo(&a.dir, progress)?,
+        Command::Experiment(cli::ExperimentCmd::Tradeoffs(a)) => {
+            let o = cdvol::experiment::TradeoffOptions {
+                out: a.out.clone(),
+                ct: a.ct.clone(),
+                size: a.size,
+                runs: a.runs,
+            };
+            let rows = cdvol::experiment::tradeoffs(&o, progress)?;
+            println!(
+                "{} settings measured; wrote {}",
+                rows.len(),
+                a.out.display()
+            );
+        }
     }
     Ok(())
 }
