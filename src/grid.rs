@@ -14,12 +14,19 @@ use serde::{Deserialize, Serialize};
 /// (tests/extremes.rs). Cell and brick indices fit in `u32`.
 pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 20;
 
+/// Largest |position| in mm an axis may hold (10^15 mm, a million km):
+/// with ray origins bounded alike ([`crate::render::traverse::Ray::new`])
+/// and directions within 2^+-600, every ray parameter the traversal
+/// reports stays a finite, normal f64, and positions stay finite in f32.
+pub const MAX_COORD_MM: f64 = 1e15;
+
 /// Why a list of coordinates is not a valid axis.
 #[derive(Debug, Clone, PartialEq)]
 pub enum AxisProblem {
     TooShort { len: usize },
     TooLong { len: usize },
     NotFinite { index: usize, value: f64 },
+    TooFar { index: usize, value: f64 },
     NotIncreasing { index: usize, prev: f64, value: f64 },
 }
 
@@ -35,6 +42,10 @@ impl std::fmt::Display for AxisProblem {
             AxisProblem::NotFinite { index, value } => {
                 write!(f, "coordinate {index} is {value}, expected a finite number")
             }
+            AxisProblem::TooFar { index, value } => write!(
+                f,
+                "coordinate {index} is {value:e} mm, expected at most {MAX_COORD_MM:e} mm from 0"
+            ),
             AxisProblem::NotIncreasing { index, prev, value } => write!(
                 f,
                 "coordinate {index} is {value} mm after {prev} mm, \
@@ -77,6 +88,9 @@ impl Axis {
         for (index, &value) in coords.iter().enumerate() {
             if !value.is_finite() {
                 return Err(AxisProblem::NotFinite { index, value });
+            }
+            if value.abs() > MAX_COORD_MM {
+                return Err(AxisProblem::TooFar { index, value });
             }
             if index > 0 && value <= coords[index - 1] {
                 let prev = coords[index - 1];

@@ -161,7 +161,11 @@ impl Info {
             o,
             "code histogram (0-cells per code range; --json has every code)"
         );
-        let total: u64 = self.code_histogram.iter().map(|c| c[1]).sum();
+        // Saturating: a crafted header may hold any u64 counts.
+        let total: u64 = self
+            .code_histogram
+            .iter()
+            .fold(0u64, |s, c| s.saturating_add(c[1]));
         // Buckets 0, 1, 2-3, 4-7, ... so the text stays short.
         let mut buckets: Vec<(u64, u64, u64)> = Vec::new();
         for &[code, n] in &self.code_histogram {
@@ -171,7 +175,7 @@ impl Info {
                 1u64 << (63 - code.leading_zeros())
             };
             match buckets.last_mut() {
-                Some(b) if b.0 == lo => b.2 += n,
+                Some(b) if b.0 == lo => b.2 = b.2.saturating_add(n),
                 _ => buckets.push((lo, (2 * lo).max(1) - 1, n)),
             }
         }
@@ -181,11 +185,12 @@ impl Info {
             } else {
                 format!("{lo}-{hi}")
             };
+            let frac = (n as f64 / total.max(1) as f64).min(1.0);
             let _ = writeln!(
                 o,
                 "  {range:>9}: {n:>12} {:5.1} % {}",
-                100.0 * n as f64 / total.max(1) as f64,
-                "#".repeat(((40 * n) / total.max(1)) as usize)
+                100.0 * frac,
+                "#".repeat((40.0 * frac) as usize)
             );
         }
         o

@@ -12,6 +12,21 @@ use std::sync::{Arc, Mutex};
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
+/// A sample value as the renderer holds it: rounded to f32 and saturated
+/// to the finite f32 range (+-inf and values beyond it become +-f32::MAX,
+/// so the trilinear interpolant stays finite); NaN stays NaN. Monotone, so
+/// a value `>= iso` stays `>= to_f32(iso)`: the renderer compares against
+/// the iso value mapped the same way, and every 1-cell keeps a vertex at
+/// or above it.
+#[inline]
+pub fn to_f32(v: f64) -> f32 {
+    if v.is_nan() {
+        f32::NAN
+    } else {
+        (v as f32).clamp(-f32::MAX, f32::MAX)
+    }
+}
+
 /// Code of a 1-cell in the decoded code plane.
 pub const OBJECT: u8 = 255;
 
@@ -176,7 +191,7 @@ impl RBrick {
         } else {
             vals.iter()
                 .zip(&word_code)
-                .map(|(&v, &c)| if c == u32::MAX { v as f32 } else { f32::NAN })
+                .map(|(&v, &c)| if c == u32::MAX { to_f32(v) } else { f32::NAN })
                 .collect()
         };
         let octants = match h.brick_blocks(coords) {

@@ -313,8 +313,9 @@ fn render_tiles<T: Real>(
         coords: [h.axes[0].coords(), h.axes[1].coords(), h.axes[2].coords()],
         camera,
         opts,
+        // Mapped like the stored values (see cache::to_f32).
         iso: match h.classification {
-            Classification::Iso { iso } => iso,
+            Classification::Iso { iso } => cache::to_f32(iso) as f64,
             _ => f64::NAN,
         },
     };

@@ -36,7 +36,7 @@
 use num_traits::Float;
 
 use super::cache::OBJECT;
-use crate::grid::Axis;
+use crate::grid::{Axis, MAX_COORD_MM};
 
 /// Arithmetic the walk runs in: `f64` (the default: it never misses a
 /// 1-cell in the extreme-case suite) or `f32` (measured in
@@ -146,8 +146,13 @@ pub struct Ray {
 }
 
 /// Smallest largest-component of a direction [`Ray::new`] accepts
-/// (2^-600): below it, `t` across a volume could overflow f64.
+/// (2^-600). With [`MAX_DIR`] and origins and positions within
+/// [`MAX_COORD_MM`] (< 2^50), every `t` the walk reports is at most
+/// `2^51 / m <= 2^651`: finite; and f64 walks need no rescaling, so
+/// distinct crossings are reported distinct.
 pub const MIN_DIR: f64 = 2.409919865102884e-181;
+/// Largest largest-component of a direction [`Ray::new`] accepts (2^600).
+pub const MAX_DIR: f64 = 4.149515568880993e180;
 
 /// Why a ray cannot be traced.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -156,14 +161,21 @@ pub enum RayError {
     ZeroDirection([f64; 3]),
     #[error("ray direction {0:?} is too short (largest component below {MIN_DIR:e}); scale it up")]
     TinyDirection([f64; 3]),
+    #[error(
+        "ray direction {0:?} is too long (largest component above {MAX_DIR:e}); scale it down"
+    )]
+    HugeDirection([f64; 3]),
+    #[error("ray origin {0:?} is more than {MAX_COORD_MM:e} mm from 0 along an axis")]
+    FarOrigin([f64; 3]),
     #[error("ray {what} {value:?} is not finite, expected finite numbers")]
     NotFinite { what: &'static str, value: [f64; 3] },
 }
 
 impl Ray {
-    /// A checked ray: finite origin, finite non-zero direction whose
-    /// largest component is at least [`MIN_DIR`]. Directions need not be
-    /// normalised; components may be 0.0, -0.0, subnormal or huge.
+    /// A checked ray: a finite origin within [`MAX_COORD_MM`] of 0 on every
+    /// axis, and a finite direction whose largest component is in
+    /// [[`MIN_DIR`], [`MAX_DIR`]]. Directions need not be normalised; other
+    /// components may be 0.0, -0.0, subnormal or tiny.
     pub fn new(origin: [f64; 3], dir: [f64; 3]) -> Result<Ray, RayError> {
         let r = Ray { origin, dir };
         r.check()?;
@@ -191,6 +203,12 @@ impl Ray {
         }
         if m < MIN_DIR {
             return Err(RayError::TinyDirection(self.dir));
+        }
+        if m > MAX_DIR {
+            return Err(RayError::HugeDirection(self.dir));
+        }
+        if self.origin.iter().any(|x| x.abs() > MAX_COORD_MM) {
+            return Err(RayError::FarOrigin(self.origin));
         }
         Ok(())
     }
@@ -341,15 +359,14 @@ fn pow2_scale(m: f64) -> f64 {
 /// fails [`Ray::check`], or a non-finite `t_min`, visits nothing.
 ///
 /// Where the largest direction component `m` or `1 / m` is not a normal
-/// number of `T` (always for f32 outside its range; in f64 only for
-/// `m > 2^1022`), the direction is divided by a power of two `p` so that
-/// `m / p` lies in [1, 2); the walk's parameter is then `t * p`, and is
-/// reported divided by `p`. Both are exact, so in f64 any direction
-/// [`Ray::new`] accepts is walked without loss. A component whose inverse
-/// overflows (subnormal) is divided by rather than multiplied with. A
-/// component that underflows to 0 in `T` (f32, or f64 after scaling down
-/// by more than 2^1022) is treated as parallel, keeping its sign for
-/// mirroring and leaving at once from the far face.
+/// number of `T` (f32 outside its range; never in f64, as `m` is within
+/// 2^+-600), the direction is divided by a power of two `p` so that `m / p`
+/// lies in [1, 2); the walk's parameter is then `t * p`, and is reported
+/// divided by `p`. Both are exact, so in f64 every direction is walked as
+/// given. A component whose inverse overflows (subnormal) is divided by
+/// rather than multiplied with. A component that underflows to 0 in `T`
+/// (f32 only) is treated as parallel, keeping its sign for mirroring and
+/// leaving at once from the far face.
 ///
 /// Termination: every step raises one cell index by at least one and
 /// never lowers another, so a ray takes at most `ncx + ncy + ncz - 2`
