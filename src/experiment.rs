@@ -56,6 +56,7 @@ pub struct Row {
     pub psnr: f64,
 }
 
+#[derive(Clone)]
 struct Surface {
     name: &'static str,
     hit: HitMethod,
@@ -217,24 +218,34 @@ fn opts(mode: Mode, precision: Precision, hit_params: HitParams) -> RenderOption
     }
 }
 
-/// Median wall time of `runs` renders, and the last frame.
+/// Median wall time of `runs` renders of every setting, and each
+/// setting's frame. The settings take turns (one render of each per
+/// round), so a slow spell of the shared machine hits them all alike.
 fn timed(
     d: &Dataset,
-    o: &RenderOptions,
+    settings: &[RenderOptions],
     runs: usize,
     progress: &dyn Progress,
-) -> anyhow::Result<(f64, Frame)> {
-    let mut times = Vec::with_capacity(runs);
-    let mut frame = None;
+) -> anyhow::Result<Vec<(f64, Frame)>> {
+    let mut times = vec![Vec::with_capacity(runs); settings.len()];
+    let mut frames: Vec<Option<Frame>> = vec![None; settings.len()];
     for _ in 0..runs {
-        let t0 = Instant::now();
-        let (f, _) = render(&d.vol, &d.camera, o, &NoProgress)?;
-        times.push(t0.elapsed().as_secs_f64());
-        frame = Some(f);
-        progress.advance(1);
+        for (i, o) in settings.iter().enumerate() {
+            let t0 = Instant::now();
+            let (f, _) = render(&d.vol, &d.camera, o, &NoProgress)?;
+            times[i].push(t0.elapsed().as_secs_f64());
+            frames[i] = Some(f);
+            progress.advance(1);
+        }
     }
-    times.sort_by(f64::total_cmp);
-    Ok((times[times.len() / 2], frame.expect("runs >= 1")))
+    Ok(times
+        .into_iter()
+        .zip(frames)
+        .map(|(mut t, f)| {
+            t.sort_by(f64::total_cmp);
+            (t[t.len() / 2], f.expect("runs >= 1"))
+        })
+        .collect())
 }
 
 fn surface_rows(d: &Dataset, o: &TradeoffOptions, pr: &dyn Progress) -> anyhow::Result<Vec<Row>> {
@@ -265,18 +276,27 @@ fn surface_rows(d: &Dataset, o: &TradeoffOptions, pr: &dyn Progress) -> anyhow::
     .depth
     .unwrap_or_default();
     pr.advance(2);
-    let mut rows = Vec::new();
-    for s in surfaces() {
-        for (p, pn) in PRECISIONS {
-            let so = opts(
+    let combos: Vec<(Surface, Precision, &str)> = surfaces()
+        .into_iter()
+        .flat_map(|s| PRECISIONS.map(|(p, pn)| (s.clone(), p, pn)))
+        .collect();
+    let settings: Vec<RenderOptions> = combos
+        .iter()
+        .map(|(s, p, _)| {
+            opts(
                 Mode::Surface {
                     hit: s.hit,
                     shadows: false,
                 },
-                p,
+                *p,
                 s.params,
-            );
-            let (t, frame) = timed(d, &so, o.runs, pr)?;
+            )
+        })
+        .collect();
+    let measured = timed(d, &settings, o.runs, pr)?;
+    let mut rows = Vec::new();
+    for ((s, p, pn), (t, frame)) in combos.into_iter().zip(measured) {
+        {
             let depth_o = opts(Mode::Depth { hit: s.hit }, p, s.params);
             let depth = render(&d.vol, &d.camera, &depth_o, &NoProgress)?
                 .0
@@ -322,10 +342,15 @@ fn composite_rows(d: &Dataset, o: &TradeoffOptions, pr: &dyn Progress) -> anyhow
         &comp(REF_STEP, Precision::F64),
         &NoProgress,
     )?;
+    let combos: Vec<(f64, Precision, &str)> = STEPS
+        .iter()
+        .flat_map(|&step| PRECISIONS.map(|(p, pn)| (step, p, pn)))
+        .collect();
+    let settings: Vec<RenderOptions> = combos.iter().map(|&(st, p, _)| comp(st, p)).collect();
+    let measured = timed(d, &settings, o.runs, pr)?;
     let mut rows = Vec::new();
-    for step in STEPS {
-        for (p, pn) in PRECISIONS {
-            let (t, frame) = timed(d, &comp(step, p), o.runs, pr)?;
+    for ((step, _, pn), (t, frame)) in combos.into_iter().zip(measured) {
+        {
             let (rmse, psnr) = rmse_psnr(&reference.rgb, &frame.rgb);
             rows.push(Row {
                 dataset: d.name,
@@ -475,7 +500,7 @@ fn report(rows: &[Row], o: &TradeoffOptions, diffs: &[u64; 4]) -> String {
         "# Speed and accuracy: what each setting costs\n\n\
          Produced by `cdvol experiment tradeoffs{}` (tools/tradeoffs.sh) with {} \
          threads, {}x{} images, median of {} runs per setting. Do not edit by hand: \
-         rerun the command. Plot: [tradeoffs.svg](tradeoffs.svg); rows as CSV: \
+         rerun the command. Plot: [tradeoffs.svg](tradeoffs.svg) (a zero error, the reference itself, is drawn at 1e-4); rows as CSV: \
          [tradeoffs.csv](tradeoffs.csv).\n",
         o.ct.as_ref()
             .map(|p| format!(" --ct {}", p.display()))
@@ -587,6 +612,7 @@ fn plot(rows: &[Row]) -> anyhow::Result<String> {
                         Some((mean, _, _)) => mean,
                         None => r.rmse,
                     };
+                    // A zero error (the reference itself) is drawn at 1e-4.
                     (r.ratio, y.max(1e-4), r.setting.clone())
                 })
                 .collect()
@@ -599,8 +625,11 @@ fn plot(rows: &[Row]) -> anyhow::Result<String> {
                 let panel = &panels[2 * i + j];
                 let pts = [series(ds, kind, "f64"), series(ds, kind, "f32")].concat();
                 let xmax = pts.iter().map(|p| p.0).fold(1.0, f64::max) * 1.15;
-                let ymin = pts.iter().map(|p| p.1).fold(f64::INFINITY, f64::min) / 2.0;
-                let ymax = pts.iter().map(|p| p.1).fold(0.0, f64::max) * 2.0;
+                // Whole decades, so a log axis always has labelled ticks.
+                let lo = pts.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+                let hi = pts.iter().map(|p| p.1).fold(0.0, f64::max);
+                let ymin = 10f64.powf((lo / 1.2).log10().floor());
+                let ymax = 10f64.powf((hi * 1.2).log10().ceil());
                 let mut chart = ChartBuilder::on(panel)
                     .caption(format!("{ds}: {kind}"), ("sans-serif", 18))
                     .margin(12)
@@ -611,6 +640,7 @@ fn plot(rows: &[Row]) -> anyhow::Result<String> {
                     .configure_mesh()
                     .x_desc("time per frame (x fastest)")
                     .y_desc(ylabel)
+                    .y_label_formatter(&|y| tick(*y))
                     .draw()?;
                 for (p, colour) in [("f64", BLUE), ("f32", RED)] {
                     let s = series(ds, kind, p);
@@ -637,6 +667,17 @@ fn plot(rows: &[Row]) -> anyhow::Result<String> {
         root.present()?;
     }
     Ok(svg)
+}
+
+/// A short tick label: 3, 0.25, 1e-3.
+fn tick(y: f64) -> String {
+    if y >= 1.0 {
+        format!("{y:.0}")
+    } else if y >= 0.01 {
+        format!("{y:.2}")
+    } else {
+        format!("{y:.0e}")
+    }
 }
 
 fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
