@@ -110,12 +110,23 @@ pub struct Walked {
     pub steps: u64,
 }
 
-/// Walks `ray` through `vol` with `method` in arithmetic `T`, collecting
-/// every 1-cell visit.
+/// Walks `ray` through `vol` with `method` in arithmetic `T` from `t = 0`,
+/// collecting every 1-cell visit.
 pub fn walk<T: Real>(vol: &MemVolume, grid: &TGrid<T>, ray: &Ray, method: Method) -> Walked {
+    walk_from(vol, grid, ray, 0.0, method)
+}
+
+/// [`walk`] from `t_min` on.
+pub fn walk_from<T: Real>(
+    vol: &MemVolume,
+    grid: &TGrid<T>,
+    ray: &Ray,
+    t_min: f64,
+    method: Method,
+) -> Walked {
     let mut visits = Vec::new();
     let mut src = vol;
-    let c = trace(grid, ray, 0.0, method, &mut src, |v, _| {
+    let c = trace(grid, ray, t_min, method, &mut src, |v, _| {
         visits.push(*v);
         Flow::Continue
     });
@@ -123,6 +134,36 @@ pub fn walk<T: Real>(vol: &MemVolume, grid: &TGrid<T>, ray: &Ray, method: Method
         visits,
         steps: c.steps,
     }
+}
+
+/// The invariants every walk keeps, in any arithmetic: at most
+/// [`MemVolume::step_bound`] steps; every visit a 1-cell with finite
+/// `t_enter < t_exit`; visits never going back in `t`; and, where given,
+/// none before `t_min` (f32 walks round `t_min`, so tests pass `None`).
+pub fn check_walk(vol: &MemVolume, w: &Walked, t_min: Option<f64>) -> Result<(), String> {
+    if w.steps > vol.step_bound() {
+        return Err(format!("{} steps > bound {}", w.steps, vol.step_bound()));
+    }
+    let mut prev = f64::NEG_INFINITY;
+    for v in &w.visits {
+        if !vol.is_object(v.cell) {
+            return Err(format!("visited a 0-cell {:?}", v.cell));
+        }
+        if !(v.t_enter.is_finite() && v.t_exit.is_finite()) {
+            return Err(format!("non-finite t in {v:?}"));
+        }
+        if !(v.t_enter < v.t_exit) {
+            return Err(format!("empty visit {v:?}"));
+        }
+        if v.t_enter < prev {
+            return Err(format!("t went back at {v:?} (after {prev})"));
+        }
+        if t_min.is_some_and(|t| v.t_enter < t) {
+            return Err(format!("{v:?} before t_min {t_min:?}"));
+        }
+        prev = v.t_exit;
+    }
+    Ok(())
 }
 
 /// A named grid.

@@ -139,32 +139,10 @@ fn oracle(vol: &MemVolume, ray: &Ray) -> Vec<ExactCell> {
         .collect()
 }
 
-/// Invariants any walk must keep, in any arithmetic.
+/// Invariants any walk must keep, in any arithmetic (from `t = 0`).
 fn check_invariants(vol: &MemVolume, w: &Walked, what: &str) {
-    assert!(
-        w.steps <= vol.step_bound(),
-        "{what}: {} steps > bound {}",
-        w.steps,
-        vol.step_bound()
-    );
-    let mut prev = f64::NEG_INFINITY;
-    for v in &w.visits {
-        assert!(
-            vol.is_object(v.cell),
-            "{what}: visited a 0-cell {:?}",
-            v.cell
-        );
-        assert!(
-            v.t_enter.is_finite() && v.t_exit.is_finite(),
-            "{what}: non-finite t in {v:?}"
-        );
-        assert!(v.t_enter >= 0.0, "{what}: t before the origin in {v:?}");
-        assert!(v.t_enter < v.t_exit, "{what}: empty visit {v:?}");
-        assert!(
-            v.t_enter >= prev,
-            "{what}: t decreased at {v:?} (prev {prev})"
-        );
-        prev = v.t_exit;
+    if let Err(e) = corpus::check_walk(vol, w, Some(0.0)) {
+        panic!("{what}: {e}");
     }
 }
 

@@ -48,7 +48,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
 use cdvol::classify::{Classification, TfPoint, TransferFunction};
-use cdvol::corpus::MemVolume;
+use cdvol::corpus::{self, MemVolume};
 use cdvol::export::{export, ExportWhat};
 use cdvol::format::reader::{BrickData, PackedVolume};
 use cdvol::format::word::Word;
@@ -60,7 +60,7 @@ use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
-use cdvol::render::traverse::{trace, Flow, Method, Ray, Real, TGrid, Visit};
+use cdvol::render::traverse::{Method, Ray, TGrid, Visit};
 use cdvol::render::{render, Mode, RenderError, RenderOptions};
 use proptest::prelude::*;
 use proptest::sample::Index;
@@ -1189,65 +1189,6 @@ fn trace_case() -> impl Strategy<Value = TraceCase> {
     })
 }
 
-struct Walk {
-    visits: Vec<Visit>,
-    steps: u64,
-}
-
-fn walk<T: Real>(vol: &MemVolume, g: &TGrid<T>, ray: &Ray, t_min: f64, m: Method) -> Walk {
-    let mut visits = Vec::new();
-    let mut src = vol;
-    let c = trace(g, ray, t_min, m, &mut src, |v, _| {
-        visits.push(*v);
-        Flow::Continue
-    });
-    Walk {
-        visits,
-        steps: c.steps,
-    }
-}
-
-fn check_walk(
-    vol: &MemVolume,
-    w: &Walk,
-    t_min: f64,
-    f64_walk: bool,
-    what: &str,
-) -> Result<(), TestCaseError> {
-    prop_assert!(
-        w.steps <= vol.step_bound(),
-        "{what}: {} steps > bound {}",
-        w.steps,
-        vol.step_bound()
-    );
-    let mut prev = f64::NEG_INFINITY;
-    for v in &w.visits {
-        prop_assert!(
-            vol.is_object(v.cell),
-            "{what}: visited a 0-cell {:?}",
-            v.cell
-        );
-        prop_assert!(
-            !v.t_enter.is_nan() && !v.t_exit.is_nan(),
-            "{what}: NaN t in {v:?}"
-        );
-        prop_assert!(
-            v.t_enter.is_finite() && v.t_exit.is_finite(),
-            "{what}: non-finite t in {v:?}"
-        );
-        prop_assert!(v.t_enter < v.t_exit, "{what}: empty visit {v:?}");
-        prop_assert!(
-            v.t_enter >= prev,
-            "{what}: t went back at {v:?} (after {prev})"
-        );
-        if f64_walk {
-            prop_assert!(v.t_enter >= t_min, "{what}: {v:?} before t_min {t_min}");
-        }
-        prev = v.t_exit;
-    }
-    Ok(())
-}
-
 static REFUSED_GRIDS: AtomicU64 = AtomicU64::new(0);
 
 fn check_trace_case(c: &TraceCase) -> Result<(), TestCaseError> {
@@ -1275,8 +1216,8 @@ fn check_trace_case(c: &TraceCase) -> Result<(), TestCaseError> {
             Method::Cd { min_leap: 1 },
             Method::Cd { min_leap: 3 },
         ] {
-            let w64 = walk(&vol, &g64, &ray, t_min, m);
-            let w32 = walk(&vol, &g32, &ray, t_min, m);
+            let w64 = corpus::walk_from(&vol, &g64, &ray, t_min, m);
+            let w32 = corpus::walk_from(&vol, &g32, &ray, t_min, m);
             for (w, arith) in [(&w64, "f64"), (&w32, "f32")] {
                 let what = format!("{what} {m:?} {arith}");
                 if !valid {
@@ -1287,7 +1228,10 @@ fn check_trace_case(c: &TraceCase) -> Result<(), TestCaseError> {
                         w.visits.len()
                     );
                 } else {
-                    check_walk(&vol, w, t_min, arith == "f64", &what)?;
+                    let t_min = (arith == "f64").then_some(t_min);
+                    if let Err(e) = corpus::check_walk(&vol, w, t_min) {
+                        return Err(TestCaseError::fail(format!("{what}: {e}")));
+                    }
                 }
             }
             for (slot, w) in first.iter_mut().zip([w64, w32]) {
@@ -1335,7 +1279,7 @@ fn found_t_overflow_and_underflow_are_fixed() {
     let vol = MemVolume::new([wide, unit(), unit()], vec![[0, 0, 0], [1, 0, 0]]);
     let g = TGrid::<f64>::new(&vol.axes);
     let ray = Ray::new([-MAX_COORD_MM, 0.5, 0.5], [MIN_DIR, 0.0, 0.0]).unwrap();
-    let w = walk(&vol, &g, &ray, 0.0, Method::Fvt);
+    let w = corpus::walk(&vol, &g, &ray, Method::Fvt);
     assert_eq!(w.visits.len(), 2, "{:?}", w.visits);
     for v in &w.visits {
         assert!(v.t_exit.is_finite() && v.t_enter < v.t_exit, "{v:?}");
@@ -1345,7 +1289,7 @@ fn found_t_overflow_and_underflow_are_fixed() {
     let vol = MemVolume::new([unit(), y, unit()], vec![[0, 0, 0], [0, 1, 0]]);
     let g = TGrid::<f64>::new(&vol.axes);
     let ray = Ray::new([0.5, -1e-20, 0.5], [0.0, MAX_DIR, 0.0]).unwrap();
-    let w = walk(&vol, &g, &ray, 0.0, Method::Fvt);
+    let w = corpus::walk(&vol, &g, &ray, Method::Fvt);
     assert_eq!(w.visits.len(), 2, "{:?}", w.visits);
     for v in &w.visits {
         assert!(v.t_enter < v.t_exit && v.t_enter > 0.0, "{v:?}");
