@@ -35,6 +35,17 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Result<Camera, String> {
+        // Every pixel's ray must pass `Ray::check` (a refused ray would
+        // leave a silently empty pixel): eye and target within half of
+        // MAX_COORD_MM, and the corner rays checked below.
+        let lim = 0.5 * crate::grid::MAX_COORD_MM;
+        for (name, p) in [("--eye", eye), ("--target", target)] {
+            if p.iter().any(|x| !(x.abs() <= lim)) {
+                return Err(format!(
+                    "{name} {p:?}, expected finite mm within {lim:e} of 0"
+                ));
+            }
+        }
         let f = std::array::from_fn(|k| target[k] - eye[k]);
         if !(dot(f, f) > 0.0) || f.iter().any(|x| !x.is_finite()) {
             return Err(format!(
@@ -64,7 +75,7 @@ impl Camera {
             }
             _ => {}
         }
-        Ok(Camera {
+        let cam = Camera {
             eye,
             forward,
             right,
@@ -72,7 +83,20 @@ impl Camera {
             projection,
             width,
             height,
-        })
+        };
+        // Ray origins are affine in the pixel, so the four corner pixels
+        // bound them all.
+        for (px, py) in [
+            (0, 0),
+            (width - 1, 0),
+            (0, height - 1),
+            (width - 1, height - 1),
+        ] {
+            if let Err(e) = cam.ray(px, py).check() {
+                return Err(format!("the view reaches too far (--frame or --eye): {e}"));
+            }
+        }
+        Ok(cam)
     }
 
     /// Orbits the centre of the box `[lo, hi]`: azimuth about +z (0 looks
@@ -145,6 +169,30 @@ impl Camera {
                     dir: normalize(d),
                 }
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn views_whose_rays_the_traversal_would_refuse_are_refused() {
+        let ortho = |frame_mm| Projection::Ortho { frame_mm };
+        let up = [0.0, 0.0, 1.0];
+        // A frame so wide that the corner rays start beyond 1e15 mm.
+        let e = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], up, ortho(1e16), 8, 8).unwrap_err();
+        assert!(e.contains("too far"), "{e}");
+        // A wide image stretches the frame sideways: 4e14 * 16 / 2 > 1e15.
+        let e = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], up, ortho(4e14), 16, 1).unwrap_err();
+        assert!(e.contains("too far"), "{e}");
+        let e = Camera::look_at([1e15, 0.0, 0.0], [0.0; 3], up, ortho(1.0), 8, 8).unwrap_err();
+        assert!(e.contains("--eye"), "{e}");
+        // At the limits, every pixel's ray passes Ray::check.
+        let c = Camera::look_at([4e14, 0.0, 0.0], [0.0; 3], up, ortho(1e14), 64, 48).unwrap();
+        for (x, y) in [(0, 0), (63, 47), (31, 20)] {
+            assert!(c.ray(x, y).check().is_ok());
         }
     }
 }
