@@ -35,6 +35,9 @@ pub enum Command {
     /// Generate the CT-like phantom and a sphere scene, prepare and render
     /// them, and report what was written.
     Demo(DemoArgs),
+    /// Join the part files of a sharded render (`render --shard K/N`) into
+    /// the image one process would have written.
+    Assemble(AssembleArgs),
     /// Reproducible measurements, written as reports under docs/.
     #[command(subcommand)]
     Experiment(ExperimentCmd),
@@ -302,6 +305,31 @@ pub struct RenderArgs {
     #[arg(long)]
     pub frame: Option<f64>,
     /// Write render statistics as JSON.
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+    /// Render shard K of N: tile i (Morton order) when i % N == K, written
+    /// to a part file (-o NAME.cdvpart) for `cdvol assemble`; with
+    /// --frames, frame f when f % N == K, written as PNGs.
+    #[arg(long, value_parser = cdvol::render::Shard::parse)]
+    pub shard: Option<cdvol::render::Shard>,
+    /// A turntable of this many frames around the volume (numbered PNGs
+    /// OUT.0000.png ...), starting at --view.
+    #[arg(long, default_value_t = 1)]
+    pub frames: u32,
+    /// Degrees of azimuth the turntable covers.
+    #[arg(long, default_value_t = 360.0, allow_hyphen_values = true)]
+    pub orbit: f64,
+}
+
+#[derive(Args, Debug)]
+pub struct AssembleArgs {
+    /// Part files from `cdvol render --shard K/N`, every K once.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// Output PNG.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Write the merged statistics as JSON.
     #[arg(long)]
     pub stats: Option<PathBuf>,
 }

@@ -681,16 +681,5 @@ fn tick(y: f64) -> String {
 }
 
 fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let tmp = tempfile::Builder::new()
-        .prefix(".cdvol-partial-")
-        .tempfile_in(&dir)
-        .map_err(|e| anyhow::anyhow!("{}: cannot create a temporary file: {e}", path.display()))?;
-    std::fs::write(tmp.path(), bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    tmp.persist(path)
-        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.error))?;
-    Ok(())
+    crate::render::write_atomic(path, bytes).map_err(anyhow::Error::msg)
 }

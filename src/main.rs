@@ -4,7 +4,7 @@
 mod cli;
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Mutex;
 
@@ -23,7 +23,7 @@ use cdvol::progress::{NoProgress, Progress};
 use cdvol::render::camera::{Camera, Projection};
 use cdvol::render::shade::{HitMethod, HitParams};
 use cdvol::render::traverse::{Method, TGrid};
-use cdvol::render::{render, Mode, Precision, RenderOptions, Stats};
+use cdvol::render::{render, render_part, Mode, Precision, RenderOptions, Stats};
 use cli::{Cli, Command, PhantomCmd};
 
 /// indicatif bars on stderr; hidden when stderr is not a terminal.
@@ -194,6 +194,23 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             );
         }
         Command::Demo(a) => demo(&a.dir, progress)?,
+        Command::Assemble(a) => {
+            let parts = a
+                .parts
+                .iter()
+                .map(|p| cdvol::render::shard::Part::read(p))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(anyhow::Error::msg)?;
+            let (frame, stats) =
+                cdvol::render::shard::assemble(&parts, &a.parts).map_err(anyhow::Error::msg)?;
+            for f in cdvol::render::save(&frame, &a.output).map_err(anyhow::Error::msg)? {
+                println!("wrote {}", f.display());
+            }
+            if let Some(p) = &a.stats {
+                write_json(p, &stats)?;
+                println!("wrote {}", p.display());
+            }
+        }
         Command::Experiment(cli::ExperimentCmd::Tradeoffs(a)) => {
             let o = cdvol::experiment::TradeoffOptions {
                 out: a.out.clone(),
@@ -223,35 +240,42 @@ fn render_cmd(
     } else {
         Projection::Ortho { frame_mm: 1.0 }
     };
-    let camera = match (a.eye, a.target, a.up) {
-        (Some(eye), Some(target), Some(up)) => {
-            let projection = match projection {
-                Projection::Ortho { .. } => {
-                    let (lo, hi) = grid.bounds();
-                    let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
-                    Projection::Ortho {
-                        frame_mm: a.frame.unwrap_or(diag * 1.02),
-                    }
+    // The camera, turned by `az_turn` degrees of azimuth (turntables).
+    let camera_at = |az_turn: f64| -> Result<Camera> {
+        match (a.eye, a.target, a.up) {
+            (Some(eye), Some(target), Some(up)) => {
+                if a.frames > 1 {
+                    bail!("--frames orbits the volume: give --view AZ,EL, not --eye/--target/--up");
                 }
-                p => p,
-            };
-            Camera::look_at(eye, target, up, projection, a.width, a.height)
+                let projection = match projection {
+                    Projection::Ortho { .. } => {
+                        let (lo, hi) = grid.bounds();
+                        let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+                        Projection::Ortho {
+                            frame_mm: a.frame.unwrap_or(diag * 1.02),
+                        }
+                    }
+                    p => p,
+                };
+                Camera::look_at(eye, target, up, projection, a.width, a.height)
+            }
+            (None, None, None) => {
+                let [az, el] = a.view.unwrap_or([0.0, 0.0]);
+                Camera::orbit(
+                    grid.bounds(),
+                    az + az_turn,
+                    el,
+                    a.persp.then_some(a.fov),
+                    a.frame,
+                    a.width,
+                    a.height,
+                )
+            }
+            _ => bail!("--eye, --target and --up go together: give all three or none"),
         }
-        (None, None, None) => {
-            let [az, el] = a.view.unwrap_or([0.0, 0.0]);
-            Camera::orbit(
-                grid.bounds(),
-                az,
-                el,
-                a.persp.then_some(a.fov),
-                a.frame,
-                a.width,
-                a.height,
-            )
-        }
-        _ => bail!("--eye, --target and --up go together: give all three or none"),
-    }
-    .map_err(|e| anyhow::anyhow!("camera: {e}"))?;
+        .map_err(|e| anyhow::anyhow!("camera: {e}"))
+    };
+    let camera = camera_at(0.0)?;
     let hit = match a.hit {
         cli::HitArg::Int => HitMethod::Int,
         cli::HitArg::Bisect => HitMethod::Bisect,
@@ -301,29 +325,87 @@ fn render_cmd(
             cli::PrecisionArg::F64 => Precision::F64,
         },
     };
-    let run = || render(&vol, &camera, &opts, progress);
-    let (frame, stats) = match a.threads {
+    if a.frames == 0 {
+        bail!("--frames 0, expected at least 1");
+    }
+    let work = || -> Result<(Vec<PathBuf>, Stats)> {
+        if a.frames > 1 {
+            // A turntable; --shard splits the frames.
+            let (mut files, mut total, mut per_frame) = (Vec::new(), Stats::default(), Vec::new());
+            for f in 0..a.frames {
+                if a.shard.is_some_and(|s| f % s.n != s.k) {
+                    continue;
+                }
+                let cam = camera_at(a.orbit * f as f64 / a.frames as f64)?;
+                let (frame, stats) = render(&vol, &cam, &opts, progress)?;
+                let path = numbered(&a.output, f);
+                files.extend(cdvol::render::save(&frame, &path).map_err(anyhow::Error::msg)?);
+                total.merge(&stats);
+                per_frame.push(stats);
+            }
+            if let Some(p) = &a.stats {
+                write_json(p, &per_frame)?;
+                files.push(p.clone());
+            }
+            return Ok((files, total));
+        }
+        if let Some(shard) = a.shard {
+            if a.output.extension().is_none_or(|e| e != "cdvpart") {
+                bail!(
+                    "{}: with --shard the output is a part file for `cdvol assemble`; \
+                     name it NAME.cdvpart",
+                    a.output.display()
+                );
+            }
+            let part = render_part(&vol, &camera, &opts, shard, progress)?;
+            part.write(&a.output).map_err(anyhow::Error::msg)?;
+            let mut files = vec![a.output.clone()];
+            if let Some(p) = &a.stats {
+                write_json(p, &part.stats)?;
+                files.push(p.clone());
+            }
+            return Ok((files, part.stats));
+        }
+        let (frame, stats) = render(&vol, &camera, &opts, progress)?;
+        let mut files = cdvol::render::save(&frame, &a.output).map_err(anyhow::Error::msg)?;
+        if let Some(p) = &a.stats {
+            write_json(p, &stats)?;
+            files.push(p.clone());
+        }
+        Ok((files, stats))
+    };
+    match a.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()
             .context("cannot start the thread pool")?
-            .install(run)?,
-        None => run()?,
-    };
-    let mut files = cdvol::render::save(&frame, &a.output).map_err(anyhow::Error::msg)?;
-    if let Some(p) = &a.stats {
-        let tmp = tempfile::NamedTempFile::new_in(
-            p.parent()
-                .filter(|d| !d.as_os_str().is_empty())
-                .unwrap_or(Path::new(".")),
-        )
-        .with_context(|| format!("{}: cannot create a temporary file", p.display()))?;
-        serde_json::to_writer_pretty(tmp.as_file(), &stats)?;
-        tmp.persist(p)
-            .with_context(|| format!("{}: cannot write", p.display()))?;
-        files.push(p.clone());
+            .install(work),
+        None => work(),
     }
-    Ok((files, stats))
+}
+
+/// `out.png` -> `out.0007.png`.
+fn numbered(path: &Path, f: u32) -> PathBuf {
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "png".into());
+    path.with_file_name(format!("{stem}.{f:04}.{ext}"))
+}
+
+/// Writes `value` as pretty JSON to `p` (temporary file, renamed).
+fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let tmp = tempfile::NamedTempFile::new_in(
+        p.parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new(".")),
+    )
+    .with_context(|| format!("{}: cannot create a temporary file", p.display()))?;
+    serde_json::to_writer_pretty(tmp.as_file(), value)?;
+    tmp.persist(p)
+        .with_context(|| format!("{}: cannot write", p.display()))?;
+    Ok(())
 }
 
 fn prep_file(

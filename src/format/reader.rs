@@ -23,6 +23,8 @@ pub struct PackedVolume {
     len: u64,
     header: Header,
     index: Vec<IndexEntry>,
+    /// CRC-32 of header and index, from the trailer (checked on open).
+    crc: u32,
 }
 
 /// What a sample word of a brick holds.
@@ -220,7 +222,15 @@ impl PackedVolume {
             len,
             header,
             index,
+            crc,
         })
+    }
+
+    /// CRC-32 of the header and index (the trailer's, checked on open):
+    /// identifies the file's contents, e.g. across the parts of a sharded
+    /// render.
+    pub fn checksum(&self) -> u32 {
+        self.crc
     }
 
     pub fn path(&self) -> &Path {

@@ -14,6 +14,7 @@
 pub mod cache;
 pub mod camera;
 pub mod shade;
+pub mod shard;
 pub mod traverse;
 
 use std::time::Instant;
@@ -71,7 +72,7 @@ pub enum Precision {
 }
 
 /// Counters of a render (the `--stats` contract).
-#[derive(Debug, Default, Clone, serde::Serialize)]
+#[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Stats {
     pub rays: u64,
     pub steps: u64,
@@ -91,6 +92,25 @@ pub struct Stats {
     pub mode: String,
     pub width: u32,
     pub height: u32,
+}
+
+impl Stats {
+    /// Adds the counters of `o` (another part or frame): sums, except
+    /// `peak_cache_bytes` (the larger); `seconds_total` sums too.
+    pub fn merge(&mut self, o: &Stats) {
+        self.rays += o.rays;
+        self.steps += o.steps;
+        self.macro_steps += o.macro_steps;
+        self.cell_steps += o.cell_steps;
+        self.hits += o.hits;
+        self.bricks_read += o.bricks_read;
+        self.bricks_skipped += o.bricks_skipped;
+        self.cache_hits += o.cache_hits;
+        self.cache_misses += o.cache_misses;
+        self.bytes_decompressed += o.bytes_decompressed;
+        self.peak_cache_bytes = self.peak_cache_bytes.max(o.peak_cache_bytes);
+        self.seconds_total += o.seconds_total;
+    }
 }
 
 /// A rendered image: RGB8 for display, plus per-pixel data of the depth
@@ -120,7 +140,7 @@ pub enum RenderError {
 }
 
 /// Per-pixel result before colouring.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy, Default, Debug, PartialEq)]
 struct Px {
     rgb: [f32; 3],
     depth: f32,
@@ -193,13 +213,56 @@ pub const MIN_STEP_MM: f64 = 1e-4;
 /// Largest image (2^28 pixels, 16384 x 16384).
 pub const MAX_PIXELS: u64 = 1 << 28;
 
-/// Renders `vol` as seen by `camera`.
+/// Renders `vol` as seen by `camera`: [`render_part`] over every tile,
+/// then [`shard::assemble`]'s colouring, so a sharded render assembles to
+/// the same bytes.
 pub fn render(
     vol: &PackedVolume,
     camera: &Camera,
     opts: &RenderOptions,
     progress: &dyn Progress,
 ) -> Result<(Frame, Stats), RenderError> {
+    let t0 = Instant::now();
+    let part = render_part(vol, camera, opts, Shard::WHOLE, progress)?;
+    let (frame, mut stats) = shard::finish(&part.key, part.tiles.iter().collect(), part.stats);
+    stats.seconds_total = t0.elapsed().as_secs_f64();
+    Ok((frame, stats))
+}
+
+/// Which tiles a render computes: tile `i` in Morton order when
+/// `i % n == k` (interleaved, so every shard gets a share of every part
+/// of the image).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Shard {
+    pub k: u32,
+    pub n: u32,
+}
+
+impl Shard {
+    pub const WHOLE: Shard = Shard { k: 0, n: 1 };
+
+    /// Parses `K/N` with `0 <= K < N`.
+    pub fn parse(s: &str) -> Result<Shard, String> {
+        let bad = || format!("{s:?}: expected K/N with 0 <= K < N, e.g. 3/8");
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let k: u32 = k.trim().parse().map_err(|_| bad())?;
+        let n: u32 = n.trim().parse().map_err(|_| bad())?;
+        if n == 0 || k >= n {
+            return Err(bad());
+        }
+        Ok(Shard { k, n })
+    }
+}
+
+/// Renders the tiles of `shard` (pixels before colouring, and their
+/// counters): one part of a render for [`shard::assemble`].
+pub fn render_part(
+    vol: &PackedVolume,
+    camera: &Camera,
+    opts: &RenderOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<shard::Part, RenderError> {
     let t0 = Instant::now();
     check_mode(vol, &opts.mode)?;
     if opts.tile == 0 {
@@ -241,19 +304,26 @@ pub fn render(
                 .into(),
         });
     }
+    if shard.n == 0 || shard.k >= shard.n {
+        return Err(RenderError::Option {
+            option: "--shard",
+            msg: format!("{}/{}, expected K/N with 0 <= K < N", shard.k, shard.n),
+        });
+    }
     let h = vol.header();
     let cache = BrickCache::new(vol, opts.cache_bytes);
     let (w, hgt) = (camera.width, camera.height);
     let results = match opts.precision {
-        Precision::F64 => render_tiles::<f64>(vol, &cache, camera, opts, progress),
-        Precision::F32 => render_tiles::<f32>(vol, &cache, camera, opts, progress),
+        Precision::F64 => render_tiles::<f64>(vol, &cache, camera, opts, shard, progress),
+        Precision::F32 => render_tiles::<f32>(vol, &cache, camera, opts, shard, progress),
     };
 
-    // Assemble in tile order (deterministic), merge counters.
-    let mut px = vec![Px::default(); (w * hgt) as usize];
+    // Merge counters; keep the tiles' pixels for colouring.
     let mut steps = StepCounts::default();
     let mut cc = CacheCounters::default();
     let mut hits = 0u64;
+    let mut rays = 0u64;
+    let mut tiles = Vec::with_capacity(results.len());
     for r in results {
         if let Some(e) = r.error {
             return Err(e.into());
@@ -261,14 +331,16 @@ pub fn render(
         steps.add(&r.steps);
         cc.add(&r.cache);
         hits += r.hits;
-        for (i, p) in r.pixels.into_iter().enumerate() {
-            let (lx, ly) = (i as u32 % r.w, i as u32 / r.w);
-            px[((r.y0 + ly) * w + r.x0 + lx) as usize] = p;
-        }
+        rays += r.pixels.len() as u64;
+        tiles.push(shard::TilePx {
+            x0: r.x0,
+            y0: r.y0,
+            w: r.w,
+            pixels: r.pixels,
+        });
     }
-    let frame = colour(&opts.mode, vol, w, hgt, &px);
     let stats = Stats {
-        rays: (w * hgt) as u64,
+        rays,
         steps: steps.steps,
         macro_steps: steps.macro_steps,
         cell_steps: steps.cell_steps,
@@ -286,15 +358,21 @@ pub fn render(
         width: w,
         height: hgt,
     };
-    Ok((frame, stats))
+    Ok(shard::Part {
+        key: shard::RenderKey::new(vol, camera, opts, shard.n),
+        shard,
+        tiles,
+        stats,
+    })
 }
 
-/// Renders every tile in the traversal arithmetic `T`.
+/// Renders the tiles of `shard` in the traversal arithmetic `T`.
 fn render_tiles<T: Real>(
     vol: &PackedVolume,
     cache: &BrickCache,
     camera: &Camera,
     opts: &RenderOptions,
+    shard: Shard,
     progress: &dyn Progress,
 ) -> Vec<TileOut> {
     let h = vol.header();
@@ -308,6 +386,12 @@ fn render_tiles<T: Real>(
         .flat_map(|ty| (0..ntx).map(move |tx| (tx, ty)))
         .collect();
     tiles.sort_by_key(|&(tx, ty)| morton(tx, ty));
+    let tiles: Vec<(u32, u32)> = tiles
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| *i as u32 % shard.n == shard.k)
+        .map(|(_, t)| t)
+        .collect();
     let ctx = Ctx {
         grid: &grid,
         coords: [h.axes[0].coords(), h.axes[1].coords(), h.axes[2].coords()],
@@ -570,27 +654,33 @@ fn tf_sample(tf: &TransferFunction, v: f64) -> ([f64; 3], f64) {
     (rgb, a)
 }
 
-fn colour(mode: &Mode, vol: &PackedVolume, w: u32, h: u32, px: &[Px]) -> Frame {
+/// The value range MIP maps to black..white: the file's rescaled raw range.
+fn mip_range(vol: &PackedVolume) -> [f64; 2] {
+    let s = &vol.header().summary;
+    let rs = vol.header().rescale;
+    let (a, b) = (
+        rs.apply(s.raw_min.unwrap_or(0.0)),
+        rs.apply(s.raw_max.unwrap_or(1.0)),
+    );
+    [a.min(b), a.max(b)]
+}
+
+fn colour(kind: &shard::Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
+    use shard::Colouring;
     let n = (w * h) as usize;
     let mut rgb = vec![0u8; 3 * n];
     let to8 = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
     let mut depth = None;
-    match mode {
-        Mode::Surface { .. } | Mode::Composite { .. } => {
+    match kind {
+        Colouring::Rgb => {
             for (i, p) in px.iter().enumerate() {
                 for k in 0..3 {
                     rgb[3 * i + k] = to8(p.rgb[k]);
                 }
             }
         }
-        Mode::Mip => {
-            let s = &vol.header().summary;
-            let rs = vol.header().rescale;
-            let (a, b) = (
-                rs.apply(s.raw_min.unwrap_or(0.0)),
-                rs.apply(s.raw_max.unwrap_or(1.0)),
-            );
-            let (lo, hi) = (a.min(b), a.max(b));
+        Colouring::Mip { lo, hi } => {
+            let (lo, hi) = (*lo, *hi);
             for (i, p) in px.iter().enumerate() {
                 let g = if p.hit {
                     ((p.rgb[0] as f64 - lo) / (hi - lo).max(1e-300)) as f32
@@ -600,14 +690,14 @@ fn colour(mode: &Mode, vol: &PackedVolume, w: u32, h: u32, px: &[Px]) -> Frame {
                 rgb[3 * i..3 * i + 3].fill(to8(g));
             }
         }
-        Mode::Cost => {
+        Colouring::Cost => {
             let max = px.iter().map(|p| p.steps).max().unwrap_or(1).max(1) as f32;
             for (i, p) in px.iter().enumerate() {
                 let c = heat(p.steps as f32 / max);
                 rgb[3 * i..3 * i + 3].copy_from_slice(&c);
             }
         }
-        Mode::Depth { .. } => {
+        Colouring::Depth => {
             let d: Vec<f32> = px.iter().map(|p| p.depth).collect();
             let (lo, hi) = d
                 .iter()
@@ -650,24 +740,28 @@ fn heat(x: f32) -> [u8; 3] {
     std::array::from_fn(|k| ((a.1[k] + f * (b.1[k] - a.1[k])) * 255.0).round() as u8)
 }
 
+/// Writes `bytes` to `target` through a temporary file beside it, renamed
+/// when complete.
+pub(crate) fn write_atomic(target: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
+    let dir = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let tmp = tempfile::Builder::new()
+        .prefix(".cdvol-partial-")
+        .tempfile_in(&dir)
+        .map_err(|e| format!("{}: cannot create a temporary file: {e}", target.display()))?;
+    std::fs::write(tmp.path(), bytes).map_err(|e| format!("{}: {e}", target.display()))?;
+    tmp.persist(target)
+        .map_err(|e| format!("{}: {}", target.display(), e.error))?;
+    Ok(())
+}
+
 /// Writes `frame` as PNG to `path` (temporary file beside it, renamed when
 /// complete); the depth mode also writes `path` with `.f32` (raw
 /// little-endian f32, NaN = miss) and a 16-bit PNG `*.depth16.png`.
 pub fn save(frame: &Frame, path: &std::path::Path) -> Result<Vec<std::path::PathBuf>, String> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let write = |target: &std::path::Path, bytes: &[u8]| -> Result<(), String> {
-        let tmp = tempfile::Builder::new()
-            .prefix(".cdvol-partial-")
-            .tempfile_in(&dir)
-            .map_err(|e| format!("{}: cannot create a temporary file: {e}", target.display()))?;
-        std::fs::write(tmp.path(), bytes).map_err(|e| format!("{}: {e}", target.display()))?;
-        tmp.persist(target)
-            .map_err(|e| format!("{}: {}", target.display(), e.error))?;
-        Ok(())
-    };
+    let write = write_atomic;
     let png = |img: image::DynamicImage| -> Result<Vec<u8>, String> {
         let mut buf = std::io::Cursor::new(Vec::new());
         img.write_to(&mut buf, image::ImageFormat::Png)
