@@ -172,6 +172,10 @@ pub struct CtArgs {
     pub dtype: CtType,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Multiply the 2/1/4 mm slice gaps by this factor (160/NZ keeps a
+    /// head's proportions on tall stacks).
+    #[arg(long, default_value_t = 1.0)]
+    pub z_scale: f64,
 }
 
 #[derive(Args, Debug)]

@@ -166,6 +166,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                     cli::CtType::U16 => phantom::CtDtype::U16,
                 },
                 seed: a.seed,
+                z_scale: a.z_scale,
             };
             let info = phantom::ct(&a.output, &opts, progress)?;
             println!(
@@ -456,6 +457,7 @@ fn demo(dir: &Path, progress: &dyn Progress) -> Result<()> {
             dims: [256, 256, 160],
             dtype: phantom::CtDtype::I16,
             seed: 1,
+            ..Default::default()
         },
         progress,
     )?;

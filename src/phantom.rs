@@ -501,6 +501,9 @@ pub struct CtOptions {
     pub dtype: CtDtype,
     /// Seed of the per-sample noise.
     pub seed: u64,
+    /// Multiplies the 2, 1 and 4 mm slice gaps (positive, finite): tall
+    /// stacks keep a head's proportions with `160 / nz`.
+    pub z_scale: f64,
 }
 
 impl Default for CtOptions {
@@ -509,6 +512,7 @@ impl Default for CtOptions {
             dims: [256, 256, 160],
             dtype: CtDtype::I16,
             seed: 1,
+            z_scale: 1.0,
         }
     }
 }
@@ -699,7 +703,8 @@ fn lerp(a: f32, b: f32, t: f32) -> f32 {
 ///
 /// The x and y spacings are `0.9 mm * 256 / n` (a field of view of about
 /// 230 mm for any dims); z positions have 2, 1 and 4 mm gaps over the
-/// lower 30 %, middle 45 % and top 25 % of the slices and are written as
+/// lower 30 %, middle 45 % and top 25 % of the slices (times
+/// [`CtOptions::z_scale`]) and are written as
 /// `{"positions": [...]}`. The head is centred at 55 % of the z extent with
 /// a semi-axis of 40 % of it.
 pub fn ct(
@@ -735,12 +740,21 @@ pub fn ct(
         ),
     };
     check_slice_size("dims", dims, sample_bytes)?;
+    if !(opts.z_scale.is_finite() && opts.z_scale > 0.0) {
+        return Err(PhantomError::option(
+            "z-scale",
+            format!("{}, expected a positive finite factor", opts.z_scale),
+        ));
+    }
     let out = Outputs::of(out_json)?;
     let [nx, ny, nz] = dims;
 
     let sx = 0.9 * 256.0 / nx as f64;
     let sy = 0.9 * 256.0 / ny as f64;
-    let zs = ct_z_positions(nz);
+    let zs: Vec<f64> = ct_z_positions(nz)
+        .into_iter()
+        .map(|z| z * opts.z_scale)
+        .collect();
     let xs: Vec<f64> = (0..nx).map(|i| i as f64 * sx).collect();
     let ys: Vec<f64> = (0..ny).map(|i| i as f64 * sy).collect();
     let (lx, ly, lz) = (xs[nx - 1], ys[ny - 1], zs[nz - 1]);
@@ -1335,6 +1349,7 @@ mod tests {
             dims: [40, 36, 30],
             dtype: CtDtype::I16,
             seed: 1,
+            ..CtOptions::default()
         };
         let info = ct(&side, &opts, &NoProgress).unwrap();
         assert_eq!(info.bytes, 40 * 36 * 30 * 2);
@@ -1388,6 +1403,7 @@ mod tests {
             dims: [128, 128, 64],
             dtype: CtDtype::I16,
             seed: 5,
+            ..CtOptions::default()
         };
         ct(&side, &opts, &NoProgress).unwrap();
         let all = read_all(&RawSource::open(&side).unwrap());
@@ -1471,6 +1487,29 @@ mod tests {
             let e = ct(&side, &opts, &NoProgress).unwrap_err().to_string();
             assert!(e.contains("option dims"), "{dims:?}: {e}");
         }
+        for z_scale in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let opts = CtOptions {
+                dims: [4, 4, 4],
+                z_scale,
+                ..CtOptions::default()
+            };
+            let e = ct(&side, &opts, &NoProgress).unwrap_err().to_string();
+            assert!(e.contains("option z-scale"), "{z_scale}: {e}");
+        }
+        // The scale multiplies the written positions.
+        let scaled_dir = tempfile::tempdir().unwrap();
+        let scaled = scaled_dir.path().join("scaled.json");
+        let opts = CtOptions {
+            dims: [4, 4, 20],
+            z_scale: 0.25,
+            ..CtOptions::default()
+        };
+        ct(&scaled, &opts, &NoProgress).unwrap();
+        let got = RawSource::open(&scaled).unwrap().meta().grid.axes[2]
+            .coords()
+            .to_vec();
+        let want: Vec<f64> = ct_z_positions(20).iter().map(|z| z * 0.25).collect();
+        assert_eq!(got, want);
         let e = ct(
             &dir.path().join("x.raw"),
             &CtOptions::default(),

@@ -77,6 +77,7 @@ fn phantoms_prepare_and_read_back() {
         dims: [96, 88, 60],
         dtype: cdvol::phantom::CtDtype::U16,
         seed: 3,
+        ..Default::default()
     };
     cdvol::phantom::ct(&head, &opts, &NoProgress).unwrap();
     let vol = prep_and_check(&head, &dir.path().join("head.cdv"), 300.0, false);

@@ -170,6 +170,7 @@ fn traversals_identical_on_ct_phantom_and_real_ct() {
             dims: [64, 60, 48],
             dtype: phantom::CtDtype::I16,
             seed: 2,
+            ..Default::default()
         },
         &NoProgress,
     )
