@@ -6,7 +6,7 @@
 //! A brick is read (positioned read, CRC check, zstd) only when a ray asks
 //! for one of its cells, so a scene loads only the bricks it needs.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex};
 
 use crate::format::reader::PackedVolume;
@@ -241,18 +241,69 @@ impl CacheCounters {
     }
 }
 
-struct Lru {
-    map: HashMap<u64, (Arc<RBrick>, u64)>,
+/// Least-recently-used map under a byte budget: O(log n) per lookup,
+/// insertion and eviction (a recency-ordered `BTreeMap` beside the
+/// entries), so a full cache of thousands of bricks costs each miss no
+/// scan while it holds the lock.
+struct Lru<V> {
+    /// key -> (value, bytes, last use)
+    map: HashMap<u64, (V, usize, u64)>,
+    /// last use -> key, oldest first
+    order: BTreeMap<u64, u64>,
     clock: u64,
     bytes: usize,
     peak: usize,
+}
+
+impl<V: Clone> Lru<V> {
+    fn new() -> Lru<V> {
+        Lru {
+            map: HashMap::new(),
+            order: BTreeMap::new(),
+            clock: 0,
+            bytes: 0,
+            peak: 0,
+        }
+    }
+
+    /// The value of `key`, now the most recently used.
+    fn get(&mut self, key: u64) -> Option<V> {
+        let e = self.map.get_mut(&key)?;
+        self.clock += 1;
+        self.order.remove(&e.2);
+        e.2 = self.clock;
+        self.order.insert(self.clock, key);
+        Some(e.0.clone())
+    }
+
+    /// Inserts `key` (absent) holding `bytes`, first evicting least
+    /// recently used entries until it fits in `budget`; a value larger
+    /// than the whole budget is not kept.
+    fn insert(&mut self, key: u64, v: V, bytes: usize, budget: usize) {
+        if bytes > budget {
+            return;
+        }
+        while self.bytes + bytes > budget {
+            let Some((_, old)) = self.order.pop_first() else {
+                break;
+            };
+            if let Some((_, ob, _)) = self.map.remove(&old) {
+                self.bytes -= ob;
+            }
+        }
+        self.clock += 1;
+        self.order.insert(self.clock, key);
+        self.map.insert(key, (v, bytes, self.clock));
+        self.bytes += bytes;
+        self.peak = self.peak.max(self.bytes);
+    }
 }
 
 /// Decoded bricks under a byte budget, shared by all threads.
 pub struct BrickCache<'v> {
     vol: &'v PackedVolume,
     budget: usize,
-    lru: Mutex<Lru>,
+    lru: Mutex<Lru<Arc<RBrick>>>,
 }
 
 impl<'v> BrickCache<'v> {
@@ -260,12 +311,7 @@ impl<'v> BrickCache<'v> {
         BrickCache {
             vol,
             budget: budget_bytes,
-            lru: Mutex::new(Lru {
-                map: HashMap::new(),
-                clock: 0,
-                bytes: 0,
-                peak: 0,
-            }),
+            lru: Mutex::new(Lru::new()),
         }
     }
 
@@ -297,15 +343,9 @@ impl<'v> BrickCache<'v> {
             && e.has_no_object()
             && lazy_min.is_some_and(|m| e.uniform_code >= m as u32);
         let key = id * 2 + lazy as u64;
-        {
-            let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
-            l.clock += 1;
-            let now = l.clock;
-            if let Some(e) = l.map.get_mut(&key) {
-                e.1 = now;
-                c.cache_hits += 1;
-                return Ok(e.0.clone());
-            }
+        if let Some(b) = self.lru.lock().unwrap_or_else(|e| e.into_inner()).get(key) {
+            c.cache_hits += 1;
+            return Ok(b);
         }
         c.cache_misses += 1;
         let b = if lazy {
@@ -328,23 +368,11 @@ impl<'v> BrickCache<'v> {
         };
         let b = Arc::new(b);
         let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(e) = l.map.get(&key) {
-            return Ok(e.0.clone());
+        if let Some(first) = l.get(key) {
+            // Another thread decoded it meanwhile: its copy wins.
+            return Ok(first);
         }
-        // Evict least recently used bricks until the new one fits.
-        while l.bytes + b.bytes > self.budget && !l.map.is_empty() {
-            let (&old, _) = l.map.iter().min_by_key(|(_, e)| e.1).expect("non-empty");
-            if let Some((ob, _)) = l.map.remove(&old) {
-                l.bytes -= ob.bytes;
-            }
-        }
-        if b.bytes <= self.budget {
-            l.clock += 1;
-            let now = l.clock;
-            l.bytes += b.bytes;
-            l.peak = l.peak.max(l.bytes);
-            l.map.insert(key, (b.clone(), now));
-        }
+        l.insert(key, b.clone(), b.bytes, self.budget);
         Ok(b)
     }
 }
@@ -478,3 +506,52 @@ static EMPTY: RBrick = RBrick {
     octants: Vec::new(),
     bytes: 0,
 };
+
+#[cfg(test)]
+mod tests {
+    use super::Lru;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Against a model that keeps (key, bytes) in recency order and
+        /// evicts from the front: same contents after every operation,
+        /// never above the budget.
+        #[test]
+        fn lru_matches_a_recency_list(
+            budget in 1usize..64,
+            ops in proptest::collection::vec((any::<bool>(), 0u64..12, 1usize..20), 1..200),
+        ) {
+            let mut lru: Lru<u64> = Lru::new();
+            let mut model: Vec<(u64, usize)> = Vec::new();
+            for (is_get, key, bytes) in ops {
+                let pos = model.iter().position(|e| e.0 == key);
+                if is_get || pos.is_some() {
+                    let got = lru.get(key);
+                    prop_assert_eq!(got, pos.map(|_| key * 10));
+                    if let Some(p) = pos {
+                        let e = model.remove(p);
+                        model.push(e);
+                    }
+                } else {
+                    lru.insert(key, key * 10, bytes, budget);
+                    if bytes <= budget {
+                        while model.iter().map(|e| e.1).sum::<usize>() + bytes > budget {
+                            model.remove(0);
+                        }
+                        model.push((key, bytes));
+                    }
+                }
+                let mut keys: Vec<u64> = lru.map.keys().copied().collect();
+                keys.sort_unstable();
+                let mut want: Vec<u64> = model.iter().map(|e| e.0).collect();
+                want.sort_unstable();
+                prop_assert_eq!(keys, want);
+                let by_age: Vec<u64> = lru.order.values().copied().collect();
+                let model_age: Vec<u64> = model.iter().map(|e| e.0).collect();
+                prop_assert_eq!(by_age, model_age);
+                prop_assert_eq!(lru.bytes, model.iter().map(|e| e.1).sum::<usize>());
+                prop_assert!(lru.bytes <= budget && lru.peak <= budget);
+            }
+        }
+    }
+}

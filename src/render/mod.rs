@@ -224,7 +224,7 @@ pub fn render(
 ) -> Result<(Frame, Stats), RenderError> {
     let t0 = Instant::now();
     let part = render_part(vol, camera, opts, Shard::WHOLE, progress)?;
-    let (frame, mut stats) = shard::finish(&part.key, part.tiles.iter().collect(), part.stats);
+    let (frame, mut stats) = shard::finish(&part.key, part.tiles, part.stats);
     stats.seconds_total = t0.elapsed().as_secs_f64();
     Ok((frame, stats))
 }

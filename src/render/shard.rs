@@ -220,10 +220,17 @@ impl Part {
 
 /// Places the tiles and colours the image; `stats` are the summed
 /// counters. Shared by [`super::render`] and [`assemble`].
-pub(super) fn finish(key: &RenderKey, tiles: Vec<&TilePx>, mut stats: Stats) -> (Frame, Stats) {
+/// Tiles given by value are dropped as soon as they are placed, so a
+/// render holds about one copy of the pixels, not two.
+pub(super) fn finish<T: std::borrow::Borrow<TilePx>>(
+    key: &RenderKey,
+    tiles: impl IntoIterator<Item = T>,
+    mut stats: Stats,
+) -> (Frame, Stats) {
     let (w, h) = (key.width, key.height);
     let mut px = vec![Px::default(); w as usize * h as usize];
     for t in tiles {
+        let t = t.borrow();
         for (i, p) in t.pixels.iter().enumerate() {
             let (lx, ly) = (i as u32 % t.w, i as u32 / t.w);
             px[((t.y0 + ly) * w + t.x0 + lx) as usize] = *p;

@@ -90,9 +90,9 @@ show_logs() {
 }
 
 stop_pid() { # PID NAME
-    local pid=$1 name=$2 i
+    local pid=$1 name=$2
     kill -TERM "$pid" 2>/dev/null || return 0
-    for i in $(seq 50); do
+    for _ in $(seq 50); do
         kill -0 "$pid" 2>/dev/null || { say "stopped $name (pid $pid)"; return 0; }
         sleep 0.2
     done
@@ -160,8 +160,7 @@ start_munged() {
         --pid-file="$munge_pid" --log-file="$munge_dir/munged.log" \
         --seed-file="$munge_dir/munged.seed" ||
         { show_logs; die "munged did not start (log above)"; }
-    local i
-    for i in $(seq 50); do
+    for _ in $(seq 50); do
         munge_works && { say "started munged (pid $(cat "$munge_pid"))"; return 0; }
         sleep 0.2
     done
@@ -202,14 +201,21 @@ SlurmdLogFile=$logs/slurmd.log
 SlurmctldDebug=info
 SlurmdDebug=info
 
-# No cgroups anywhere. This sandbox has no systemd, and its cgroup tree is a
-# hand-mounted v1/v2 hybrid that slurmd does not own: proctrack/cgroup and
-# task/cgroup need a writable, delegated cgroup hierarchy (normally created
-# by systemd for slurmd.service). proctrack/linuxproc tracks a job's
-# processes through /proc parent links instead, and task/none does no CPU
-# binding; jobacct_gather/none keeps the cgroup and /proc samplers out too.
-# Consequence: no memory or core confinement; a task sees every core, which
-# is why render-array.sbatch passes --threads from the allocation.
+# No cgroups. This sandbox has no systemd and a hybrid cgroup tree (v1
+# controllers plus a v2 mount at /sys/fs/cgroup/unified). Tried here:
+#  - CgroupPlugin=cgroup/v2: slurmd dies at start, "fatal: Hybrid mode is
+#    not supported"; on v2-only hosts it wants a delegated subtree, which
+#    systemd normally makes for slurmd.service.
+#  - cgroup v1 (autodetect) with proctrack/cgroup + task/cgroup works in this
+#    sandbox, but writes /sys/fs/cgroup/{cpuset,memory,freezer}/slurm_<host>
+#    directories that outlive the daemons, and it cannot work where
+#    /sys/fs/cgroup is mounted read-only (as in many containers).
+# proctrack/linuxproc tracks a job's processes through /proc parent links
+# and task/none does no binding, so nothing depends on the host's cgroup
+# layout and nothing is left behind; jobacct_gather/none keeps the samplers
+# out too. Consequence: no memory or core confinement (a task sees every
+# core, which is why render-array.sbatch passes --threads from the
+# allocation).
 ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
 JobAcctGatherType=jobacct_gather/none
@@ -226,6 +232,8 @@ SchedulerType=sched/backfill
 DependencyParameters=kill_invalid_depend
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core
+# slurmd still loads every MPI plugin at start and logs "can not load PMIx
+# library" errors for mpi/pmix (libpmix is not installed): harmless.
 MpiDefault=none
 # A node that was down (e.g. slurmd restarted) comes back by itself.
 ReturnToService=2
@@ -294,8 +302,7 @@ cmd_stop() {
             say "cancelling jobs: $jobs"
             # shellcheck disable=SC2086
             timeout 10 scancel $jobs 2>/dev/null || true
-            local i
-            for i in $(seq 20); do
+            for _ in $(seq 20); do
                 [ -z "$(timeout 10 squeue -h -o %A 2>/dev/null)" ] && break
                 sleep 0.5
             done
@@ -320,7 +327,11 @@ cmd_status() {
             slurmd) file=$slurmd_pid ;;
         esac
         pid=$(live_pid "$file" "$name")
-        printf '%-10s %s\n' "$name" "${pid:+running (pid $pid)}${pid:-not running}"
+        if [ -n "$pid" ]; then
+            printf '%-10s running (pid %s)\n' "$name" "$pid"
+        else
+            printf '%-10s not running\n' "$name"
+        fi
     done
     echo "SLURM_CONF=$conf"
     if [ -z "$(live_pid "$ctld_pid" slurmctld)" ]; then

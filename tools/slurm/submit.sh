@@ -10,7 +10,10 @@
 #            gets part.K.cdvpart, out.png, stats.json and logs/
 #   N        number of shards (array tasks)
 #   render options as for `cdvol render`, e.g. --width 2048 --height 2048
-#            --view 30,20 --mode surface (not -o, --shard, --frames, --stats)
+#            --view 30,20 --mode surface (not -o, --shard, --stats). With
+#            --frames F (F > 1) the job renders a turntable instead: shard K
+#            writes frames f % N == K as OUT_DIR/frame.FFFF.png, and the
+#            assemble step only checks that all F are there.
 #
 # Environment:
 #   CDVOL          cdvol binary on the shared file system [cdvol on PATH, else
@@ -50,25 +53,47 @@ N=$n
 # Old parts would be silently mixed into (or, with another N, rejected by)
 # this render's assemble step.
 shopt -s nullglob
-old=("$OUT_DIR"/part.*.cdvpart)
+old=("$OUT_DIR"/part.*.cdvpart "$OUT_DIR"/frame.*.png)
 [ ${#old[@]} -eq 0 ] ||
-    die "$OUT_DIR already holds ${#old[@]} part files from an earlier run; remove them (rm $OUT_DIR/part.*.cdvpart) or choose another OUT_DIR"
+    die "$OUT_DIR already holds ${#old[@]} part or frame files from an earlier run; remove them (rm $OUT_DIR/part.*.cdvpart $OUT_DIR/frame.*.png) or choose another OUT_DIR"
 
-# Check the render options once here rather than in N failing tasks.
-for a in "$@"; do
-    case $a in
-        -o | --output | --output=* | -o?* | --shard | --shard=* | --frames | --frames=* | --stats | --stats=*)
-            die "render options must not include '$a' (submit.sh sets the output and shard; assemble writes \$OUT_DIR/stats.json)" ;;
+# Check the render options once here rather than in N failing tasks, and
+# make a transfer-function path absolute (the tasks run in OUT_DIR).
+args=()
+FRAMES=1
+while [ $# -gt 0 ]; do
+    case $1 in
+        --frames) FRAMES=${2:-} ;;
+        --frames=*) FRAMES=${1#--frames=} ;;
     esac
+    case $1 in
+        -o | --output | --output=* | -o?* | --shard | --shard=* | --stats | --stats=*)
+            die "render options must not include '$1' (submit.sh sets the output and shard; assemble writes \$OUT_DIR/stats.json)" ;;
+        --tf)
+            [ $# -ge 2 ] || die "--tf needs a file"
+            [ -r "$2" ] || die "--tf file '$2' not readable"
+            args+=(--tf "$(realpath "$2")")
+            shift 2
+            continue ;;
+        --tf=*)
+            [ -r "${1#--tf=}" ] || die "--tf file '${1#--tf=}' not readable"
+            args+=(--tf "$(realpath "${1#--tf=}")") ;;
+        *) args+=("$1") ;;
+    esac
+    shift
 done
-# Catches a typo or a relative --tf path before anything is queued: the
-# options parse, and the volume opens, on this machine.
-"$CDVOL" render "$VOL" -o "$OUT_DIR/.check.cdvpart" --shard 0/1 "$@" --help > /dev/null 2>&1 ||
-    die "'cdvol render' rejects these options: $*"
+set -- "${args[@]}"
+[[ $FRAMES =~ ^[1-9][0-9]*$ ]] || die "--frames '$FRAMES' is not a positive integer"
+[ "$FRAMES" = 1 ] || [ "$N" -le "$FRAMES" ] ||
+    die "N=$N shards for $FRAMES frames: shards split a turntable by frame, so at most $FRAMES have work"
+# Catches a mistyped option or value before anything is queued: clap parses
+# every argument before it acts on the trailing --help.
+"$CDVOL" render "$VOL" -o "$OUT_DIR/part.0.cdvpart" --shard 0/"$N" "$@" --help > /dev/null 2>&1 ||
+    die "'cdvol render' rejects these options: $* (try: $CDVOL render --help)"
 
 # The jobs see this environment (sbatch --export=ALL, the default). The render
 # options travel as script arguments, so RENDER_ARGS must not add others.
-export CDVOL VOL OUT_DIR N
+export CDVOL VOL OUT_DIR N FRAMES
 export RENDER_ARGS=
 cpus=${CPUS_PER_TASK:-1}
 array=0-$((N - 1))${MAX_PARALLEL:+%$MAX_PARALLEL}
@@ -88,6 +113,10 @@ assemble_job=$(sbatch --parsable --dependency="afterok:$render_job" \
     die "sbatch of the assemble step failed (render array $render_job cancelled)"
 }
 assemble_job=${assemble_job%%;*}
-echo "submit: assemble job $assemble_job after afterok:$render_job -> ${OUT:-$OUT_DIR/out.png}"
+if [ "$FRAMES" -gt 1 ]; then
+    echo "submit: check job $assemble_job after afterok:$render_job -> $OUT_DIR/frame.0000.png .. $(printf 'frame.%04d.png' $((FRAMES - 1)))"
+else
+    echo "submit: assemble job $assemble_job after afterok:$render_job -> ${OUT:-$OUT_DIR/out.png}"
+fi
 echo "submit: logs in $OUT_DIR/logs/; watch with: squeue -j $render_job,$assemble_job"
 echo "$render_job $assemble_job"
