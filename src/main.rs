@@ -182,15 +182,16 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 println!("wrote {}", f.display());
             }
             println!(
-                "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read, {:.2} s",
+                "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read ({} reads), {:.2} s",
                 stats.rays,
                 stats.steps,
                 stats.steps as f64 / stats.rays.max(1) as f64,
                 stats.macro_steps,
                 stats.cell_steps,
                 stats.hits,
-                stats.bricks_read,
+                stats.bricks_distinct,
                 stats.bricks_total,
+                stats.bricks_read,
                 stats.seconds_total
             );
         }
@@ -523,7 +524,7 @@ fn demo(dir: &Path, progress: &dyn Progress) -> Result<()> {
             path.display(),
             stats.rays,
             stats.steps as f64 / stats.rays.max(1) as f64,
-            stats.bricks_read,
+            stats.bricks_distinct,
             stats.bricks_total,
             stats.seconds_total
         );

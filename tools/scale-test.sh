@@ -9,8 +9,9 @@
 #   3. `cdvol render` draws 2048x2048 surface and composite images with
 #      --cache-mb 1024.
 # Each stage runs under /usr/bin/time -v while a sampler records the peak
-# of extra disk in use; the render stages also report bricks read of the
-# total and the cache hit rate from --stats. Prints one markdown row per
+# of extra disk in use; the render stages also report, from --stats, the
+# distinct bricks read of the total, all brick reads (a brick evicted and
+# needed again is read again) and the cache hit rate. Prints one markdown row per
 # stage and appends JSON lines to WORKDIR/scale.jsonl. Checks free disk
 # first; deletes what it generated unless KEEP=1.
 #
@@ -81,12 +82,12 @@ run() {
 
 json() { python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))[sys.argv[2]])' "$@"; }
 
-printf '| volume | stage | wall s | MB/s | peak RSS MiB | extra disk MiB | bricks read / total | cache hit rate |\n'
-printf '|---|---|---|---|---|---|---|---|\n'
-row() { # volume stage [bricks hit-rate]
-    printf '| %s | %s | %.1f | %.0f | %s | %s | %s | %s |\n' "$1" "$2" "$wall" "$mbs" "$rss" "$disk" "${3:--}" "${4:--}"
-    printf '{"volume": "%s", "stage": "%s", "wall_s": %s, "mb_per_s": %.1f, "peak_rss_mib": %s, "extra_disk_mib": %s, "bricks": "%s", "cache_hit_rate": "%s", "overflow_checks": %s}\n' \
-        "$1" "$2" "$wall" "$mbs" "$rss" "$disk" "${3:--}" "${4:--}" "${OVERFLOW_CHECKS:-0}" >> "$work/scale.jsonl"
+printf '| volume | stage | wall s | MB/s | peak RSS MiB | extra disk MiB | bricks read / total | brick reads | cache hit rate |\n'
+printf '|---|---|---|---|---|---|---|---|---|\n'
+row() { # volume stage [bricks reads hit-rate]
+    printf '| %s | %s | %.1f | %.0f | %s | %s | %s | %s | %s |\n' "$1" "$2" "$wall" "$mbs" "$rss" "$disk" "${3:--}" "${4:--}" "${5:--}"
+    printf '{"volume": "%s", "stage": "%s", "wall_s": %s, "mb_per_s": %.1f, "peak_rss_mib": %s, "extra_disk_mib": %s, "bricks": "%s", "brick_reads": "%s", "cache_hit_rate": "%s", "overflow_checks": %s}\n' \
+        "$1" "$2" "$wall" "$mbs" "$rss" "$disk" "${3:--}" "${4:--}" "${5:--}" "${OVERFLOW_CHECKS:-0}" >> "$work/scale.jsonl"
 }
 
 for s in $sizes; do
@@ -118,10 +119,11 @@ for s in $sizes; do
             --stats "$stats"
         dec=$(json "$stats" bytes_decompressed)
         mbs=$(echo "$dec / $wall / 1000000" | bc -l)
-        bricks="$(json "$stats" bricks_read) / $(json "$stats" bricks_total)"
+        bricks="$(json "$stats" bricks_distinct) / $(json "$stats" bricks_total)"
+        reads=$(json "$stats" bricks_read)
         rate=$(python3 -c 'import json,sys; d = json.load(open(sys.argv[1]));
 print("%.5f" % (d["cache_hits"] / max(1, d["cache_hits"] + d["cache_misses"])))' "$stats")
-        row "$vol" "render $mode" "$bricks" "$rate"
+        row "$vol" "render $mode" "$bricks" "$reads" "$rate"
     done
     [ "${KEEP:-0}" = 1 ] || rm -f "$raw" "$cdv"
 done

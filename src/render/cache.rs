@@ -6,7 +6,7 @@
 //! A brick is read (positioned read, CRC check, zstd) only when a ray asks
 //! for one of its cells, so a scene loads only the bricks it needs.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 
 use crate::format::reader::PackedVolume;
@@ -253,6 +253,8 @@ struct Lru<V> {
     clock: u64,
     bytes: usize,
     peak: usize,
+    /// Keys ever inserted.
+    seen: HashSet<u64>,
 }
 
 impl<V: Clone> Lru<V> {
@@ -263,6 +265,7 @@ impl<V: Clone> Lru<V> {
             clock: 0,
             bytes: 0,
             peak: 0,
+            seen: HashSet::new(),
         }
     }
 
@@ -280,6 +283,7 @@ impl<V: Clone> Lru<V> {
     /// recently used entries until it fits in `budget`; a value larger
     /// than the whole budget is not kept.
     fn insert(&mut self, key: u64, v: V, bytes: usize, budget: usize) {
+        self.seen.insert(key);
         if bytes > budget {
             return;
         }
@@ -317,6 +321,13 @@ impl<'v> BrickCache<'v> {
 
     pub fn volume(&self) -> &PackedVolume {
         self.vol
+    }
+
+    /// Distinct bricks whose payload was read.
+    pub fn distinct_read(&self) -> u64 {
+        let l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
+        // Keys are id * 2 + lazy; lazy stand-ins read nothing.
+        l.seen.iter().filter(|k| *k % 2 == 0).count() as u64
     }
 
     /// Largest number of bytes the cache held at once.
@@ -362,15 +373,18 @@ impl<'v> BrickCache<'v> {
             }
         } else {
             let (b, raw) = RBrick::decode(self.vol, id)?;
-            c.bricks_read += 1;
             c.bytes_decompressed += raw;
             b
         };
         let b = Arc::new(b);
         let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(first) = l.get(key) {
-            // Another thread decoded it meanwhile: its copy wins.
+            // Another thread decoded it meanwhile: its copy wins (and its
+            // read is the one counted).
             return Ok(first);
+        }
+        if !lazy {
+            c.bricks_read += 1;
         }
         l.insert(key, b.clone(), b.bytes, self.budget);
         Ok(b)

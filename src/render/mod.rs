@@ -79,7 +79,14 @@ pub struct Stats {
     pub macro_steps: u64,
     pub cell_steps: u64,
     pub hits: u64,
+    /// Brick payloads read and decoded into the cache (a brick evicted
+    /// and needed again counts again; two threads racing to decode the
+    /// same brick count once).
     pub bricks_read: u64,
+    /// Distinct bricks read: the share of the file the scene needed. In
+    /// merged statistics (parts, frames) the sum of theirs, an upper bound.
+    #[serde(default)]
+    pub bricks_distinct: u64,
     /// Bricks without 1-cells the traversal crossed without reading them.
     pub bricks_skipped: u64,
     pub cache_hits: u64,
@@ -104,6 +111,7 @@ impl Stats {
         self.cell_steps += o.cell_steps;
         self.hits += o.hits;
         self.bricks_read += o.bricks_read;
+        self.bricks_distinct += o.bricks_distinct;
         self.bricks_skipped += o.bricks_skipped;
         self.cache_hits += o.cache_hits;
         self.cache_misses += o.cache_misses;
@@ -346,6 +354,7 @@ pub fn render_part(
         cell_steps: steps.cell_steps,
         hits,
         bricks_read: cc.bricks_read,
+        bricks_distinct: cache.distinct_read(),
         bricks_skipped: cc.bricks_skipped,
         cache_hits: cc.cache_hits,
         cache_misses: cc.cache_misses,
