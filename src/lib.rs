@@ -40,6 +40,7 @@ pub mod format;
 pub mod grid;
 pub mod info;
 pub mod input;
+pub mod memory;
 pub mod phantom;
 pub mod prep;
 pub mod progress;

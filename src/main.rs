@@ -63,6 +63,7 @@ impl Progress for Bars {
 }
 
 fn main() -> ExitCode {
+    cdvol::memory::bound_heap_fragmentation();
     let cli = Cli::parse();
     let bars = Bars {
         bar: Mutex::new(None),

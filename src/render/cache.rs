@@ -128,19 +128,50 @@ impl RBrick {
         // A brick without 1-cells needs only its codes: a cell is coded at
         // its minimum corner or has code 0; no values, no classification.
         let no_object = vol.index()[id as usize].has_no_object();
-        let mut vals = vec![0.0f64; n];
-        let mut word_code = vec![u32::MAX; n];
-        crate::with_word!(h.storage, W => {
-            use crate::format::word::Word;
-            let words: Vec<W> = bytemuck::pod_collect_to_vec(&raw[..n * std::mem::size_of::<W>()]);
-            for (i, w) in words.into_iter().enumerate() {
-                match w.as_code(&enc) {
-                    Some(c) => word_code[i] = c,
-                    None if !no_object => vals[i] = rs.apply(w.to_raw()),
-                    None => {}
-                }
-            }
-        });
+        // Per-thread scratch for the decoded words: no large transient
+        // allocations per brick, which would fragment the heap between
+        // the cache's long-lived buffers (docs/BENCHMARKS.md, "Larger
+        // than RAM").
+        SCRATCH
+            .with_borrow_mut(|(vals, word_code)| {
+                vals.clear();
+                vals.resize(n, 0.0);
+                word_code.clear();
+                word_code.resize(n, u32::MAX);
+                crate::with_word!(h.storage, W => {
+                    use crate::format::word::Word;
+                    let size = std::mem::size_of::<W>();
+                    for (i, w) in raw[..n * size].chunks_exact(size).enumerate() {
+                        let w: W = bytemuck::pod_read_unaligned(w);
+                        match w.as_code(&enc) {
+                            Some(c) => word_code[i] = c,
+                            None if !no_object => vals[i] = rs.apply(w.to_raw()),
+                            None => {}
+                        }
+                    }
+                });
+                Self::assemble(vol, id, &raw, [sx, sy, sz], first, cells, vals, word_code)
+            })
+            .map(|b| (b, raw_len))
+    }
+
+    /// The brick from its decoded words: `vals` (rescaled, f64) and
+    /// `word_code` (the code a word carries, `u32::MAX` for none).
+    #[allow(clippy::too_many_arguments)]
+    fn assemble(
+        vol: &PackedVolume,
+        id: u64,
+        raw: &[u8],
+        [sx, sy, sz]: [usize; 3],
+        first: [u32; 3],
+        cells: [u32; 3],
+        vals: &[f64],
+        word_code: &[u32],
+    ) -> Result<RBrick, FormatError> {
+        let h = vol.header();
+        let coords = h.brick_coords(id);
+        let n = sx * sy * sz;
+        let no_object = vol.index()[id as usize].has_no_object();
         // Cell codes: a code word at the minimum corner gives the code; a
         // code word at any other vertex means a 0-cell with code 0;
         // otherwise the classification decides from the 8 values.
@@ -190,7 +221,7 @@ impl RBrick {
             Vec::new()
         } else {
             vals.iter()
-                .zip(&word_code)
+                .zip(word_code)
                 .map(|(&v, &c)| if c == u32::MAX { to_f32(v) } else { f32::NAN })
                 .collect()
         };
@@ -206,18 +237,21 @@ impl RBrick {
         };
         let bytes =
             std::mem::size_of::<RBrick>() + plane.len() + values.len() * 4 + octants.len() * 8;
-        Ok((
-            RBrick {
-                first,
-                cells,
-                codes: Codes::Plane(plane),
-                values,
-                octants,
-                bytes,
-            },
-            raw_len,
-        ))
+        Ok(RBrick {
+            first,
+            cells,
+            codes: Codes::Plane(plane),
+            values,
+            octants,
+            bytes,
+        })
     }
+}
+
+type Scratch = (Vec<f64>, Vec<u32>);
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// Counters of one tile (summed at the end; no atomics in the hot loop).
