@@ -316,6 +316,11 @@ pub struct RenderArgs {
     /// --frames, frame f when f % N == K, written as PNGs.
     #[arg(long, value_parser = cdvol::render::Shard::parse)]
     pub shard: Option<cdvol::render::Shard>,
+    /// How --shard deals tiles: every N-th tile (interleaved: shards take
+    /// equal time) or contiguous runs of the Morton curve (blocks: shards
+    /// read fewer bricks). See docs/BENCHMARKS.md.
+    #[arg(long, value_enum, default_value = "interleaved")]
+    pub shard_layout: ShardLayoutArg,
     /// A turntable of this many frames around the volume (numbered PNGs
     /// OUT.0000.png ...), starting at --view.
     #[arg(long, default_value_t = 1)]
@@ -323,6 +328,12 @@ pub struct RenderArgs {
     /// Degrees of azimuth the turntable covers.
     #[arg(long, default_value_t = 360.0, allow_hyphen_values = true)]
     pub orbit: f64,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum ShardLayoutArg {
+    Interleaved,
+    Blocks,
 }
 
 #[derive(Args, Debug)]

@@ -352,7 +352,11 @@ fn render_cmd(
             }
             return Ok((files, total));
         }
-        if let Some(shard) = a.shard {
+        if let Some(mut shard) = a.shard {
+            shard.layout = match a.shard_layout {
+                cli::ShardLayoutArg::Interleaved => cdvol::render::ShardLayout::Interleaved,
+                cli::ShardLayoutArg::Blocks => cdvol::render::ShardLayout::Blocks,
+            };
             if a.output.extension().is_none_or(|e| e != "cdvpart") {
                 bail!(
                     "{}: with --shard the output is a part file for `cdvol assemble`; \

@@ -19,7 +19,7 @@ use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::shard::{assemble, Part};
 use cdvol::render::traverse::{Method, TGrid};
-use cdvol::render::{render, render_part, Frame, Mode, RenderOptions, Shard, Stats};
+use cdvol::render::{render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats};
 use proptest::prelude::*;
 
 /// A small rectilinear sphere phantom, prepared; returns (volume, iso).
@@ -99,6 +99,15 @@ fn modes(iso: f64) -> Vec<Mode> {
     ]
 }
 
+/// Shard `k` of `n`, interleaved.
+fn sh(k: u32, n: u32) -> Shard {
+    Shard {
+        k,
+        n,
+        layout: ShardLayout::Interleaved,
+    }
+}
+
 fn same(a: &Frame, b: &Frame) -> bool {
     let bits = |f: &Frame| {
         f.depth
@@ -114,11 +123,13 @@ fn sharded(
     cam: &Camera,
     opts: &RenderOptions,
     n: u32,
+    layout: ShardLayout,
     dir: &Path,
 ) -> Result<(Frame, Stats), String> {
     let mut names: Vec<PathBuf> = (0..n)
         .map(|k| {
-            let part = render_part(vol, cam, opts, Shard { k, n }, &NoProgress).unwrap();
+            let shard = Shard { k, n, layout };
+            let part = render_part(vol, cam, opts, shard, &NoProgress).unwrap();
             let p = dir.join(format!("p{k}of{n}.cdvpart"));
             part.write(&p).unwrap();
             p
@@ -151,9 +162,14 @@ fn assembled_parts_equal_the_single_render_in_every_mode() {
             let (want, ws) = render(&vol, &cam, &opts, &NoProgress).unwrap();
             // More shards than the 12 tiles leaves some parts empty.
             for n in [1, 2, 3, 5, 16] {
-                let (got, gs) = sharded(&vol, &cam, &opts, n, dir.path()).unwrap();
-                assert!(same(&got, &want), "{mode:?} view {view:?}: N = {n} differs");
-                assert_counters_equal(&gs, &ws);
+                for layout in [ShardLayout::Interleaved, ShardLayout::Blocks] {
+                    let (got, gs) = sharded(&vol, &cam, &opts, n, layout, dir.path()).unwrap();
+                    assert!(
+                        same(&got, &want),
+                        "{mode:?} view {view:?}: N = {n} {layout:?} differs"
+                    );
+                    assert_counters_equal(&gs, &ws);
+                }
             }
         }
     }
@@ -165,14 +181,15 @@ proptest! {
     #[test]
     fn any_split_assembles_to_the_same_bytes(
         w in 1u32..70, h in 1u32..70, tile in 1u32..40, n in 1u32..9,
-        az in -180.0f64..180.0, el in -89.0f64..89.0,
+        az in -180.0f64..180.0, el in -89.0f64..89.0, blocks in any::<bool>(),
     ) {
+        let layout = if blocks { ShardLayout::Blocks } else { ShardLayout::Interleaved };
         let dir = tempfile::tempdir().unwrap();
         let (vol, _) = phantom(dir.path(), "s");
         let cam = camera(&vol, [az, el], false, w, h);
         let opts = options(Mode::Cost, tile);
         let (want, ws) = render(&vol, &cam, &opts, &NoProgress).unwrap();
-        let (got, gs) = sharded(&vol, &cam, &opts, n, dir.path()).unwrap();
+        let (got, gs) = sharded(&vol, &cam, &opts, n, layout, dir.path()).unwrap();
         prop_assert!(same(&got, &want));
         prop_assert_eq!(gs.steps, ws.steps);
         prop_assert_eq!(gs.rays, ws.rays);
@@ -184,7 +201,7 @@ fn three_parts(vol: &PackedVolume, cam: &Camera, opts: &RenderOptions, dir: &Pat
     (0..3)
         .map(|k| {
             let p = dir.join(format!("part{k}.cdvpart"));
-            render_part(vol, cam, opts, Shard { k, n: 3 }, &NoProgress)
+            render_part(vol, cam, opts, sh(k, 3), &NoProgress)
                 .unwrap()
                 .write(&p)
                 .unwrap();
@@ -242,13 +259,7 @@ fn assembly_refuses_parts_that_do_not_make_one_render() {
         };
     let cam2 = camera(&vol, [11.0, 10.0], false, 40, 40);
     refused(
-        assemble_files(&other(
-            "c.cdvpart",
-            &cam2,
-            &opts,
-            Shard { k: 2, n: 3 },
-            &vol,
-        )),
+        assemble_files(&other("c.cdvpart", &cam2, &opts, sh(2, 3), &vol)),
         &["part0.cdvpart", "c.cdvpart", "different renders", "camera"],
     );
     let opts2 = options(
@@ -259,13 +270,7 @@ fn assembly_refuses_parts_that_do_not_make_one_render() {
         16,
     );
     refused(
-        assemble_files(&other(
-            "o.cdvpart",
-            &cam,
-            &opts2,
-            Shard { k: 2, n: 3 },
-            &vol,
-        )),
+        assemble_files(&other("o.cdvpart", &cam, &opts2, sh(2, 3), &vol)),
         &["o.cdvpart", "render options"],
     );
     refused(
@@ -273,14 +278,22 @@ fn assembly_refuses_parts_that_do_not_make_one_render() {
             "t.cdvpart",
             &cam,
             &options(surface.clone(), 8),
-            Shard { k: 2, n: 3 },
+            sh(2, 3),
             &vol,
         )),
         &["t.cdvpart", "render options"],
     );
     refused(
-        assemble_files(&other("n.cdvpart", &cam, &opts, Shard { k: 2, n: 4 }, &vol)),
+        assemble_files(&other("n.cdvpart", &cam, &opts, sh(2, 4), &vol)),
         &["n.cdvpart", "number of shards"],
+    );
+    let blocks = Shard {
+        layout: ShardLayout::Blocks,
+        ..sh(2, 3)
+    };
+    refused(
+        assemble_files(&other("l.cdvpart", &cam, &opts, blocks, &vol)),
+        &["l.cdvpart", "shard layout"],
     );
     // Same name, different contents: a re-prepared file is noticed.
     phantom(d, "s2");
@@ -291,13 +304,7 @@ fn assembly_refuses_parts_that_do_not_make_one_render() {
     prep(&src, &d.join("sub/s.cdv"), &o, &NoProgress).unwrap();
     let vol3 = PackedVolume::open(&d.join("sub/s.cdv")).unwrap();
     refused(
-        assemble_files(&other(
-            "v.cdvpart",
-            &cam,
-            &opts,
-            Shard { k: 2, n: 3 },
-            &vol3,
-        )),
+        assemble_files(&other("v.cdvpart", &cam, &opts, sh(2, 3), &vol3)),
         &["v.cdvpart", "packed file"],
     );
 
@@ -335,14 +342,14 @@ fn render_refuses_a_shard_outside_its_count() {
     let dir = tempfile::tempdir().unwrap();
     let (vol, _) = phantom(dir.path(), "s");
     let cam = camera(&vol, [0.0, 0.0], false, 8, 8);
-    for s in [Shard { k: 3, n: 3 }, Shard { k: 0, n: 0 }] {
+    for s in [sh(3, 3), sh(0, 0)] {
         let e = render_part(&vol, &cam, &options(Mode::Mip, 4), s, &NoProgress).unwrap_err();
         assert!(e.to_string().contains("--shard"), "{e}");
     }
     for s in ["3/3", "1", "a/2", "0/0", "-1/2", "1/2/3"] {
         assert!(Shard::parse(s).is_err(), "{s}");
     }
-    assert_eq!(Shard::parse("2/5"), Ok(Shard { k: 2, n: 5 }));
+    assert_eq!(Shard::parse("2/5"), Ok(sh(2, 5)));
 }
 
 fn cdvol() -> Command {
@@ -412,6 +419,23 @@ fn cli_shards_assemble_and_turntables() {
     for k in ["rays", "steps", "hits", "macro_steps", "cell_steps"] {
         assert_eq!(stat("whole.json")[k], stat("joined.json")[k], "{k}");
     }
+
+    // The same with contiguous blocks of tiles.
+    let blocks: Vec<PathBuf> = (0..3).map(|k| d.join(format!("b{k}.cdvpart"))).collect();
+    for (k, p) in blocks.iter().enumerate() {
+        let s = format!("{k}/3");
+        ok(&mut render_cli(
+            &vp,
+            p,
+            &["--shard", &s, "--shard-layout", "blocks"],
+        ));
+    }
+    ok(cdvol()
+        .arg("assemble")
+        .args(&blocks)
+        .arg("-o")
+        .arg(d.join("joined-blocks.png")));
+    assert_eq!(png("whole.png"), png("joined-blocks.png"));
 
     // A missing shard: non-zero exit, the missing shard named, no image.
     let out = cdvol()

@@ -337,6 +337,13 @@ impl<V: Clone> Lru<V> {
     }
 }
 
+/// What one cache entry costs besides its brick: the `Arc` counts (16),
+/// the hash map slot at its worst load (2 x 40) and the recency map's
+/// share of a B-tree node (about 32). Counted against the budget because
+/// uniform and lazily stood-in bricks are tiny and a big volume crosses
+/// hundreds of thousands of them.
+const ENTRY_BYTES: usize = 128;
+
 /// Decoded bricks under a byte budget, shared by all threads.
 pub struct BrickCache<'v> {
     vol: &'v PackedVolume,
@@ -420,7 +427,7 @@ impl<'v> BrickCache<'v> {
         if !lazy {
             c.bricks_read += 1;
         }
-        l.insert(key, b.clone(), b.bytes, self.budget);
+        l.insert(key, b.clone(), b.bytes + ENTRY_BYTES, self.budget);
         Ok(b)
     }
 }

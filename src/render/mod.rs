@@ -237,19 +237,37 @@ pub fn render(
     Ok((frame, stats))
 }
 
-/// Which tiles a render computes: tile `i` in Morton order when
-/// `i % n == k` (interleaved, so every shard gets a share of every part
-/// of the image).
+/// Which tiles a render computes, out of the Morton-ordered tile list.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Shard {
     pub k: u32,
     pub n: u32,
+    pub layout: ShardLayout,
+}
+
+/// How the tiles are dealt to shards (docs/BENCHMARKS.md, "Sharded
+/// renders", measures the two).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum ShardLayout {
+    /// Tile `i` to shard `i % n`: every shard gets a share of every part
+    /// of the image, so shards take about the same time; but each reads
+    /// most of the bricks the whole image needs.
+    #[default]
+    Interleaved,
+    /// Tile `i` of `t` to shard `i * n / t`: contiguous runs of the Morton
+    /// curve, compact on screen, so shards read mostly different bricks;
+    /// but a shard over empty space finishes early.
+    Blocks,
 }
 
 impl Shard {
-    pub const WHOLE: Shard = Shard { k: 0, n: 1 };
+    pub const WHOLE: Shard = Shard {
+        k: 0,
+        n: 1,
+        layout: ShardLayout::Interleaved,
+    };
 
-    /// Parses `K/N` with `0 <= K < N`.
+    /// Parses `K/N` with `0 <= K < N` (interleaved layout).
     pub fn parse(s: &str) -> Result<Shard, String> {
         let bad = || format!("{s:?}: expected K/N with 0 <= K < N, e.g. 3/8");
         let (k, n) = s.split_once('/').ok_or_else(bad)?;
@@ -258,7 +276,20 @@ impl Shard {
         if n == 0 || k >= n {
             return Err(bad());
         }
-        Ok(Shard { k, n })
+        Ok(Shard {
+            k,
+            n,
+            layout: ShardLayout::Interleaved,
+        })
+    }
+
+    /// Whether tile `i` of `t` (Morton order) belongs to this shard.
+    pub fn owns(&self, i: u64, t: u64) -> bool {
+        let (k, n) = (self.k as u64, self.n as u64);
+        match self.layout {
+            ShardLayout::Interleaved => i % n == k,
+            ShardLayout::Blocks => i * n / t.max(1) == k,
+        }
     }
 }
 
@@ -368,7 +399,7 @@ pub fn render_part(
         height: hgt,
     };
     Ok(shard::Part {
-        key: shard::RenderKey::new(vol, camera, opts, shard.n),
+        key: shard::RenderKey::new(vol, camera, opts, shard.n, shard.layout),
         shard,
         tiles,
         stats,
@@ -395,10 +426,11 @@ fn render_tiles<T: Real>(
         .flat_map(|ty| (0..ntx).map(move |tx| (tx, ty)))
         .collect();
     tiles.sort_by_key(|&(tx, ty)| morton(tx, ty));
+    let total = tiles.len() as u64;
     let tiles: Vec<(u32, u32)> = tiles
         .into_iter()
         .enumerate()
-        .filter(|(i, _)| *i as u32 % shard.n == shard.k)
+        .filter(|(i, _)| shard.owns(*i as u64, total))
         .map(|(_, t)| t)
         .collect();
     let ctx = Ctx {

@@ -1,5 +1,7 @@
 //! Sharded rendering: `cdvol render --shard K/N` renders tile `i` (Morton
-//! order) when `i % N == K` into a part file; `cdvol assemble` checks that
+//! order) when `i % N == K` (or, with `--shard-layout blocks`, the K-th
+//! contiguous run of the Morton curve) into a part file; `cdvol assemble`
+//! checks that
 //! the parts belong to one render (same file contents, camera, options and
 //! N), that every shard and every tile is there exactly once, and colours
 //! the image with the same code as a single-process render, so the bytes
@@ -17,7 +19,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::camera::Camera;
-use super::{colour, mip_range, Frame, Mode, Px, RenderOptions, Shard, Stats};
+use super::{colour, mip_range, Frame, Mode, Px, RenderOptions, Shard, ShardLayout, Stats};
 use crate::format::reader::PackedVolume;
 
 /// How pixels become colours: the only part of the mode colouring needs.
@@ -48,11 +50,18 @@ pub struct RenderKey {
     pub height: u32,
     pub tile: u32,
     pub shards: u32,
+    pub layout: ShardLayout,
     pub colouring: Colouring,
 }
 
 impl RenderKey {
-    pub fn new(vol: &PackedVolume, camera: &Camera, opts: &RenderOptions, n: u32) -> RenderKey {
+    pub fn new(
+        vol: &PackedVolume,
+        camera: &Camera,
+        opts: &RenderOptions,
+        n: u32,
+        layout: ShardLayout,
+    ) -> RenderKey {
         let colouring = match opts.mode {
             Mode::Surface { .. } | Mode::Composite { .. } => Colouring::Rgb,
             Mode::Mip => {
@@ -82,6 +91,7 @@ impl RenderKey {
             height: camera.height,
             tile: opts.tile,
             shards: n,
+            layout,
             colouring,
         }
     }
@@ -267,7 +277,7 @@ pub fn assemble(parts: &[Part], names: &[PathBuf]) -> Result<(Frame, Stats), Str
     let n = key.shards;
     let mut seen: BTreeMap<u32, usize> = BTreeMap::new();
     for (i, p) in parts.iter().enumerate() {
-        if p.shard.n != n || p.shard.k >= n {
+        if p.shard.n != n || p.shard.k >= n || p.shard.layout != key.layout {
             return Err(format!(
                 "{}: shard {}/{} in a render of {n} shards",
                 name(i),
@@ -341,6 +351,8 @@ fn differing_field(a: &RenderKey, b: &RenderKey) -> &'static str {
         "the camera"
     } else if a.shards != b.shards {
         "the number of shards"
+    } else if a.layout != b.layout {
+        "the shard layout"
     } else {
         "the render options"
     }
