@@ -69,7 +69,8 @@ pub struct TradeoffsArgs {
 
 #[derive(Args, Debug)]
 pub struct PrepArgs {
-    /// Sidecar (JSON) of a raw stack.
+    /// The volume: a raw-stack sidecar (.json), NRRD (.nrrd, .nhdr) or
+    /// NIfTI-1 (.nii, .nii.gz).
     pub input: PathBuf,
     /// Packed output file.
     #[arg(short, long)]

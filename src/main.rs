@@ -16,7 +16,6 @@ use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::export::{export, ExportWhat};
 use cdvol::format::reader::PackedVolume;
 use cdvol::info::Info;
-use cdvol::input::raw::RawSource;
 use cdvol::phantom;
 use cdvol::prep::{prep, PrepOptions, PrepReport};
 use cdvol::progress::{NoProgress, Progress};
@@ -421,8 +420,8 @@ fn prep_file(
     opts: &PrepOptions,
     progress: &dyn Progress,
 ) -> Result<PrepReport> {
-    let src = RawSource::open(input)?;
-    Ok(prep(&src, output, opts, progress)?)
+    let src = cdvol::input::open(input)?;
+    Ok(prep(src.as_ref(), output, opts, progress)?)
 }
 
 fn print_prep(output: &Path, r: &PrepReport) -> Result<()> {

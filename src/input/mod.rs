@@ -5,6 +5,9 @@
 //! of raw sample values at a time. Nothing downstream knows the file format.
 //! Today the raw stack with a JSON sidecar ([`sidecar`]) implements it.
 
+pub mod gz;
+pub mod nifti;
+pub mod nrrd;
 pub mod raw;
 pub mod sidecar;
 
@@ -142,6 +145,22 @@ pub struct VolumeMeta {
 impl VolumeMeta {
     pub fn dims(&self) -> [usize; 3] {
         self.grid.dims()
+    }
+}
+
+/// Opens any supported input by its name: a raw-stack sidecar (`.json`),
+/// NRRD (`.nrrd`, `.nhdr`) or NIfTI-1 (`.nii`, `.nii.gz`).
+pub fn open(path: &std::path::Path) -> Result<Box<dyn SliceSource>, InputError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
+        nrrd::open(path)
+    } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+        nifti::open(path)
+    } else {
+        Ok(Box::new(raw::RawSource::open(path)?))
     }
 }
 

@@ -21,7 +21,14 @@ pub struct RawSource {
 impl RawSource {
     /// Opens the sidecar at `path`, then checks and maps every data file.
     pub fn open(path: &Path) -> Result<RawSource, InputError> {
-        let sidecar = parse_sidecar(path)?;
+        RawSource::from_sidecar(parse_sidecar(path)?)
+    }
+
+    /// Checks and maps the data files of a parsed sidecar (or of another
+    /// header format's equivalent, e.g. a raw-encoded NRRD or NIfTI file,
+    /// whose `path` names the header in error messages).
+    pub fn from_sidecar(sidecar: Sidecar) -> Result<RawSource, InputError> {
+        let path = &sidecar.path.clone();
         let [nx, ny, nz] = sidecar.dims;
         let slice_bytes = (nx as u64)
             .checked_mul(ny as u64)

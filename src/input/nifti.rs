@@ -1,0 +1,156 @@
+//! NIfTI-1 volumes (`.nii`, `.nii.gz`): the header through the `nifti`
+//! crate; samples memory-mapped (`.nii`) or decompressed as a stream
+//! (`.nii.gz`), one slice at a time.
+//!
+//! Spacing is `pixdim[1..=3]` (absolute values, read as the shortest
+//! decimal of the stored f32; units from `xyzt_units`,
+//! millimetres unless it says metres or micrometres), the origin the
+//! sform/qform offset, and `scl_slope`/`scl_inter` the rescale (slope 0
+//! means none, as the standard says). The voxel-to-world rotation is not
+//! applied: samples stay in file order, like every input of cdvol (no
+//! resampling).
+
+use std::path::Path;
+
+use nifti::{Endianness, NiftiHeader, NiftiType};
+
+use super::gz::{GzLayout, GzSource};
+use super::raw::RawSource;
+use super::sidecar::{DataFiles, Sidecar};
+use super::{Dtype, Endian, InputError, Rescale, SliceSource, VolumeMeta};
+use crate::grid::{Axis, Grid};
+
+/// Opens a `.nii` or `.nii.gz` file as a slice source.
+pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
+    let bad = |field: &str, msg: String| InputError::field(path, field, msg);
+    let h = NiftiHeader::from_file(path).map_err(|e| bad("header", format!("{e}")))?;
+    if &h.magic != b"n+1\0" {
+        return Err(bad(
+            "magic",
+            format!(
+                "{:?}, expected \"n+1\" (a single-file .nii; .hdr/.img pairs are not supported)",
+                String::from_utf8_lossy(&h.magic)
+            ),
+        ));
+    }
+    let nd = h.dim[0];
+    let extra_ok = (4..=nd.min(7) as usize).all(|k| h.dim[k] == 1);
+    if !(3..=7).contains(&nd) || !extra_ok {
+        return Err(bad(
+            "dim",
+            format!(
+                "{:?}, expected a 3D volume (dim[0] = 3, or more with every extra dimension 1)",
+                &h.dim[..=nd.min(7) as usize]
+            ),
+        ));
+    }
+    let dims = [h.dim[1] as usize, h.dim[2] as usize, h.dim[3] as usize];
+    if let Some(d) = dims.iter().find(|&&d| d < 2) {
+        return Err(bad(
+            "dim",
+            format!("{d} samples, expected at least 2 per axis"),
+        ));
+    }
+    let dtype = match h.data_type() {
+        Ok(NiftiType::Uint8) => Dtype::U8,
+        Ok(NiftiType::Int8) => Dtype::I8,
+        Ok(NiftiType::Uint16) => Dtype::U16,
+        Ok(NiftiType::Int16) => Dtype::I16,
+        Ok(NiftiType::Uint32) => Dtype::U32,
+        Ok(NiftiType::Int32) => Dtype::I32,
+        Ok(NiftiType::Int64) => Dtype::I64,
+        Ok(NiftiType::Float32) => Dtype::F32,
+        Ok(NiftiType::Float64) => Dtype::F64,
+        Ok(t) => {
+            return Err(bad(
+                "datatype",
+                format!("{t:?} is not supported, expected a scalar integer or float type"),
+            ))
+        }
+        Err(e) => return Err(bad("datatype", format!("{} : {e}", h.datatype))),
+    };
+    // Units: NIFTI_UNITS_METER 1, MM 2, MICRON 3 (in the low 3 bits).
+    let unit_mm = match h.xyzt_units & 7 {
+        1 => 1000.0,
+        3 => 0.001,
+        _ => 1.0,
+    };
+    let mut axes = Vec::with_capacity(3);
+    let origin = if h.sform_code > 0 {
+        [h.srow_x[3], h.srow_y[3], h.srow_z[3]]
+    } else {
+        [h.quatern_x, h.quatern_y, h.quatern_z]
+    };
+    for k in 0..3 {
+        let s = dec(h.pixdim[k + 1]).abs() * unit_mm;
+        let o = dec(origin[k]) * unit_mm;
+        axes.push(
+            Axis::uniform(o, s, dims[k])
+                .map_err(|e| bad(&format!("pixdim[{}]", k + 1), format!("{e}")))?,
+        );
+    }
+    let grid = Grid {
+        axes: axes.try_into().expect("three axes"),
+    };
+    let rescale = if h.scl_slope == 0.0 || !h.scl_slope.is_finite() {
+        Rescale::IDENTITY
+    } else {
+        Rescale {
+            slope: dec(h.scl_slope),
+            intercept: if h.scl_inter.is_finite() {
+                dec(h.scl_inter)
+            } else {
+                0.0
+            },
+        }
+    };
+    let endian = match h.endianness {
+        Endianness::Little => Endian::Little,
+        Endianness::Big => Endian::Big,
+    };
+    let skip = h.vox_offset as u64;
+    if !(h.vox_offset.is_finite() && h.vox_offset >= 348.0) {
+        return Err(bad(
+            "vox_offset",
+            format!("{}, expected at least 348", h.vox_offset),
+        ));
+    }
+    let meta = VolumeMeta {
+        grid: grid.clone(),
+        dtype,
+        rescale,
+        origin_desc: path.display().to_string(),
+    };
+    let gz = path
+        .file_name()
+        .is_some_and(|n| n.to_string_lossy().to_ascii_lowercase().ends_with(".gz"));
+    if gz {
+        let layout = GzLayout {
+            file: path.to_path_buf(),
+            header: path.to_path_buf(),
+            file_offset: 0,
+            skip,
+            dtype,
+            endian,
+        };
+        Ok(Box::new(GzSource::open(meta, layout)?))
+    } else {
+        Ok(Box::new(RawSource::from_sidecar(Sidecar {
+            path: path.to_path_buf(),
+            data: DataFiles::One(path.to_path_buf()),
+            dims,
+            dtype,
+            endian,
+            header_bytes: skip,
+            grid,
+            rescale,
+        })?))
+    }
+}
+
+/// The f64 nearest to the shortest decimal that reads back as `x`: NIfTI
+/// stores spacings, offsets and rescales as f32, and `0.9f32` means 0.9,
+/// not 0.89999997615814208984375.
+fn dec(x: f32) -> f64 {
+    format!("{x}").parse().unwrap_or(x as f64)
+}

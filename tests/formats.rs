@@ -1,0 +1,362 @@
+//! NRRD and NIfTI inputs prepare to the same packed volume (grid, summary
+//! and every brick's payload) as a raw sidecar of the same samples; broken
+//! headers and data get messages that name the file and the field.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use cdvol::classify::Classification;
+use cdvol::format::reader::PackedVolume;
+use cdvol::prep::{prep, PrepOptions};
+use cdvol::progress::NoProgress;
+
+const DIMS: [usize; 3] = [37, 30, 26];
+const SPACING: [f64; 3] = [0.8, 0.9, 1.5];
+const ORIGIN: [f64; 3] = [10.0, -5.0, 3.0];
+const ISO: f64 = 300.0;
+
+/// A deterministic CT-like field in HU: a shell, a blob and noise.
+fn field() -> Vec<i16> {
+    let [nx, ny, nz] = DIMS;
+    let mut v = Vec::with_capacity(nx * ny * nz);
+    let mut seed = 12345u64;
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let p = [x as f64 - 18.0, y as f64 - 15.0, (z as f64 - 13.0) * 1.4];
+                let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let noise = ((seed >> 33) % 41) as f64 - 20.0;
+                let shell = if (9.0..12.0).contains(&r) {
+                    1200.0
+                } else {
+                    0.0
+                };
+                let blob = 800.0 * (-(((p[0] - 4.0).powi(2) + p[1].powi(2)) / 8.0)).exp();
+                v.push(
+                    (-1000.0 + shell + blob + if r < 9.0 { 1040.0 } else { 0.0 } + noise) as i16,
+                );
+            }
+        }
+    }
+    v
+}
+
+fn bytes(v: &[i16], big: bool) -> Vec<u8> {
+    v.iter()
+        .flat_map(|s| {
+            if big {
+                s.to_be_bytes()
+            } else {
+                s.to_le_bytes()
+            }
+        })
+        .collect()
+}
+
+fn gz(b: &[u8]) -> Vec<u8> {
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(b).unwrap();
+    e.finish().unwrap()
+}
+
+/// The reference: a raw stack and its sidecar.
+fn reference(dir: &Path, origin: [f64; 3], rescale: Option<(f64, f64)>) -> PathBuf {
+    let raw = dir.join("ref.raw");
+    std::fs::write(&raw, bytes(&field(), false)).unwrap();
+    let mut side = serde_json::json!({
+        "data": "ref.raw", "dims": DIMS, "dtype": "i16", "endian": "little",
+        "x": SPACING[0], "y": SPACING[1], "z": SPACING[2], "origin": origin,
+    });
+    if let Some((slope, intercept)) = rescale {
+        side["rescale"] = serde_json::json!({"slope": slope, "intercept": intercept});
+    }
+    let p = dir.join(format!("ref-{}.json", rescale.is_some()));
+    std::fs::write(&p, side.to_string()).unwrap();
+    p
+}
+
+fn packed(input: &Path, out: &Path) -> Result<PackedVolume, String> {
+    let src = cdvol::input::open(input).map_err(|e| e.to_string())?;
+    let mut o = PrepOptions::new(Classification::Iso { iso: ISO });
+    o.brick_size = 16;
+    prep(src.as_ref(), out, &o, &NoProgress).map_err(|e| e.to_string())?;
+    Ok(PackedVolume::open(out).unwrap())
+}
+
+/// Same grid, types, rescale, summary and brick payloads.
+fn assert_same(got: &PackedVolume, want: &PackedVolume, what: &str) {
+    let (g, w) = (got.header(), want.header());
+    assert_eq!(g.dims, w.dims, "{what}: dims");
+    assert_eq!(g.axes, w.axes, "{what}: axes");
+    assert_eq!((g.dtype, g.storage), (w.dtype, w.storage), "{what}: types");
+    assert_eq!(g.rescale, w.rescale, "{what}: rescale");
+    assert_eq!(g.summary, w.summary, "{what}: summary");
+    assert!(w.summary.one_cells > 0, "the fixture has 1-cells");
+    for id in 0..w.brick_count() {
+        assert_eq!(
+            got.read_payload(id).unwrap(),
+            want.read_payload(id).unwrap(),
+            "{what}: brick {id}"
+        );
+    }
+}
+
+fn nrrd_header(fields: &[(&str, String)]) -> String {
+    let mut h = String::from("NRRD0004\n# written by tests/formats.rs\n");
+    for (k, v) in fields {
+        h.push_str(&format!("{k}: {v}\n"));
+    }
+    h
+}
+
+fn nrrd_fields(encoding: &str, endian: &str) -> Vec<(&'static str, String)> {
+    let [nx, ny, nz] = DIMS;
+    let [sx, sy, sz] = SPACING;
+    let [ox, oy, oz] = ORIGIN;
+    vec![
+        ("type", "short".into()),
+        ("dimension", "3".into()),
+        ("space", "left-posterior-superior".into()),
+        ("sizes", format!("{nx} {ny} {nz}")),
+        (
+            "space directions",
+            format!("({sx},0,0) (0,{sy},0) (0,0,{sz})"),
+        ),
+        ("kinds", "domain domain domain".into()),
+        ("endian", endian.into()),
+        ("encoding", encoding.into()),
+        ("space origin", format!("({ox},{oy},{oz})")),
+    ]
+}
+
+#[test]
+fn nrrd_variants_prepare_like_the_raw_stack() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let want = packed(&reference(d, ORIGIN, None), &d.join("ref.cdv")).unwrap();
+    let v = field();
+
+    // Attached, raw, little endian.
+    let mut f = nrrd_header(&nrrd_fields("raw", "little")).into_bytes();
+    f.push(b'\n');
+    f.extend(bytes(&v, false));
+    std::fs::write(d.join("a.nrrd"), &f).unwrap();
+    // Attached, gzip, big endian.
+    let mut f = nrrd_header(&nrrd_fields("gzip", "big")).into_bytes();
+    f.push(b'\n');
+    f.extend(gz(&bytes(&v, true)));
+    std::fs::write(d.join("b.nrrd"), &f).unwrap();
+    // Detached raw with a byte skip, and detached gzip.
+    let mut fields = nrrd_fields("raw", "little");
+    fields.push(("byte skip", "5".into()));
+    fields.push(("data file", "c.raw".into()));
+    std::fs::write(d.join("c.nhdr"), nrrd_header(&fields)).unwrap();
+    let mut data = b"HELLO".to_vec();
+    data.extend(bytes(&v, false));
+    std::fs::write(d.join("c.raw"), data).unwrap();
+    let mut fields = nrrd_fields("gz", "little");
+    fields.push(("data file", "d.raw.gz".into()));
+    std::fs::write(d.join("d.nhdr"), nrrd_header(&fields)).unwrap();
+    std::fs::write(d.join("d.raw.gz"), gz(&bytes(&v, false))).unwrap();
+
+    for name in ["a.nrrd", "b.nrrd", "c.nhdr", "d.nhdr"] {
+        let got = packed(&d.join(name), &d.join(format!("{name}.cdv"))).unwrap();
+        assert_same(&got, &want, name);
+    }
+
+    // `spacings` instead of directions (no origin: at 0).
+    let want0 = packed(&reference(d, [0.0; 3], None), &d.join("ref0.cdv")).unwrap();
+    let fields: Vec<_> = nrrd_fields("raw", "little")
+        .into_iter()
+        .filter(|(k, _)| !k.starts_with("space"))
+        .chain([(
+            "spacings",
+            format!("{} {} {}", SPACING[0], SPACING[1], SPACING[2]),
+        )])
+        .chain([("data file", "c.raw".into()), ("byte skip", "5".into())])
+        .collect();
+    std::fs::write(d.join("e.nhdr"), nrrd_header(&fields)).unwrap();
+    assert_same(
+        &packed(&d.join("e.nhdr"), &d.join("e.cdv")).unwrap(),
+        &want0,
+        "spacings",
+    );
+}
+
+fn refused(input: &Path, out: &Path, words: &[&str]) {
+    let e = match packed(input, out) {
+        Ok(_) => panic!("{} was accepted", input.display()),
+        Err(e) => e,
+    };
+    for w in words {
+        assert!(e.contains(w), "{e:?} does not mention {w:?}");
+    }
+    assert!(!out.exists(), "no output for a refused input");
+}
+
+#[test]
+fn broken_nrrd_inputs_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("o.cdv");
+    let v = bytes(&field(), false);
+    let attached = |name: &str, fields: &[(&str, String)], data: &[u8]| {
+        let mut f = nrrd_header(fields).into_bytes();
+        f.push(b'\n');
+        f.extend_from_slice(data);
+        let p = d.join(name);
+        std::fs::write(&p, f).unwrap();
+        p
+    };
+    let with = |k: &str, v: &str| {
+        let mut f: Vec<_> = nrrd_fields("raw", "little")
+            .into_iter()
+            .filter(|(x, _)| *x != k)
+            .collect();
+        if !v.is_empty() {
+            f.push((k.to_string().leak(), v.to_string()));
+        }
+        f
+    };
+    let p = attached(
+        "oblique.nrrd",
+        &with("space directions", "(0.8,0.1,0) (0,0.9,0) (0,0,1.5)"),
+        &v,
+    );
+    refused(
+        &p,
+        &out,
+        &["oblique.nrrd", "space directions", "not along axis 0"],
+    );
+    let p = attached("nosizes.nrrd", &with("sizes", ""), &v);
+    refused(&p, &out, &["nosizes.nrrd", "field `sizes`", "missing"]);
+    let p = attached("ascii.nrrd", &with("encoding", "ascii"), &v);
+    refused(&p, &out, &["ascii.nrrd", "encoding", "not supported"]);
+    let p = attached("u64.nrrd", &with("type", "uint64"), &v);
+    refused(&p, &out, &["u64.nrrd", "type", "uint64"]);
+    let p = attached("dim4.nrrd", &with("dimension", "4"), &v);
+    refused(&p, &out, &["dim4.nrrd", "dimension", "expected 3"]);
+    let p = attached(
+        "short.nrrd",
+        &nrrd_fields("raw", "little"),
+        &v[..v.len() - 10],
+    );
+    refused(&p, &out, &["short.nrrd", "expected at least"]);
+    let p = attached(
+        "shortgz.nrrd",
+        &nrrd_fields("gzip", "little"),
+        &gz(&v[..v.len() / 2]),
+    );
+    refused(&p, &out, &["shortgz.nrrd", "gzip stream ends"]);
+    let p = attached("nogz.nrrd", &nrrd_fields("gzip", "little"), &v);
+    refused(&p, &out, &["nogz.nrrd", "gzip"]);
+    let p = d.join("magic.nrrd");
+    std::fs::write(&p, "P5\n2 2\n").unwrap();
+    refused(&p, &out, &["magic.nrrd", "NRRD0001"]);
+    let mut fields = nrrd_fields("raw", "little");
+    fields.push(("data file", "nowhere.raw".into()));
+    std::fs::write(d.join("gone.nhdr"), nrrd_header(&fields)).unwrap();
+    refused(&d.join("gone.nhdr"), &out, &["nowhere.raw", "cannot open"]);
+}
+
+fn nifti_file(path: &Path, slope: f32, inter: f32) {
+    use nifti::writer::WriterOptions;
+    use nifti::NiftiHeader;
+    let [nx, ny, nz] = DIMS;
+    let data =
+        ndarray::Array::from_shape_vec(ndarray::ShapeBuilder::f((nx, ny, nz)), field()).unwrap();
+    let mut h = NiftiHeader {
+        scl_slope: slope,
+        scl_inter: inter,
+        xyzt_units: 2,
+        sform_code: 1,
+        ..NiftiHeader::default()
+    };
+    h.pixdim[1..4].copy_from_slice(&SPACING.map(|s| s as f32));
+    h.srow_x[3] = ORIGIN[0] as f32;
+    h.srow_y[3] = ORIGIN[1] as f32;
+    h.srow_z[3] = ORIGIN[2] as f32;
+    // The crate writes the header and samples (x fastest, little endian
+    // here) but resets scl_slope/scl_inter to 1/0, so they are patched in
+    // at their offsets (112, 116), and .nii.gz is the gzipped .nii.
+    let plain = path.parent().unwrap().join("writer-tmp.nii");
+    WriterOptions::new(&plain)
+        .reference_header(&h)
+        .write_nifti(&data)
+        .unwrap();
+    let mut b = std::fs::read(&plain).unwrap();
+    std::fs::remove_file(&plain).unwrap();
+    assert_eq!(&b[344..348], b"n+1\0");
+    b[112..116].copy_from_slice(&slope.to_le_bytes());
+    b[116..120].copy_from_slice(&inter.to_le_bytes());
+    let gzipped = path.to_string_lossy().ends_with(".gz");
+    std::fs::write(path, if gzipped { gz(&b) } else { b }).unwrap();
+}
+
+#[test]
+fn nifti_prepares_like_the_raw_stack() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let want = packed(
+        &reference(d, ORIGIN, Some((1.0, -24.0))),
+        &d.join("ref.cdv"),
+    )
+    .unwrap();
+    for name in ["h.nii", "h.nii.gz"] {
+        nifti_file(&d.join(name), 1.0, -24.0);
+        let got = packed(&d.join(name), &d.join(format!("{name}.cdv"))).unwrap();
+        assert_same(&got, &want, name);
+    }
+    // scl_slope 0 means no rescale.
+    let want1 = packed(&reference(d, ORIGIN, None), &d.join("ref1.cdv")).unwrap();
+    nifti_file(&d.join("n.nii"), 0.0, 5.0);
+    assert_same(
+        &packed(&d.join("n.nii"), &d.join("n.cdv")).unwrap(),
+        &want1,
+        "slope 0",
+    );
+
+    // Truncated files.
+    let out = d.join("o.cdv");
+    let b = std::fs::read(d.join("h.nii")).unwrap();
+    std::fs::write(d.join("t.nii"), &b[..b.len() - 100]).unwrap();
+    refused(&d.join("t.nii"), &out, &["t.nii", "expected at least"]);
+    let b = std::fs::read(d.join("h.nii.gz")).unwrap();
+    std::fs::write(d.join("t.nii.gz"), &b[..b.len() / 2]).unwrap();
+    refused(&d.join("t.nii.gz"), &out, &["t.nii.gz"]);
+    std::fs::write(d.join("junk.nii"), b"not a nifti file at all").unwrap();
+    refused(&d.join("junk.nii"), &out, &["junk.nii", "header"]);
+}
+
+#[test]
+fn cli_prep_reads_nrrd() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut f = nrrd_header(&nrrd_fields("gzip", "little")).into_bytes();
+    f.push(b'\n');
+    f.extend(gz(&bytes(&field(), false)));
+    std::fs::write(d.join("v.nrrd"), &f).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cdvol"))
+        .args(["prep", "-q", "--iso", "300"])
+        .arg(d.join("v.nrrd"))
+        .arg("-o")
+        .arg(d.join("v.cdv"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let want = packed(&reference(d, ORIGIN, None), &d.join("ref.cdv")).unwrap();
+    let got = PackedVolume::open(&d.join("v.cdv")).unwrap();
+    assert_eq!(got.header().axes, want.header().axes);
+    assert_eq!(
+        got.header().summary.one_cells,
+        want.header().summary.one_cells
+    );
+}
