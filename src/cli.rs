@@ -69,12 +69,16 @@ pub struct TradeoffsArgs {
 
 #[derive(Args, Debug)]
 pub struct PrepArgs {
-    /// The volume: a raw-stack sidecar (.json), NRRD (.nrrd, .nhdr) or
-    /// NIfTI-1 (.nii, .nii.gz).
+    /// The volume: a directory holding a DICOM series, a raw-stack sidecar
+    /// (.json), NRRD (.nrrd, .nhdr) or NIfTI-1 (.nii, .nii.gz).
     pub input: PathBuf,
     /// Packed output file.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// The DICOM series to prepare when the directory holds several
+    /// (SeriesInstanceUID).
+    #[arg(long, value_name = "UID")]
+    pub series: Option<String>,
     /// Iso value (rescaled units, e.g. HU): a cell is a 1-cell when its
     /// largest vertex value is >= T.
     #[arg(

@@ -115,7 +115,11 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 aniso: a.aniso,
                 temp_dir: a.temp_dir,
             };
-            let report = prep_file(&a.input, &a.output, &opts, progress)?;
+            let src = cdvol::input::open_with(&a.input, a.series.as_deref())?;
+            for line in src.report() {
+                println!("{line}");
+            }
+            let report = prep(src.as_ref(), &a.output, &opts, progress)?;
             print_prep(&a.output, &report)?;
         }
         Command::Info(a) => {

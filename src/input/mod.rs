@@ -5,6 +5,7 @@
 //! of raw sample values at a time. Nothing downstream knows the file format.
 //! Today the raw stack with a JSON sidecar ([`sidecar`]) implements it.
 
+pub mod dicom;
 pub mod gz;
 pub mod nifti;
 pub mod nrrd;
@@ -148,9 +149,21 @@ impl VolumeMeta {
     }
 }
 
-/// Opens any supported input by its name: a raw-stack sidecar (`.json`),
-/// NRRD (`.nrrd`, `.nhdr`) or NIfTI-1 (`.nii`, `.nii.gz`).
+/// Opens any supported input by its name: a directory of DICOM files (one
+/// series), a raw-stack sidecar (`.json`), NRRD (`.nrrd`, `.nhdr`) or
+/// NIfTI-1 (`.nii`, `.nii.gz`).
 pub fn open(path: &std::path::Path) -> Result<Box<dyn SliceSource>, InputError> {
+    open_with(path, None)
+}
+
+/// [`open`], picking DICOM series `series` when a directory holds several.
+pub fn open_with(
+    path: &std::path::Path,
+    series: Option<&str>,
+) -> Result<Box<dyn SliceSource>, InputError> {
+    if path.is_dir() {
+        return Ok(Box::new(dicom::open_dir(path, series)?));
+    }
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
@@ -172,6 +185,12 @@ pub trait SliceSource: Send + Sync {
     /// of slice `z`, before rescale. Integers are exact in f64; float NaNs
     /// are passed through.
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError>;
+
+    /// Lines worth telling the user about the input (a DICOM series' z
+    /// spacing, say); none by default.
+    fn report(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// Errors while reading an input volume. Each names the file and, where
