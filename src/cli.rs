@@ -23,6 +23,9 @@ pub struct Cli {
 pub enum Command {
     /// Classify cells, compute distance codes and write a packed file.
     Prep(PrepArgs),
+    /// Prepare every volume under a directory (DICOM series, NRRD, NIfTI,
+    /// raw sidecars) into OUT_DIR, resuming where a previous run stopped.
+    PrepBatch(PrepBatchArgs),
     /// Describe a packed file.
     Info(InfoArgs),
     /// Write values, codes or classes of a packed file as raw + sidecar.
@@ -79,6 +82,13 @@ pub struct PrepArgs {
     /// (SeriesInstanceUID).
     #[arg(long, value_name = "UID")]
     pub series: Option<String>,
+    #[command(flatten)]
+    pub settings: PrepSettings,
+}
+
+/// How prep classifies and packs (shared by prep and prep-batch).
+#[derive(Args, Debug)]
+pub struct PrepSettings {
     /// Iso value (rescaled units, e.g. HU): a cell is a 1-cell when its
     /// largest vertex value is >= T.
     #[arg(
@@ -104,6 +114,23 @@ pub struct PrepArgs {
     /// Directory for the temporary spill (default: beside the output).
     #[arg(long)]
     pub temp_dir: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct PrepBatchArgs {
+    /// Directory searched (recursively) for inputs.
+    pub input: PathBuf,
+    /// Directory for the packed files and the summary (batch.json).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Inputs prepared at once (memory grows with it: one prep each).
+    #[arg(long, default_value_t = 1)]
+    pub jobs: usize,
+    /// Process input i (sorted by path) when i % N == K.
+    #[arg(long, value_parser = cdvol::render::Shard::parse)]
+    pub shard: Option<cdvol::render::Shard>,
+    #[command(flatten)]
+    pub settings: PrepSettings,
 }
 
 #[derive(Args, Debug)]

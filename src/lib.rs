@@ -31,6 +31,7 @@ compile_error!(
     "cdvol's packed format is little-endian and is only built for little-endian targets"
 );
 
+pub mod batch;
 pub mod classify;
 pub mod corpus;
 pub mod dt;

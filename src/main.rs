@@ -59,6 +59,12 @@ impl Progress for Bars {
             }
         }
     }
+    fn println(&self, line: &str) {
+        match self.bar.lock().ok().as_ref().and_then(|b| b.as_ref()) {
+            Some(pb) if !pb.is_hidden() => pb.println(line),
+            _ => println!("{line}"),
+        }
+    }
 }
 
 fn main() -> ExitCode {
@@ -94,27 +100,7 @@ fn main() -> ExitCode {
 fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
     match cmd {
         Command::Prep(a) => {
-            let classification = match (a.iso, &a.classify_tf) {
-                (Some(iso), None) => {
-                    if !iso.is_finite() {
-                        bail!("option --iso: {iso}, expected a finite number");
-                    }
-                    Classification::Iso { iso }
-                }
-                (None, Some(tf)) => Classification::TransferFunction {
-                    tf: TransferFunction::load(tf)?,
-                },
-                _ => bail!(
-                    "prep needs --iso T or --classify-tf FILE to decide which cells are objects"
-                ),
-            };
-            let opts = PrepOptions {
-                classification,
-                brick_size: a.brick,
-                zstd_level: a.zstd_level,
-                aniso: a.aniso,
-                temp_dir: a.temp_dir,
-            };
+            let opts = prep_options(a.settings)?;
             let src = cdvol::input::open_with(&a.input, a.series.as_deref())?;
             for line in src.report() {
                 println!("{line}");
@@ -122,6 +108,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             let report = prep(src.as_ref(), &a.output, &opts, progress)?;
             print_prep(&a.output, &report)?;
         }
+        Command::PrepBatch(a) => prep_batch(a, progress)?,
         Command::Info(a) => {
             let vol = PackedVolume::open(&a.file)?;
             let info = Info::of(&vol);
@@ -415,6 +402,103 @@ fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<()> {
     serde_json::to_writer_pretty(tmp.as_file(), value)?;
     tmp.persist(p)
         .with_context(|| format!("{}: cannot write", p.display()))?;
+    Ok(())
+}
+
+/// Prep options from the command line.
+fn prep_options(a: cli::PrepSettings) -> Result<PrepOptions> {
+    let classification = match (a.iso, &a.classify_tf) {
+        (Some(iso), None) => {
+            if !iso.is_finite() {
+                bail!("option --iso: {iso}, expected a finite number");
+            }
+            Classification::Iso { iso }
+        }
+        (None, Some(tf)) => Classification::TransferFunction {
+            tf: TransferFunction::load(tf)?,
+        },
+        _ => bail!("prep needs --iso T or --classify-tf FILE to decide which cells are objects"),
+    };
+    Ok(PrepOptions {
+        classification,
+        brick_size: a.brick,
+        zstd_level: a.zstd_level,
+        aniso: a.aniso,
+        temp_dir: a.temp_dir,
+    })
+}
+
+fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
+    let opts = prep_options(a.settings)?;
+    let inputs = cdvol::batch::find_inputs(&a.input)?;
+    if inputs.is_empty() {
+        bail!(
+            "{}: no volumes found (DICOM series, .nrrd, .nhdr, .nii, .nii.gz, raw-stack .json)",
+            a.input.display()
+        );
+    }
+    let shard = a.shard.map(|s| (s.k, s.n)).unwrap_or((0, 1));
+    let total = inputs
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i as u32 % shard.1 == shard.0)
+        .count();
+    progress.begin("prep-batch", total as u64);
+    let line = Mutex::new(());
+    let rows = cdvol::batch::run(&inputs, &a.output, &opts, a.jobs, shard, &|r| {
+        let _g = line.lock();
+        progress.println(&format!(
+            "{:7} {} -> {} ({:.1} s){}",
+            r.status,
+            r.input,
+            r.output,
+            r.seconds,
+            r.error
+                .as_deref()
+                .map(|e| format!(": {e}"))
+                .unwrap_or_default()
+        ));
+        progress.advance(1);
+    })
+    .map_err(anyhow::Error::msg)?;
+    progress.end();
+    println!("| input | dims | slices | rectilinear | seconds | output MiB | status |");
+    println!("|---|---|---|---|---|---|---|");
+    for r in &rows {
+        let dims = r
+            .dims
+            .map(|d| format!("{}x{}x{}", d[0], d[1], d[2]))
+            .unwrap_or_else(|| "-".into());
+        println!(
+            "| {} | {dims} | {} | {} | {:.1} | {} | {} |",
+            r.input,
+            r.slices
+                .map(|s| s.to_string())
+                .unwrap_or_else(|| "-".into()),
+            r.rectilinear
+                .map(|b| if b { "yes" } else { "no" })
+                .unwrap_or("-"),
+            r.seconds,
+            r.output_bytes
+                .map(|b| format!("{:.2}", b as f64 / 1048576.0))
+                .unwrap_or_else(|| "-".into()),
+            r.status
+        );
+    }
+    let summary = a.output.join(match a.shard {
+        Some(s) => format!("batch.{}of{}.json", s.k, s.n),
+        None => "batch.json".into(),
+    });
+    write_json(&summary, &rows)?;
+    println!("wrote {}", summary.display());
+    let failed = rows.iter().filter(|r| r.status == "failed").count();
+    if failed > 0 {
+        bail!(
+            "{failed} of {} inputs failed (see the table and {})",
+            rows.len(),
+            summary.display()
+        );
+    }
     Ok(())
 }
 

@@ -9,6 +9,11 @@ pub trait Progress: Sync {
     fn advance(&self, _n: u64) {}
     /// The current stage is finished.
     fn end(&self) {}
+    /// A line of output (a finished item of a batch): printed to stdout,
+    /// above the bar where one is shown.
+    fn println(&self, line: &str) {
+        println!("{line}");
+    }
 }
 
 /// Reports nothing.

@@ -68,7 +68,7 @@ fn err(path: &Path, tag: &str, msg: impl Into<String>) -> InputError {
 }
 
 /// Whether the file has the DICOM magic after a 128-byte preamble.
-fn looks_dicom(path: &Path) -> bool {
+pub fn looks_dicom(path: &Path) -> bool {
     use std::io::Read;
     let mut b = [0u8; 132];
     std::fs::File::open(path)
@@ -194,13 +194,33 @@ fn name(p: &Path) -> String {
         .unwrap_or_else(|| p.display().to_string())
 }
 
-/// Opens the series in `dir` (the only one, or `series`).
-pub fn open_dir(dir: &Path, series: Option<&str>) -> Result<DicomSource, InputError> {
+/// The SeriesInstanceUID of a DICOM image file (`None` if it is not one).
+pub fn series_of(path: &Path) -> Option<String> {
+    header_of(path).ok().flatten().map(|s| s.series)
+}
+
+fn dicom_files(dir: &Path) -> Result<Vec<PathBuf>, InputError> {
     let mut files = Vec::new();
     files_under(dir, &mut files)?;
     files.sort();
+    files.retain(|f| looks_dicom(f));
+    Ok(files)
+}
+
+/// Opens the series in `dir` and its subdirectories (the only one, or
+/// `series`).
+pub fn open_dir(dir: &Path, series: Option<&str>) -> Result<DicomSource, InputError> {
+    open_files(dir, dicom_files(dir)?, series)
+}
+
+/// Opens the series made of `files` (`dir` names it in messages).
+pub fn open_files(
+    dir: &Path,
+    files: Vec<PathBuf>,
+    series: Option<&str>,
+) -> Result<DicomSource, InputError> {
     let mut slices = Vec::new();
-    for f in files.iter().filter(|f| looks_dicom(f)) {
+    for f in &files {
         if let Some(s) = header_of(f)? {
             slices.push(s);
         }

@@ -1,0 +1,306 @@
+//! `cdvol prep-batch`: prepares every volume under a directory.
+//!
+//! Inputs are raw-stack sidecars (`.json` objects with `dims`), NRRD
+//! (`.nrrd`, `.nhdr`), NIfTI-1 (`.nii`, `.nii.gz`) and DICOM series
+//! (DICOM files grouped by SeriesInstanceUID wherever they lie, named
+//! after the deepest directory holding all of a series' files). They are
+//! sorted by their path relative to the input directory; output `i` is
+//! named after that path (separators become `_`) with `.cdv`.
+//!
+//! An output that opens cleanly (its trailer CRC checks) and is newer than
+//! every file of its input is skipped, so a re-run after a crash resumes:
+//! outputs are written to a temporary file and renamed when complete, so a
+//! crash never leaves one that looks complete. A failing input is recorded
+//! and the batch goes on. `--shard K/N` takes input `i` when
+//! `i % N == K`; `--jobs J` prepares J inputs at once (each bounded as one
+//! prep is, so memory is J times one prep's).
+
+use std::path::{Path, PathBuf};
+use std::time::{Instant, SystemTime};
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::format::reader::PackedVolume;
+use crate::input::InputError;
+use crate::prep::{prep, PrepOptions};
+use crate::progress::NoProgress;
+
+/// One input of a batch.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BatchInput {
+    /// File, NRRD/NIfTI/sidecar, or the DICOM directory.
+    pub path: PathBuf,
+    /// The DICOM series (SeriesInstanceUID).
+    pub series: Option<String>,
+    /// The DICOM series' files (anywhere under the batch directory).
+    pub files: Vec<PathBuf>,
+    /// Path relative to the batch directory (plus the series), for names.
+    pub name: String,
+}
+
+/// A row of the summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct BatchRow {
+    pub input: String,
+    pub output: String,
+    pub dims: Option<[u64; 3]>,
+    pub slices: Option<u64>,
+    pub rectilinear: Option<bool>,
+    pub seconds: f64,
+    pub output_bytes: Option<u64>,
+    /// `done`, `skipped` (up to date), or `failed`.
+    pub status: String,
+    pub error: Option<String>,
+}
+
+/// Finds the inputs under `dir`, sorted by name.
+pub fn find_inputs(dir: &Path) -> Result<Vec<BatchInput>, InputError> {
+    let mut out = Vec::new();
+    let mut dicom = Vec::new();
+    walk(dir, dir, &mut out, &mut dicom)?;
+    // DICOM files by series, wherever they are: a series is one input,
+    // named after the deepest directory holding all its files.
+    let mut series: std::collections::BTreeMap<String, Vec<PathBuf>> = Default::default();
+    for f in dicom {
+        if let Some(uid) = crate::input::dicom::series_of(&f) {
+            series.entry(uid).or_default().push(f);
+        }
+    }
+    let mut per_dir: std::collections::BTreeMap<PathBuf, usize> = Default::default();
+    let common: Vec<(String, PathBuf, Vec<PathBuf>)> = series
+        .into_iter()
+        .map(|(uid, files)| {
+            let mut d = files[0].parent().unwrap_or(dir).to_path_buf();
+            while !files.iter().all(|f| f.starts_with(&d)) {
+                d = d.parent().unwrap_or(dir).to_path_buf();
+            }
+            *per_dir.entry(d.clone()).or_default() += 1;
+            (uid, d, files)
+        })
+        .collect();
+    for (uid, d, files) in common {
+        let name = rel(dir, &d);
+        let name = if name.is_empty() {
+            ".".to_string()
+        } else {
+            name
+        };
+        let name = if per_dir[&d] > 1 {
+            format!("{name}/{uid}")
+        } else {
+            name
+        };
+        out.push(BatchInput {
+            path: d,
+            series: Some(uid),
+            files,
+            name,
+        });
+    }
+    out.sort_by(|a, b| a.name.cmp(&b.name));
+    Ok(out)
+}
+
+fn rel(root: &Path, p: &Path) -> String {
+    p.strip_prefix(root)
+        .unwrap_or(p)
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn walk(
+    root: &Path,
+    dir: &Path,
+    out: &mut Vec<BatchInput>,
+    dicom: &mut Vec<PathBuf>,
+) -> Result<(), InputError> {
+    let io = |source| InputError::Io {
+        path: dir.to_path_buf(),
+        what: "cannot list the directory",
+        source,
+    };
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(io)?
+        .map(|e| e.map(|e| e.path()).map_err(io))
+        .collect::<Result<_, _>>()?;
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            walk(root, &p, out, dicom)?;
+            continue;
+        }
+        let lower = p
+            .file_name()
+            .map(|n| n.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        let volume = lower.ends_with(".nrrd")
+            || lower.ends_with(".nhdr")
+            || lower.ends_with(".nii")
+            || lower.ends_with(".nii.gz")
+            || (lower.ends_with(".json") && is_sidecar(&p));
+        if volume {
+            out.push(BatchInput {
+                name: rel(root, &p),
+                path: p,
+                series: None,
+                files: Vec::new(),
+            });
+        } else if crate::input::dicom::looks_dicom(&p) {
+            dicom.push(p);
+        }
+    }
+    Ok(())
+}
+
+/// A JSON object with `dims`: a raw-stack sidecar (other JSON, such as a
+/// sphere list or render statistics, is not an input).
+fn is_sidecar(p: &Path) -> bool {
+    std::fs::read(p)
+        .ok()
+        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
+        .is_some_and(|v| v.get("dims").is_some())
+}
+
+/// The output file of `input` in `out_dir`.
+pub fn output_name(out_dir: &Path, input: &BatchInput) -> PathBuf {
+    let base: String = input
+        .name
+        .chars()
+        .map(|c| if c == '/' || c == '\\' { '_' } else { c })
+        .collect();
+    let base = [".nii.gz", ".nrrd", ".nhdr", ".nii", ".json"]
+        .iter()
+        .find_map(|e| {
+            base.to_ascii_lowercase()
+                .ends_with(e)
+                .then(|| base[..base.len() - e.len()].to_string())
+        })
+        .unwrap_or(base);
+    let base = if base == "." { "dicom".into() } else { base };
+    out_dir.join(format!("{base}.cdv"))
+}
+
+/// Newest modification time of the files an input reads: the DICOM
+/// files of its directory, or the header and the data files it names.
+fn input_mtime(input: &BatchInput) -> Option<SystemTime> {
+    let m = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let files: Vec<PathBuf> = if !input.files.is_empty() {
+        input.files.clone()
+    } else {
+        let mut f = vec![input.path.clone()];
+        let lower = input.path.to_string_lossy().to_ascii_lowercase();
+        if lower.ends_with(".json") {
+            if let Ok(s) = crate::input::sidecar::parse_sidecar(&input.path) {
+                match s.data {
+                    crate::input::sidecar::DataFiles::One(p) => f.push(p),
+                    crate::input::sidecar::DataFiles::PerSlice(v) => f.extend(v),
+                }
+            }
+        } else if lower.ends_with(".nhdr") {
+            if let Ok(h) = crate::input::nrrd::parse(&input.path) {
+                f.push(h.data);
+            }
+        }
+        f
+    };
+    files
+        .iter()
+        .map(|p| m(p))
+        .collect::<Option<Vec<_>>>()?
+        .into_iter()
+        .max()
+}
+
+/// Whether `out` is a complete packed file newer than the input.
+fn up_to_date(out: &Path, input: &BatchInput) -> bool {
+    let Ok(t_out) = std::fs::metadata(out).and_then(|m| m.modified()) else {
+        return false;
+    };
+    PackedVolume::open(out).is_ok() && input_mtime(input).is_some_and(|t_in| t_out > t_in)
+}
+
+/// Prepares `inputs` (those of `shard`) into `out_dir`, `jobs` at a time,
+/// calling `done` with each finished row (in completion order); returns
+/// the rows in input order.
+pub fn run(
+    inputs: &[BatchInput],
+    out_dir: &Path,
+    opts: &PrepOptions,
+    jobs: usize,
+    shard: (u32, u32),
+    done: &(dyn Fn(&BatchRow) + Sync),
+) -> Result<Vec<BatchRow>, String> {
+    std::fs::create_dir_all(out_dir)
+        .map_err(|e| format!("{}: cannot create: {e}", out_dir.display()))?;
+    let mine: Vec<&BatchInput> = inputs
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i as u64 % shard.1 as u64 == shard.0 as u64)
+        .map(|(_, x)| x)
+        .collect();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs.max(1))
+        .build()
+        .map_err(|e| format!("cannot start {jobs} jobs: {e}"))?;
+    let rows: Vec<BatchRow> = pool.install(|| {
+        mine.par_iter()
+            .with_max_len(1)
+            .map(|input| {
+                let row = one(input, out_dir, opts);
+                done(&row);
+                row
+            })
+            .collect()
+    });
+    Ok(rows)
+}
+
+fn one(input: &BatchInput, out_dir: &Path, opts: &PrepOptions) -> BatchRow {
+    let out = output_name(out_dir, input);
+    let t0 = Instant::now();
+    let mut row = BatchRow {
+        input: input.name.clone(),
+        output: out.display().to_string(),
+        dims: None,
+        slices: None,
+        rectilinear: None,
+        seconds: 0.0,
+        output_bytes: None,
+        status: "done".into(),
+        error: None,
+    };
+    let describe = |row: &mut BatchRow, vol: &PackedVolume| {
+        let h = vol.header();
+        row.dims = Some(h.dims);
+        row.slices = Some(h.dims[2]);
+        row.rectilinear = Some(h.axes.iter().any(|a| !a.is_uniform()));
+        row.output_bytes = Some(vol.file_len());
+    };
+    if up_to_date(&out, input) {
+        if let Ok(v) = PackedVolume::open(&out) {
+            describe(&mut row, &v);
+        }
+        row.status = "skipped".into();
+        return row;
+    }
+    let opened = if !input.files.is_empty() {
+        crate::input::dicom::open_files(&input.path, input.files.clone(), input.series.as_deref())
+            .map(|s| Box::new(s) as Box<dyn crate::input::SliceSource>)
+    } else {
+        crate::input::open(&input.path)
+    };
+    let result = opened
+        .map_err(|e| e.to_string())
+        .and_then(|src| prep(src.as_ref(), &out, opts, &NoProgress).map_err(|e| e.to_string()))
+        .and_then(|_| PackedVolume::open(&out).map_err(|e| e.to_string()));
+    row.seconds = t0.elapsed().as_secs_f64();
+    match result {
+        Ok(v) => describe(&mut row, &v),
+        Err(e) => {
+            row.status = "failed".into();
+            row.error = Some(e);
+        }
+    }
+    row
+}
