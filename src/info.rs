@@ -21,6 +21,8 @@ pub struct Info {
     pub file: String,
     pub file_bytes: u64,
     pub source: String,
+    /// The input's notes (a DICOM series' z spacing report).
+    pub notes: Vec<String>,
     pub dims: [u64; 3],
     pub cells: [u64; 3],
     pub axes: [AxisInfo; 3],
@@ -65,6 +67,7 @@ impl Info {
             file: vol.path().display().to_string(),
             file_bytes: vol.file_len(),
             source: h.source.clone(),
+            notes: h.notes.clone(),
             dims: h.dims,
             cells: h.cells(),
             axes,
@@ -107,6 +110,9 @@ impl Info {
             mib(self.file_bytes)
         );
         let _ = writeln!(o, "source       {}", self.source);
+        for n in &self.notes {
+            let _ = writeln!(o, "             {n}");
+        }
         let _ = writeln!(
             o,
             "dims         {} x {} x {} samples, {} x {} x {} cells",

@@ -229,6 +229,7 @@ pub fn prep(
         aniso_block: opts.aniso.then_some(ANISO_BLOCK as u32),
         zstd_level: opts.zstd_level,
         source: meta.origin_desc.clone(),
+        notes: src.report(),
         summary: Summary::default(),
     };
     if header.max_payload_len() > crate::format::MAX_PAYLOAD_LEN {

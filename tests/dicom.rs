@@ -217,4 +217,20 @@ fn cli_prep_reads_a_series_directory() {
     assert!(text.contains("kept as a rectilinear z axis"), "{text}");
     let v = PackedVolume::open(&d.join("s.cdv")).unwrap();
     assert_eq!(v.header().axes[2].coords(), z_positions().as_slice());
+    // `info` repeats the spacing report from the file's header.
+    let info = std::process::Command::new(env!("CARGO_BIN_EXE_cdvol"))
+        .arg("info")
+        .arg(d.join("s.cdv"))
+        .output()
+        .unwrap();
+    let info = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        info.contains("most common spacing 1.00 mm (8 of 19 gaps)"),
+        "{info}"
+    );
+    assert_eq!(
+        info.matches("kept as a rectilinear z axis").count(),
+        11,
+        "{info}"
+    );
 }

@@ -112,6 +112,10 @@ pub struct Header {
     pub aniso_block: Option<u32>,
     pub zstd_level: i32,
     pub source: String,
+    /// What the input told about itself that a reader should know (a
+    /// DICOM series' z spacing report); absent in older files.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     pub summary: Summary,
 }
 
