@@ -196,3 +196,86 @@ fn info_and_export_through_the_cli() {
         }
     }
 }
+
+/// Same grid, types, rescale, summary and brick payloads.
+fn assert_same_volume(got: &PackedVolume, want: &PackedVolume, what: &str) {
+    let (g, w) = (got.header(), want.header());
+    assert_eq!(g.axes, w.axes, "{what}: axes");
+    assert_eq!((g.dtype, g.rescale), (w.dtype, w.rescale), "{what}: types");
+    assert_eq!(g.summary, w.summary, "{what}: summary");
+    for id in 0..w.brick_count() {
+        assert_eq!(
+            got.read_payload(id).unwrap(),
+            want.read_payload(id).unwrap(),
+            "{what}: brick {id}"
+        );
+    }
+}
+
+/// tools/fixtures.rs turns the real CT into a DICOM series with varying
+/// slice spacing (and broken copies), NRRD and NIfTI; each prepares like
+/// its raw reference, and each broken copy is refused by name.
+#[test]
+fn real_ct_as_dicom_nrrd_and_nifti() {
+    let ct = real_ct();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let st = Command::new(env!("CARGO_BIN_EXE_cdvol-fixtures"))
+        .arg(&ct)
+        .arg(d)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let pack = |src: &dyn SliceSource, name: &str| {
+        prep(
+            src,
+            &d.join(name),
+            &PrepOptions::new(Classification::Iso { iso: 300.0 }),
+            &NoProgress,
+        )
+        .unwrap();
+        PackedVolume::open(&d.join(name)).unwrap()
+    };
+    let series = cdvol::input::dicom::open_dir(&d.join("series"), None).unwrap();
+    assert!(!series.meta().grid.axes[2].is_uniform(), "rectilinear z");
+    let report = series.spacing_report().to_vec();
+    assert!(
+        report[0].contains("most common spacing 1.50 mm"),
+        "{report:?}"
+    );
+    assert!(report
+        .iter()
+        .any(|l| l.starts_with("1.50 mm expected, 3.00 mm found between IM")));
+    assert!(report
+        .iter()
+        .any(|l| l.starts_with("1.50 mm expected, 6.00 mm found between IM")));
+    let want = pack(&RawSource::open(&d.join("series.json")).unwrap(), "ref.cdv");
+    assert_same_volume(&pack(&series, "series.cdv"), &want, "DICOM series");
+
+    let whole = pack(&RawSource::open(&ct).unwrap(), "ct.cdv");
+    for name in ["volume.nrrd", "volume.nii.gz"] {
+        let src = cdvol::input::open(&d.join(name)).unwrap();
+        assert_same_volume(&pack(src.as_ref(), &format!("{name}.cdv")), &whole, name);
+    }
+
+    let refused = |sub: &str, words: &[&str]| {
+        let e = match cdvol::input::dicom::open_dir(&d.join(sub), None) {
+            Ok(src) => prep(
+                &src,
+                &d.join("x.cdv"),
+                &PrepOptions::new(Classification::Iso { iso: 300.0 }),
+                &NoProgress,
+            )
+            .map(|_| ())
+            .unwrap_err()
+            .to_string(),
+            Err(e) => e.to_string(),
+        };
+        for w in words {
+            assert!(e.contains(w), "{sub}: {e:?} does not mention {w:?}");
+        }
+    };
+    refused("dup", &["the same position as", "ImagePositionPatient"]);
+    refused("mixed", &["2 series", "--series"]);
+    refused("truncated", &["not a readable DICOM file"]);
+}

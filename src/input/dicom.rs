@@ -493,3 +493,94 @@ impl SliceSource for DicomSource {
         Ok(())
     }
 }
+
+/// What [`write_slice`] writes into a CT image slice.
+#[derive(Debug, Clone)]
+pub struct SliceHeader<'a> {
+    pub series: &'a str,
+    /// InstanceNumber (1-based) and part of the SOPInstanceUID.
+    pub instance: usize,
+    pub rows: usize,
+    pub cols: usize,
+    /// PixelSpacing: between rows, between columns (mm).
+    pub spacing: [f64; 2],
+    pub position: [f64; 3],
+    /// ImageOrientationPatient; `[1, 0, 0, 0, 1, 0]` for axial slices.
+    pub orientation: [f64; 6],
+    /// Stored values are signed (PixelRepresentation 1).
+    pub signed: bool,
+    pub rescale: Rescale,
+    /// Transfer syntax UID; the pixel data are written native, so it must
+    /// be an uncompressed one unless a test wants an undecodable file.
+    pub transfer_syntax: &'a str,
+}
+
+/// Explicit VR little endian.
+pub const EXPLICIT_VR_LE: &str = "1.2.840.10008.1.2.1";
+
+/// Writes one CT slice of 16-bit samples (`rows x cols`, x fastest; the
+/// bit patterns of i16 when `signed`) with dicom-rs: the fixture writer of
+/// the tests and of `tools/dicom-fixtures`.
+pub fn write_slice(path: &Path, h: &SliceHeader, pixels: &[u16]) -> Result<(), InputError> {
+    use dicom_core::{DataElement, PrimitiveValue, VR};
+    use dicom_object::{FileMetaTableBuilder, InMemDicomObject};
+    let ds = |v: &[f64]| PrimitiveValue::Strs(v.iter().map(|x| format!("{x}")).collect());
+    let us = |v: u16| PrimitiveValue::from(v);
+    let uid = format!("{}.{}", h.series, h.instance);
+    let mut o = InMemDicomObject::new_empty();
+    let mut put = |tag, vr, v: PrimitiveValue| {
+        o.put(DataElement::new(tag, vr, v));
+    };
+    put(
+        tags::SOP_CLASS_UID,
+        VR::UI,
+        "1.2.840.10008.5.1.4.1.1.2".into(),
+    );
+    put(tags::SOP_INSTANCE_UID, VR::UI, uid.as_str().into());
+    put(tags::MODALITY, VR::CS, "CT".into());
+    put(tags::SERIES_INSTANCE_UID, VR::UI, h.series.into());
+    put(
+        tags::INSTANCE_NUMBER,
+        VR::IS,
+        h.instance.to_string().as_str().into(),
+    );
+    put(tags::IMAGE_POSITION_PATIENT, VR::DS, ds(&h.position));
+    put(tags::IMAGE_ORIENTATION_PATIENT, VR::DS, ds(&h.orientation));
+    put(tags::PIXEL_SPACING, VR::DS, ds(&h.spacing));
+    put(tags::SAMPLES_PER_PIXEL, VR::US, us(1));
+    put(
+        tags::PHOTOMETRIC_INTERPRETATION,
+        VR::CS,
+        "MONOCHROME2".into(),
+    );
+    put(tags::ROWS, VR::US, us(h.rows as u16));
+    put(tags::COLUMNS, VR::US, us(h.cols as u16));
+    put(tags::BITS_ALLOCATED, VR::US, us(16));
+    put(tags::BITS_STORED, VR::US, us(16));
+    put(tags::HIGH_BIT, VR::US, us(15));
+    put(tags::PIXEL_REPRESENTATION, VR::US, us(h.signed as u16));
+    put(tags::RESCALE_INTERCEPT, VR::DS, ds(&[h.rescale.intercept]));
+    put(tags::RESCALE_SLOPE, VR::DS, ds(&[h.rescale.slope]));
+    put(
+        tags::PIXEL_DATA,
+        VR::OW,
+        PrimitiveValue::U16(pixels.iter().copied().collect()),
+    );
+    let file = o
+        .with_meta(
+            FileMetaTableBuilder::new()
+                .transfer_syntax(h.transfer_syntax)
+                .media_storage_sop_class_uid("1.2.840.10008.5.1.4.1.1.2")
+                .media_storage_sop_instance_uid(uid.as_str()),
+        )
+        .map_err(|e| err(path, "file meta", format!("{e}")))?;
+    if let Some(d) = path.parent() {
+        std::fs::create_dir_all(d).map_err(|source| InputError::Io {
+            path: d.to_path_buf(),
+            what: "cannot create the directory",
+            source,
+        })?;
+    }
+    file.write_to_file(path)
+        .map_err(|e| err(path, "file", format!("cannot write: {e}")))
+}

@@ -4,9 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use dicom_core::{DataElement, PrimitiveValue, VR};
-use dicom_dictionary_std::tags;
-use dicom_object::{FileMetaTableBuilder, InMemDicomObject};
+use cdvol::input::dicom::SliceHeader;
+use cdvol::input::Rescale;
 
 pub const NX: usize = 33;
 pub const NY: usize = 28;
@@ -54,113 +53,24 @@ pub struct Slice<'a> {
 }
 
 pub fn write_slice(path: &Path, s: &Slice) {
-    let ds = |v: &[f64]| PrimitiveValue::Strs(v.iter().map(|x| format!("{x}")).collect());
-    let mut obj = InMemDicomObject::new_empty();
-    let uid = format!("{}.{}.{}", s.series, s.k, s.rows);
-    let put = |o: &mut InMemDicomObject, tag, vr, v: PrimitiveValue| {
-        o.put(DataElement::new(tag, vr, v));
-    };
-    put(
-        &mut obj,
-        tags::SOP_CLASS_UID,
-        VR::UI,
-        "1.2.840.10008.5.1.4.1.1.2".into(),
-    );
-    put(
-        &mut obj,
-        tags::SOP_INSTANCE_UID,
-        VR::UI,
-        uid.as_str().into(),
-    );
-    put(&mut obj, tags::MODALITY, VR::CS, "CT".into());
-    put(&mut obj, tags::SERIES_INSTANCE_UID, VR::UI, s.series.into());
-    put(
-        &mut obj,
-        tags::INSTANCE_NUMBER,
-        VR::IS,
-        format!("{}", s.k + 1).as_str().into(),
-    );
-    put(
-        &mut obj,
-        tags::IMAGE_POSITION_PATIENT,
-        VR::DS,
-        ds(&s.position),
-    );
-    put(
-        &mut obj,
-        tags::IMAGE_ORIENTATION_PATIENT,
-        VR::DS,
-        ds(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0]),
-    );
-    put(&mut obj, tags::PIXEL_SPACING, VR::DS, ds(&[0.8, 0.7]));
-    put(
-        &mut obj,
-        tags::SAMPLES_PER_PIXEL,
-        VR::US,
-        PrimitiveValue::from(1u16),
-    );
-    put(
-        &mut obj,
-        tags::PHOTOMETRIC_INTERPRETATION,
-        VR::CS,
-        "MONOCHROME2".into(),
-    );
-    put(
-        &mut obj,
-        tags::ROWS,
-        VR::US,
-        PrimitiveValue::from(s.rows as u16),
-    );
-    put(
-        &mut obj,
-        tags::COLUMNS,
-        VR::US,
-        PrimitiveValue::from(NX as u16),
-    );
-    put(
-        &mut obj,
-        tags::BITS_ALLOCATED,
-        VR::US,
-        PrimitiveValue::from(16u16),
-    );
-    put(
-        &mut obj,
-        tags::BITS_STORED,
-        VR::US,
-        PrimitiveValue::from(16u16),
-    );
-    put(
-        &mut obj,
-        tags::HIGH_BIT,
-        VR::US,
-        PrimitiveValue::from(15u16),
-    );
-    put(
-        &mut obj,
-        tags::PIXEL_REPRESENTATION,
-        VR::US,
-        PrimitiveValue::from(0u16),
-    );
-    put(&mut obj, tags::RESCALE_INTERCEPT, VR::DS, ds(&[-1024.0]));
-    put(&mut obj, tags::RESCALE_SLOPE, VR::DS, ds(&[1.0]));
     let mut px = slice(s.k);
     px.resize(NX * s.rows, 0);
-    put(
-        &mut obj,
-        tags::PIXEL_DATA,
-        VR::OW,
-        PrimitiveValue::U16(px.into()),
-    );
-    let file = obj
-        .with_meta(
-            FileMetaTableBuilder::new()
-                .transfer_syntax(s.ts)
-                .media_storage_sop_class_uid("1.2.840.10008.5.1.4.1.1.2")
-                .media_storage_sop_instance_uid(uid.as_str()),
-        )
-        .unwrap();
-    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-    file.write_to_file(path).unwrap();
+    let h = SliceHeader {
+        series: s.series,
+        instance: s.k + 1,
+        rows: s.rows,
+        cols: NX,
+        spacing: [0.8, 0.7],
+        position: s.position,
+        orientation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+        signed: false,
+        rescale: Rescale {
+            slope: 1.0,
+            intercept: -1024.0,
+        },
+        transfer_syntax: s.ts,
+    };
+    cdvol::input::dicom::write_slice(path, &h, &px).unwrap();
 }
 
 /// The series in `dir` under scrambled names, some nested; returns the
