@@ -188,6 +188,28 @@ fn broken_series_are_refused_by_file_and_tag() {
     }
     refused(&p, None, &["ImagePositionPatient", "tilted"]);
 
+    // A transfer syntax whose pixel data cannot be decoded is named.
+    let (p, files) = fresh("ts");
+    let jpeg2000 = "1.2.840.10008.1.2.4.90";
+    write_slice(
+        &files[0],
+        &one(0, SERIES, NY, [10.0, -5.0, z_positions()[0]], jpeg2000),
+    );
+    let e = match open_dir(&p, None) {
+        Ok(src) => prep(
+            &src,
+            &d.join("ts.cdv"),
+            &PrepOptions::new(Classification::Iso { iso: 300.0 }),
+            &NoProgress,
+        )
+        .map(|_| ())
+        .unwrap_err()
+        .to_string(),
+        Err(e) => e.to_string(),
+    };
+    let f0 = files[0].file_name().unwrap().to_string_lossy().into_owned();
+    assert!(e.contains(&f0) && e.contains(jpeg2000), "{e}");
+
     // No DICOM at all.
     let p = d.join("empty");
     std::fs::create_dir(&p).unwrap();
