@@ -4,8 +4,8 @@
 //! (`.nrrd`, `.nhdr`), NIfTI-1 (`.nii`, `.nii.gz`) and DICOM series
 //! (DICOM files grouped by SeriesInstanceUID wherever they lie, named
 //! after the deepest directory holding all of a series' files). They are
-//! sorted by their path relative to the input directory; output `i` is
-//! named after that path (separators become `_`) with `.cdv`.
+//! sorted by their path relative to the input directory; each output is
+//! named after that path (see [`output_names`]).
 //!
 //! An output that opens cleanly (its trailer CRC checks) and is newer than
 //! every file of its input is skipped, so a re-run after a crash resumes:
@@ -13,12 +13,12 @@
 //! crash never leaves one that looks complete. A failing input is recorded
 //! and the batch goes on. `--shard K/N` takes input `i` when
 //! `i % N == K`; `--jobs J` prepares J inputs at once (each bounded as one
-//! prep is, so memory is J times one prep's).
+//! prep is, so memory is J times one prep's); every prep uses all cores
+//! either way.
 
 use std::path::{Path, PathBuf};
 use std::time::{Instant, SystemTime};
 
-use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::format::reader::PackedVolume;
@@ -162,23 +162,32 @@ fn is_sidecar(p: &Path) -> bool {
         .is_some_and(|v| v.get("dims").is_some())
 }
 
-/// The output file of `input` in `out_dir`.
-pub fn output_name(out_dir: &Path, input: &BatchInput) -> PathBuf {
-    let base: String = input
-        .name
-        .chars()
-        .map(|c| if c == '/' || c == '\\' { '_' } else { c })
-        .collect();
-    let base = [".nii.gz", ".nrrd", ".nhdr", ".nii", ".json"]
+/// The output files of `inputs` in `out_dir`: each input's name with
+/// `/` turned into `_` and `.cdv` appended (extensions kept, so
+/// `vol.nrrd` and `vol.nii.gz` stay apart), and `~2`, `~3`, ... added
+/// in input order where two names would still meet. Computed over all
+/// inputs, so every shard of a batch names the same input alike.
+pub fn output_names(out_dir: &Path, inputs: &[BatchInput]) -> Vec<PathBuf> {
+    let mut seen = std::collections::HashSet::new();
+    inputs
         .iter()
-        .find_map(|e| {
-            base.to_ascii_lowercase()
-                .ends_with(e)
-                .then(|| base[..base.len() - e.len()].to_string())
+        .map(|input| {
+            let base: String = match input.name.as_str() {
+                "." => "dicom".into(),
+                n => n
+                    .chars()
+                    .map(|c| if c == '/' || c == '\\' { '_' } else { c })
+                    .collect(),
+            };
+            let mut name = format!("{base}.cdv");
+            let mut k = 1;
+            while !seen.insert(name.clone()) {
+                k += 1;
+                name = format!("{base}~{k}.cdv");
+            }
+            out_dir.join(name)
         })
-        .unwrap_or(base);
-    let base = if base == "." { "dicom".into() } else { base };
-    out_dir.join(format!("{base}.cdv"))
+        .collect()
 }
 
 /// Newest modification time of the files an input reads: the DICOM
@@ -233,31 +242,42 @@ pub fn run(
 ) -> Result<Vec<BatchRow>, String> {
     std::fs::create_dir_all(out_dir)
         .map_err(|e| format!("{}: cannot create: {e}", out_dir.display()))?;
-    let mine: Vec<&BatchInput> = inputs
+    let outs = output_names(out_dir, inputs);
+    let mine: Vec<(&BatchInput, &PathBuf)> = inputs
         .iter()
+        .zip(&outs)
         .enumerate()
         .filter(|(i, _)| *i as u64 % shard.1 as u64 == shard.0 as u64)
         .map(|(_, x)| x)
         .collect();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs.max(1))
-        .build()
-        .map_err(|e| format!("cannot start {jobs} jobs: {e}"))?;
-    let rows: Vec<BatchRow> = pool.install(|| {
-        mine.par_iter()
-            .with_max_len(1)
-            .map(|input| {
-                let row = one(input, out_dir, opts);
+    // J workers take inputs in order; each prep runs on rayon's global
+    // pool, so a single job still uses every core.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let slots: std::sync::Mutex<Vec<Option<BatchRow>>> =
+        std::sync::Mutex::new(vec![None; mine.len()]);
+    std::thread::scope(|s| {
+        for _ in 0..jobs.clamp(1, mine.len().max(1)) {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&(input, out)) = mine.get(i) else {
+                    break;
+                };
+                let row = one(input, out, opts);
                 done(&row);
-                row
-            })
-            .collect()
+                slots.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(row);
+            });
+        }
     });
-    Ok(rows)
+    Ok(slots
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .into_iter()
+        .flatten()
+        .collect())
 }
 
-fn one(input: &BatchInput, out_dir: &Path, opts: &PrepOptions) -> BatchRow {
-    let out = output_name(out_dir, input);
+fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
+    let out = out.to_path_buf();
     let t0 = Instant::now();
     let mut row = BatchRow {
         input: input.name.clone(),
@@ -303,4 +323,45 @@ fn one(input: &BatchInput, out_dir: &Path, opts: &PrepOptions) -> BatchRow {
         }
     }
     row
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_names_never_meet() {
+        let input = |name: &str| BatchInput {
+            path: PathBuf::from(name),
+            series: None,
+            files: Vec::new(),
+            name: name.into(),
+        };
+        let names = [
+            "b/vol.nrrd",
+            "b_vol.nrrd",
+            "vol.nii.gz",
+            "vol.nrrd",
+            "series",
+            "series.json",
+            ".",
+        ];
+        let inputs: Vec<BatchInput> = names.iter().map(|n| input(n)).collect();
+        let got: Vec<String> = output_names(Path::new("o"), &inputs)
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            got,
+            [
+                "b_vol.nrrd.cdv",
+                "b_vol.nrrd~2.cdv",
+                "vol.nii.gz.cdv",
+                "vol.nrrd.cdv",
+                "series.cdv",
+                "series.json.cdv",
+                "dicom.cdv"
+            ]
+        );
+    }
 }

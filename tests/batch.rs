@@ -123,9 +123,9 @@ fn mixed_inputs_one_broken_then_resume() {
         v.header().axes[2].coords(),
         dicom_series::z_positions().as_slice()
     );
-    assert!(PackedVolume::open(&out.join("a_head.cdv")).is_ok());
-    assert!(PackedVolume::open(&out.join("b_vol.cdv")).is_ok());
-    assert!(!out.join("broken_short.cdv").exists());
+    assert!(PackedVolume::open(&out.join("a_head.json.cdv")).is_ok());
+    assert!(PackedVolume::open(&out.join("b_vol.nrrd.cdv")).is_ok());
+    assert!(!out.join("broken_short.json.cdv").exists());
 
     // A re-run skips the complete outputs and still reports the failure.
     let o = batch(&input, &out, &[]);
@@ -138,8 +138,8 @@ fn mixed_inputs_one_broken_then_resume() {
     std::thread::sleep(std::time::Duration::from_millis(20));
     let nrrd = std::fs::read(input.join("b/vol.nrrd")).unwrap();
     std::fs::write(input.join("b/vol.nrrd"), nrrd).unwrap();
-    let cdv = std::fs::read(out.join("a_head.cdv")).unwrap();
-    std::fs::write(out.join("a_head.cdv"), &cdv[..cdv.len() / 2]).unwrap();
+    let cdv = std::fs::read(out.join("a_head.json.cdv")).unwrap();
+    std::fs::write(out.join("a_head.json.cdv"), &cdv[..cdv.len() / 2]).unwrap();
     // Fix the broken input: the batch now succeeds.
     std::fs::write(input.join("broken/short.raw"), vec![0u8; 8 * 8 * 8 * 2]).unwrap();
     let o = batch(&input, &out, &[]);
