@@ -12,8 +12,10 @@ use cdvol::input::SliceSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 
+mod common;
 #[path = "common/dicom_series.rs"]
 mod dicom_series;
+use common::assert_same_volume;
 use dicom_series::*;
 
 /// The same samples as a raw stack with listed z positions.
@@ -53,18 +55,7 @@ fn series_prepares_like_the_raw_stack_and_reports_spacing() {
         &cdvol::input::raw::RawSource::open(&reference(d)).unwrap(),
         &d.join("ref.cdv"),
     );
-    let (g, w) = (got.header(), want.header());
-    assert_eq!(g.axes, w.axes);
-    assert_eq!((g.dtype, g.rescale), (w.dtype, w.rescale));
-    assert_eq!(g.summary, w.summary);
-    assert!(w.summary.one_cells > 0);
-    for id in 0..w.brick_count() {
-        assert_eq!(
-            got.read_payload(id).unwrap(),
-            want.read_payload(id).unwrap(),
-            "brick {id}"
-        );
-    }
+    assert_same_volume(&got, &want, "DICOM series");
     // 8 gaps of 1 mm are the most common; 6 of 2 mm and 5 of 4 mm differ.
     let r = src.spacing_report();
     assert_eq!(r.len(), 1 + 6 + 5, "{r:#?}");
@@ -148,16 +139,8 @@ fn broken_series_are_refused_by_file_and_tag() {
     let cut = files[7].file_name().unwrap().to_string_lossy().into_owned();
     // Headers are read first, pixel data when prep reaches the slice: the
     // error comes from prep, names the file, and leaves no output.
-    let src = open_dir(&p, None).unwrap();
     let out = d.join("cut.cdv");
-    let e = prep(
-        &src,
-        &out,
-        &PrepOptions::new(Classification::Iso { iso: 300.0 }),
-        &NoProgress,
-    )
-    .unwrap_err()
-    .to_string();
+    let e = series_error(&p, None, &out);
     assert!(
         e.contains(&cut) && e.contains("not a readable DICOM file"),
         "{e}"
@@ -195,18 +178,7 @@ fn broken_series_are_refused_by_file_and_tag() {
         &files[0],
         &one(0, SERIES, NY, [10.0, -5.0, z_positions()[0]], jpeg2000),
     );
-    let e = match open_dir(&p, None) {
-        Ok(src) => prep(
-            &src,
-            &d.join("ts.cdv"),
-            &PrepOptions::new(Classification::Iso { iso: 300.0 }),
-            &NoProgress,
-        )
-        .map(|_| ())
-        .unwrap_err()
-        .to_string(),
-        Err(e) => e.to_string(),
-    };
+    let e = series_error(&p, None, &d.join("ts.cdv"));
     let f0 = files[0].file_name().unwrap().to_string_lossy().into_owned();
     assert!(e.contains(&f0) && e.contains(jpeg2000), "{e}");
 

@@ -2,6 +2,8 @@
 //! and every brick's payload) as a raw sidecar of the same samples; broken
 //! headers and data get messages that name the file and the field.
 
+mod common;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -10,6 +12,7 @@ use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
+use common::assert_same_volume;
 
 const DIMS: [usize; 3] = [37, 30, 26];
 const SPACING: [f64; 3] = [0.8, 0.9, 1.5];
@@ -87,24 +90,6 @@ fn packed(input: &Path, out: &Path) -> Result<PackedVolume, String> {
     Ok(PackedVolume::open(out).unwrap())
 }
 
-/// Same grid, types, rescale, summary and brick payloads.
-fn assert_same(got: &PackedVolume, want: &PackedVolume, what: &str) {
-    let (g, w) = (got.header(), want.header());
-    assert_eq!(g.dims, w.dims, "{what}: dims");
-    assert_eq!(g.axes, w.axes, "{what}: axes");
-    assert_eq!((g.dtype, g.storage), (w.dtype, w.storage), "{what}: types");
-    assert_eq!(g.rescale, w.rescale, "{what}: rescale");
-    assert_eq!(g.summary, w.summary, "{what}: summary");
-    assert!(w.summary.one_cells > 0, "the fixture has 1-cells");
-    for id in 0..w.brick_count() {
-        assert_eq!(
-            got.read_payload(id).unwrap(),
-            want.read_payload(id).unwrap(),
-            "{what}: brick {id}"
-        );
-    }
-}
-
 fn nrrd_header(fields: &[(&str, String)]) -> String {
     let mut h = String::from("NRRD0004\n# written by tests/formats.rs\n");
     for (k, v) in fields {
@@ -165,7 +150,7 @@ fn nrrd_variants_prepare_like_the_raw_stack() {
 
     for name in ["a.nrrd", "b.nrrd", "c.nhdr", "d.nhdr"] {
         let got = packed(&d.join(name), &d.join(format!("{name}.cdv"))).unwrap();
-        assert_same(&got, &want, name);
+        assert_same_volume(&got, &want, name);
     }
 
     // `spacings` instead of directions (no origin: at 0).
@@ -180,7 +165,7 @@ fn nrrd_variants_prepare_like_the_raw_stack() {
         .chain([("data file", "c.raw".into()), ("byte skip", "5".into())])
         .collect();
     std::fs::write(d.join("e.nhdr"), nrrd_header(&fields)).unwrap();
-    assert_same(
+    assert_same_volume(
         &packed(&d.join("e.nhdr"), &d.join("e.cdv")).unwrap(),
         &want0,
         "spacings",
@@ -309,12 +294,12 @@ fn nifti_prepares_like_the_raw_stack() {
     for name in ["h.nii", "h.nii.gz"] {
         nifti_file(&d.join(name), 1.0, -24.0);
         let got = packed(&d.join(name), &d.join(format!("{name}.cdv"))).unwrap();
-        assert_same(&got, &want, name);
+        assert_same_volume(&got, &want, name);
     }
     // scl_slope 0 means no rescale.
     let want1 = packed(&reference(d, ORIGIN, None), &d.join("ref1.cdv")).unwrap();
     nifti_file(&d.join("n.nii"), 0.0, 5.0);
-    assert_same(
+    assert_same_volume(
         &packed(&d.join("n.nii"), &d.join("n.cdv")).unwrap(),
         &want1,
         "slope 0",

@@ -3,6 +3,8 @@
 //! equal the breadth-first oracle; info and export describe the result.
 
 mod common;
+#[path = "common/dicom_series.rs"]
+mod dicom_series;
 
 use std::path::Path;
 use std::process::Command;
@@ -197,21 +199,6 @@ fn info_and_export_through_the_cli() {
     }
 }
 
-/// Same grid, types, rescale, summary and brick payloads.
-fn assert_same_volume(got: &PackedVolume, want: &PackedVolume, what: &str) {
-    let (g, w) = (got.header(), want.header());
-    assert_eq!(g.axes, w.axes, "{what}: axes");
-    assert_eq!((g.dtype, g.rescale), (w.dtype, w.rescale), "{what}: types");
-    assert_eq!(g.summary, w.summary, "{what}: summary");
-    for id in 0..w.brick_count() {
-        assert_eq!(
-            got.read_payload(id).unwrap(),
-            want.read_payload(id).unwrap(),
-            "{what}: brick {id}"
-        );
-    }
-}
-
 /// tools/fixtures.rs turns the real CT into a DICOM series with varying
 /// slice spacing (and broken copies), NRRD and NIfTI; each prepares like
 /// its raw reference, and each broken copy is refused by name.
@@ -259,18 +246,7 @@ fn real_ct_as_dicom_nrrd_and_nifti() {
     }
 
     let refused = |sub: &str, words: &[&str]| {
-        let e = match cdvol::input::dicom::open_dir(&d.join(sub), None) {
-            Ok(src) => prep(
-                &src,
-                &d.join("x.cdv"),
-                &PrepOptions::new(Classification::Iso { iso: 300.0 }),
-                &NoProgress,
-            )
-            .map(|_| ())
-            .unwrap_err()
-            .to_string(),
-            Err(e) => e.to_string(),
-        };
+        let e = dicom_series::series_error(&d.join(sub), None, &d.join("x.cdv"));
         for w in words {
             assert!(e.contains(w), "{sub}: {e:?} does not mention {w:?}");
         }

@@ -98,3 +98,20 @@ pub fn write_series(dir: &Path) -> Vec<PathBuf> {
         })
         .collect()
 }
+
+/// The error a broken series gets: from opening it, or else from
+/// preparing it into `out` (pixel data are read only then). Panics if
+/// the series is accepted.
+pub fn series_error(dir: &Path, series: Option<&str>, out: &Path) -> String {
+    use cdvol::classify::Classification;
+    use cdvol::prep::{prep, PrepOptions};
+    let src = match cdvol::input::dicom::open_dir(dir, series) {
+        Ok(src) => src,
+        Err(e) => return e.to_string(),
+    };
+    let opts = PrepOptions::new(Classification::Iso { iso: 300.0 });
+    match prep(&src, out, &opts, &cdvol::progress::NoProgress) {
+        Ok(_) => panic!("{} was accepted", dir.display()),
+        Err(e) => e.to_string(),
+    }
+}

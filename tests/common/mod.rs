@@ -223,3 +223,22 @@ pub fn real_ct() -> PathBuf {
     }
     sidecar
 }
+
+/// Two packed files hold the same volume: dims, axes, types, rescale,
+/// summary and every brick's payload bytes (the source names differ).
+pub fn assert_same_volume(got: &PackedVolume, want: &PackedVolume, what: &str) {
+    let (g, w) = (got.header(), want.header());
+    assert_eq!(g.dims, w.dims, "{what}: dims");
+    assert_eq!(g.axes, w.axes, "{what}: axes");
+    assert_eq!((g.dtype, g.storage), (w.dtype, w.storage), "{what}: types");
+    assert_eq!(g.rescale, w.rescale, "{what}: rescale");
+    assert_eq!(g.summary, w.summary, "{what}: summary");
+    assert!(w.summary.one_cells > 0, "{what}: the fixture has 1-cells");
+    for id in 0..w.brick_count() {
+        assert_eq!(
+            got.read_payload(id).unwrap(),
+            want.read_payload(id).unwrap(),
+            "{what}: brick {id}"
+        );
+    }
+}
