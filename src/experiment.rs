@@ -385,7 +385,7 @@ fn set_ratios(rows: &mut [Row]) {
 /// measures the phantom, not the hit method). Mean, max, and such rays
 /// that found no hit.
 fn analytic_error(cam: &Camera, spheres: &[phantom::Sphere], depth: &[f32]) -> (f64, f64, u64) {
-    let (mut n, mut sum, mut max, mut missed) = (0u64, 0.0f64, 0.0f64, 0u64);
+    let mut err = DepthErr::default();
     for py in 0..cam.height {
         for px in 0..cam.width {
             let r: Ray = cam.ray(px, py);
@@ -402,41 +402,54 @@ fn analytic_error(cam: &Camera, spheres: &[phantom::Sphere], depth: &[f32]) -> (
                     }
                 }
             }
-            let got = depth[(py * cam.width + px) as usize];
             if let Some((t, cos)) = best {
                 if cos > 0.3 {
-                    if got.is_finite() {
-                        let e = (got as f64 - t).abs();
-                        n += 1;
-                        sum += e;
-                        max = max.max(e);
-                    } else {
-                        missed += 1;
-                    }
+                    err.add(t, depth[(py * cam.width + px) as usize]);
                 }
             }
         }
     }
-    (sum / n.max(1) as f64, max, missed)
+    err.result()
+}
+
+/// Depth errors against a reference: mean, max, and references missed.
+#[derive(Default)]
+struct DepthErr {
+    n: u64,
+    sum: f64,
+    max: f64,
+    missed: u64,
+}
+
+impl DepthErr {
+    /// One pixel whose reference depth is `want`; a non-finite `got` is
+    /// a miss.
+    fn add(&mut self, want: f64, got: f32) {
+        if got.is_finite() {
+            let e = (got as f64 - want).abs();
+            self.n += 1;
+            self.sum += e;
+            self.max = self.max.max(e);
+        } else {
+            self.missed += 1;
+        }
+    }
+
+    fn result(&self) -> (f64, f64, u64) {
+        (self.sum / self.n.max(1) as f64, self.max, self.missed)
+    }
 }
 
 /// Depth against the reference depth, over pixels where the reference
 /// hits; a reference hit without a hit here counts as missed.
 fn depth_error(reference: &[f32], depth: &[f32]) -> (f64, f64, u64) {
-    let (mut n, mut sum, mut max, mut missed) = (0u64, 0.0f64, 0.0f64, 0u64);
+    let mut err = DepthErr::default();
     for (r, d) in reference.iter().zip(depth) {
         if r.is_finite() {
-            if d.is_finite() {
-                let e = (*r as f64 - *d as f64).abs();
-                n += 1;
-                sum += e;
-                max = max.max(e);
-            } else {
-                missed += 1;
-            }
+            err.add(*r as f64, *d);
         }
     }
-    (sum / n.max(1) as f64, max, missed)
+    err.result()
 }
 
 /// RMSE in 8-bit levels and PSNR in dB (infinite when identical).

@@ -393,6 +393,21 @@ pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 mod tests {
     use super::*;
 
+    /// A ray along +x through the unit cell at y = z = 0.5, entering at
+    /// t = 1 and leaving at t = 2.
+    fn along_x() -> (Ray, Visit) {
+        let ray = Ray {
+            origin: [-1.0, 0.5, 0.5],
+            dir: [1.0, 0.0, 0.0],
+        };
+        let v = Visit {
+            cell: [0; 3],
+            t_enter: 1.0,
+            t_exit: 2.0,
+        };
+        (ray, v)
+    }
+
     #[test]
     fn trilinear_reproduces_vertices_and_linear_functions() {
         let coords: [Vec<f64>; 3] = [vec![0.0, 2.0], vec![1.0, 1.5], vec![-3.0, 1.0]];
@@ -418,15 +433,7 @@ mod tests {
         let coords: [Vec<f64>; 3] = [vec![0.0, 1.0], vec![0.0, 1.0], vec![0.0, 1.0]];
         let f = [0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0];
         let c = CellEval::new([&coords[0], &coords[1], &coords[2]], [0, 0, 0], f);
-        let ray = Ray {
-            origin: [-1.0, 0.5, 0.5],
-            dir: [1.0, 0.0, 0.0],
-        };
-        let v = Visit {
-            cell: [0; 3],
-            t_enter: 1.0,
-            t_exit: 2.0,
-        };
+        let (ray, v) = along_x();
         for m in [HitMethod::Int, HitMethod::Bisect, HitMethod::Newton] {
             let t = find_hit(&ray, &v, &c, 0.3, m).unwrap();
             assert!((t - 1.3).abs() < 1e-7, "{m:?}: {t}");
@@ -468,15 +475,7 @@ mod tests {
         // The linear guess is exact on a linear field: Newton must keep it.
         let lin = [0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0];
         let c = CellEval::new([&coords[0], &coords[1], &coords[2]], [0, 0, 0], lin);
-        let ray = Ray {
-            origin: [-1.0, 0.5, 0.5],
-            dir: [1.0, 0.0, 0.0],
-        };
-        let v = Visit {
-            cell: [0; 3],
-            t_enter: 1.0,
-            t_exit: 2.0,
-        };
+        let (ray, v) = along_x();
         assert_eq!(find_hit(&ray, &v, &c, 0.25, HitMethod::Newton), Some(1.25));
     }
 
@@ -804,15 +803,7 @@ mod tests {
             size: [1.0; 3],
             f,
         };
-        let ray = Ray {
-            origin: [-1.0, 0.5, 0.5],
-            dir: [1.0, 0.0, 0.0],
-        };
-        let v = Visit {
-            cell: [0; 3],
-            t_enter: 1.0,
-            t_exit: 2.0,
-        };
+        let (ray, v) = along_x();
         let p = HitParams {
             bisect_iters: 0,
             newton_iters: 0,
