@@ -66,10 +66,7 @@ fn bench(c: &mut Criterion) {
             250,
         )
         .unwrap();
-        let rays: Vec<Ray> = (0..250)
-            .flat_map(|y| (0..250).map(move |x| (x, y)))
-            .map(|(x, y)| cam.ray(x, y))
-            .collect();
+        let rays = all_rays(&cam);
         let cache = BrickCache::new(&vol, 1 << 30);
         g.throughput(Throughput::Elements(rays.len() as u64));
         for (name, m) in [
@@ -92,6 +89,14 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
+/// One ray per pixel of `cam`, row by row.
+fn all_rays(cam: &Camera) -> Vec<Ray> {
+    (0..cam.height)
+        .flat_map(|y| (0..cam.width).map(move |x| (x, y)))
+        .map(|(x, y)| cam.ray(x, y))
+        .collect()
+}
+
 /// The same background traversal in f32 and f64 arithmetic
 /// (`--precision`), on the sparsest and a dense scene.
 fn precision(c: &mut Criterion) {
@@ -104,10 +109,7 @@ fn precision(c: &mut Criterion) {
         let g32 = TGrid::<f32>::new(&vol.header().axes);
         let (lo, hi) = g64.bounds();
         let cam = Camera::orbit((lo, hi), 30.0, 20.0, None, None, 250, 250).unwrap();
-        let rays: Vec<Ray> = (0..250)
-            .flat_map(|y| (0..250).map(move |x| (x, y)))
-            .map(|(x, y)| cam.ray(x, y))
-            .collect();
+        let rays = all_rays(&cam);
         let cache = BrickCache::new(&vol, 1 << 30);
         g.throughput(Throughput::Elements(rays.len() as u64));
         for (name, m) in [("fvt", Method::Fvt), ("cd", Method::Cd { min_leap: 1 })] {

@@ -393,16 +393,8 @@ fn numbered(path: &Path, f: u32) -> PathBuf {
 
 /// Writes `value` as pretty JSON to `p` (temporary file, renamed).
 fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<()> {
-    let tmp = tempfile::NamedTempFile::new_in(
-        p.parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new(".")),
-    )
-    .with_context(|| format!("{}: cannot create a temporary file", p.display()))?;
-    serde_json::to_writer_pretty(tmp.as_file(), value)?;
-    tmp.persist(p)
-        .with_context(|| format!("{}: cannot write", p.display()))?;
-    Ok(())
+    let bytes = serde_json::to_vec_pretty(value)?;
+    cdvol::render::write_atomic(p, &bytes).map_err(anyhow::Error::msg)
 }
 
 /// Prep options from the command line.

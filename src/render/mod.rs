@@ -783,7 +783,7 @@ fn heat(x: f32) -> [u8; 3] {
 
 /// Writes `bytes` to `target` through a temporary file beside it, renamed
 /// when complete.
-pub(crate) fn write_atomic(target: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
+pub fn write_atomic(target: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
     let dir = match target.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => std::path::PathBuf::from("."),
