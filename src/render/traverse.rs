@@ -76,6 +76,52 @@ pub trait CodeSource {
     /// larger of its isotropic code and its block's code for that octant
     /// (section 4.2.1): both cubes are empty, so the larger leap is safe.
     fn code(&mut self, c: [u32; 3], octant: Option<usize>) -> u8;
+
+    /// Distance of the DDA generators (paper section 3, Figs. 4, 5, 19)
+    /// from the centre of cell `c` to the centre of the nearest 1-cell, in
+    /// stored units ([`DistKind::unit`]): 0 for a 1-cell, saturating at
+    /// 254. The default derives it from the chessboard code, a lower bound
+    /// for all three kinds (`L1 >= Linf`, chamfer 3-4-5 `>= 3 Linf`), so
+    /// it is always safe, if short, for sources without DDA planes.
+    fn distance(&mut self, c: [u32; 3], kind: DistKind) -> u8 {
+        let code = self.code(c, None);
+        if code == OBJECT {
+            return 0;
+        }
+        let d = code as u32 + 1;
+        (d * kind.unit()).min(254) as u8
+    }
+
+    /// Largest level `L` such that the octree node of `2^L` cells per
+    /// axis, aligned to multiples of `2^L` in the original grid, that
+    /// contains cell `c` holds no 1-cell; `None` for a 1-cell. The default
+    /// knows only the cell itself (level 0).
+    fn empty_level(&mut self, c: [u32; 3]) -> Option<u8> {
+        (self.code(c, None) != OBJECT).then_some(0)
+    }
+}
+
+/// Distance types of the DDA ray generators (RADC, proximity clouds;
+/// paper section 3, Fig. 4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+pub enum DistKind {
+    /// `L1`, stored in cells (exact two-pass transform).
+    Cityblock,
+    /// `Linf`, stored in cells: the CD code plus one.
+    Chessboard,
+    /// Chamfer 3-4-5 (Borgefors), approximating the Euclidean distance,
+    /// stored in thirds of a cell.
+    Chamfer,
+}
+
+impl DistKind {
+    /// Stored units per cell.
+    pub fn unit(self) -> u32 {
+        match self {
+            DistKind::Chamfer => 3,
+            _ => 1,
+        }
+    }
 }
 
 /// Which ray generator to use.
