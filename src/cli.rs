@@ -246,6 +246,11 @@ pub enum TraversalArg {
     Cd,
     Fvt,
     CdAniso,
+    Octree,
+    DdaCityblock,
+    DdaChessboard,
+    DdaChamfer,
+    Template,
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -271,14 +276,25 @@ pub struct RenderArgs {
     pub output: PathBuf,
     #[arg(long, value_enum, default_value = "surface")]
     pub mode: ModeArg,
-    /// Ray generator: chessboard distance (default), single-cell steps, or
-    /// CD with anisotropic codes (files prepared with --aniso).
+    /// Ray generator (paper section 5): chessboard distance (default),
+    /// single-cell steps, CD with anisotropic codes (files prepared with
+    /// --aniso), an octree, the 3D DDA with city-block / chessboard /
+    /// chamfer leaps (regular grids; files prepared with --dda), or
+    /// template-based CD (parallel projection, regular grids).
     #[arg(long, value_enum, default_value = "cd")]
     pub traversal: TraversalArg,
     /// CD leaps only over cells with at least this code; smaller codes take
     /// single-cell steps (1 = the paper).
     #[arg(long, default_value_t = 1)]
     pub min_leap: u8,
+    /// CD switches to single-cell (FVT) steps in cells whose chessboard
+    /// code is at most D (paper Fig. 20; the same as --min-leap D+1).
+    #[arg(long, value_name = "D", conflicts_with = "min_leap")]
+    pub switch_fvt_at: Option<u8>,
+    /// DDA traversals: do not switch to single-cell steps near objects
+    /// (misses 1-cells; for measuring step lengths, paper Fig. 18a).
+    #[arg(long)]
+    pub no_switch_fvt: bool,
     /// Surface intersection inside a 1-cell.
     #[arg(long, value_enum, default_value = "int")]
     pub hit: HitArg,

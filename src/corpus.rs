@@ -101,6 +101,23 @@ impl CodeSource for &MemVolume {
             None => self.code_of(c),
         }
     }
+
+    /// By definition: the largest level whose aligned node (clipped to
+    /// the volume) holds no 1-cell, searched top-down over the list.
+    fn empty_level(&mut self, c: [u32; 3]) -> Option<u8> {
+        if self.is_object(c) {
+            return None;
+        }
+        let top = self.ncells.iter().map(|&n| n.next_power_of_two().trailing_zeros()).max();
+        for l in (1..=top.unwrap_or(0)).rev() {
+            let a = c.map(|x| (x >> l) << l);
+            let inside = |o: &[u32; 3]| (0..3).all(|k| o[k] >= a[k] && o[k] - a[k] < (1 << l));
+            if !self.objects.iter().any(inside) {
+                return Some(l as u8);
+            }
+        }
+        Some(0)
+    }
 }
 
 /// The result of walking one ray: the visits and the step count.

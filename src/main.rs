@@ -21,7 +21,7 @@ use cdvol::prep::{prep, PrepOptions, PrepReport};
 use cdvol::progress::{NoProgress, Progress};
 use cdvol::render::camera::{Camera, Projection};
 use cdvol::render::shade::{HitMethod, HitParams};
-use cdvol::render::traverse::{Method, TGrid};
+use cdvol::render::traverse::{DistKind, Method, TGrid};
 use cdvol::render::{render, render_part, Mode, Precision, RenderOptions, Stats};
 use cli::{Cli, Command, PhantomCmd};
 
@@ -293,14 +293,20 @@ fn render_cmd(
             }
         }
     };
+    let min_leap = a.switch_fvt_at.map_or(a.min_leap, |d| d.saturating_add(1));
+    let dda = |kind| Method::Dda {
+        kind,
+        switch_fvt: !a.no_switch_fvt,
+    };
     let method = match a.traversal {
         cli::TraversalArg::Fvt => Method::Fvt,
-        cli::TraversalArg::Cd => Method::Cd {
-            min_leap: a.min_leap,
-        },
-        cli::TraversalArg::CdAniso => Method::CdAniso {
-            min_leap: a.min_leap,
-        },
+        cli::TraversalArg::Cd => Method::Cd { min_leap },
+        cli::TraversalArg::CdAniso => Method::CdAniso { min_leap },
+        cli::TraversalArg::Octree => Method::Octree,
+        cli::TraversalArg::DdaCityblock => dda(DistKind::Cityblock),
+        cli::TraversalArg::DdaChessboard => dda(DistKind::Chessboard),
+        cli::TraversalArg::DdaChamfer => dda(DistKind::Chamfer),
+        cli::TraversalArg::Template => anyhow::bail!("--traversal template: not wired yet"),
     };
     let opts = RenderOptions {
         mode,

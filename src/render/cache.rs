@@ -45,6 +45,10 @@ pub struct RBrick {
     pub values: Vec<f32>,
     /// Per 4^3 block, the 8 octant codes (anisotropic files only).
     pub octants: Vec<[u8; 8]>,
+    /// Octree levels inside the brick ([`BrickCache::with_octree`] only):
+    /// `levels[l - 1]` flags which nodes of `2^l` cells per axis hold no
+    /// 1-cell, x fastest.
+    pub levels: Vec<Vec<bool>>,
     /// Bytes this brick holds (for the cache budget).
     pub bytes: usize,
 }
@@ -101,7 +105,11 @@ impl RBrick {
         ]
     }
 
-    fn decode(vol: &PackedVolume, id: u64) -> Result<(RBrick, u64), FormatError> {
+    fn decode(
+        vol: &PackedVolume,
+        id: u64,
+        octree: Option<u32>,
+    ) -> Result<(RBrick, u64), FormatError> {
         let h = vol.header();
         let coords = h.brick_coords(id);
         let cells = h.brick_samples(coords).map(|s| (s - 1) as u32);
@@ -114,6 +122,7 @@ impl RBrick {
                 codes: Codes::Uniform(code),
                 values: Vec::new(),
                 octants: Vec::new(),
+                levels: Vec::new(),
                 bytes: std::mem::size_of::<RBrick>(),
             };
             return Ok((b, 0));
@@ -152,7 +161,13 @@ impl RBrick {
                 });
                 Self::assemble(vol, id, &raw, [sx, sy, sz], first, cells, vals, word_code)
             })
-            .map(|b| (b, raw_len))
+            .map(|mut b| {
+                if let (Some(lb), Codes::Plane(p)) = (octree, &b.codes) {
+                    b.levels = octree_levels(p, b.cells, lb);
+                    b.bytes += b.levels.iter().map(Vec::len).sum::<usize>();
+                }
+                (b, raw_len)
+            })
     }
 
     /// The brick from its decoded words: `vals` (rescaled, f64) and
@@ -243,9 +258,93 @@ impl RBrick {
             codes: Codes::Plane(plane),
             values,
             octants,
+            levels: Vec::new(),
             bytes,
         })
     }
+}
+
+/// Octree levels `1..=lb` of a brick's code plane (`cells` per axis):
+/// level 1 from the cells, each further level from the one below (a node
+/// is empty when all its children inside the brick are).
+pub fn octree_levels(plane: &[u8], cells: [u32; 3], lb: u32) -> Vec<Vec<bool>> {
+    let mut levels: Vec<Vec<bool>> = Vec::with_capacity(lb as usize);
+    let mut below: Vec<bool> = plane.iter().map(|&c| c != OBJECT).collect();
+    let mut dims = cells;
+    for _ in 0..lb {
+        let up = dims.map(|d| d.div_ceil(2));
+        let mut cur = vec![true; (up[0] * up[1] * up[2]) as usize];
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    if !below[((z * dims[1] + y) * dims[0] + x) as usize] {
+                        cur[(((z / 2) * up[1] + y / 2) * up[0] + x / 2) as usize] = false;
+                    }
+                }
+            }
+        }
+        levels.push(cur.clone());
+        below = cur;
+        dims = up;
+    }
+    levels
+}
+
+/// The octree above the bricks (paper section 5.1, SMART): level `j`
+/// flags which nodes of `2^j` bricks per axis hold no 1-cell, from the
+/// index alone (no brick is read). Only for power-of-two brick sizes,
+/// where bricks are octree nodes.
+#[derive(Debug)]
+struct BrickPyramid {
+    /// `levels[j]`: dims and flags, x fastest.
+    levels: Vec<([u64; 3], Vec<bool>)>,
+}
+
+impl BrickPyramid {
+    fn new(vol: &PackedVolume) -> BrickPyramid {
+        let h = vol.header();
+        let mut dims = h.bricks;
+        let mut cur: Vec<bool> = vol.index().iter().map(|e| e.has_no_object()).collect();
+        let mut levels = vec![(dims, cur.clone())];
+        while dims.iter().any(|&d| d > 1) {
+            let up = dims.map(|d| d.div_ceil(2));
+            let mut next = vec![true; (up[0] * up[1] * up[2]) as usize];
+            for z in 0..dims[2] {
+                for y in 0..dims[1] {
+                    for x in 0..dims[0] {
+                        if !cur[((z * dims[1] + y) * dims[0] + x) as usize] {
+                            next[(((z / 2) * up[1] + y / 2) * up[0] + x / 2) as usize] = false;
+                        }
+                    }
+                }
+            }
+            levels.push((up, next.clone()));
+            cur = next;
+            dims = up;
+        }
+        BrickPyramid { levels }
+    }
+
+    /// Highest level whose node holding brick `b` is empty, top-down.
+    #[inline]
+    fn empty_level(&self, b: [u64; 3]) -> Option<u32> {
+        for (j, (d, f)) in self.levels.iter().enumerate().rev() {
+            let n = b.map(|x| x >> j);
+            if f[((n[2] * d[1] + n[1]) * d[0] + n[0]) as usize] {
+                return Some(j as u32);
+            }
+        }
+        None
+    }
+}
+
+/// The octree of a cache built [`BrickCache::with_octree`].
+#[derive(Debug)]
+struct Octree {
+    /// Levels inside a brick: `2^lb` divides the brick size.
+    lb: u32,
+    /// Levels above (power-of-two brick sizes only).
+    bricks: Option<BrickPyramid>,
 }
 
 type Scratch = (Vec<f64>, Vec<u32>);
@@ -349,6 +448,7 @@ pub struct BrickCache<'v> {
     vol: &'v PackedVolume,
     budget: usize,
     lru: Mutex<Lru<Arc<RBrick>>>,
+    octree: Option<Octree>,
 }
 
 impl<'v> BrickCache<'v> {
@@ -357,7 +457,23 @@ impl<'v> BrickCache<'v> {
             vol,
             budget: budget_bytes,
             lru: Mutex::new(Lru::new()),
+            octree: None,
         }
+    }
+
+    /// This cache, also holding the octree of [`Method::Octree`]: the
+    /// levels above the bricks built now from the index, those inside a
+    /// brick with each decoded brick (one bit per node, ~1/7 byte per
+    /// cell, counted against the budget).
+    ///
+    /// [`Method::Octree`]: super::traverse::Method::Octree
+    pub fn with_octree(mut self) -> BrickCache<'v> {
+        let bs = self.vol.header().brick_size;
+        self.octree = Some(Octree {
+            lb: bs.trailing_zeros(),
+            bricks: bs.is_power_of_two().then(|| BrickPyramid::new(self.vol)),
+        });
+        self
     }
 
     pub fn volume(&self) -> &PackedVolume {
@@ -410,10 +526,11 @@ impl<'v> BrickCache<'v> {
                 codes: Codes::Uniform(e.uniform_code.min(254) as u8),
                 values: Vec::new(),
                 octants: Vec::new(),
+                levels: Vec::new(),
                 bytes: std::mem::size_of::<RBrick>(),
             }
         } else {
-            let (b, raw) = RBrick::decode(self.vol, id)?;
+            let (b, raw) = RBrick::decode(self.vol, id, self.octree.as_ref().map(|o| o.lb))?;
             c.bytes_decompressed += raw;
             b
         };
@@ -467,7 +584,9 @@ impl<'a, 'v> Accessor<'a, 'v> {
         use super::traverse::Method;
         let lazy = match method {
             Method::Fvt => Some(0),
-            Method::Cd { .. } | Method::CdAniso { .. } => Some(cd_lazy_min),
+            Method::Cd { .. } | Method::CdAniso { .. } | Method::Dda { .. } => Some(cd_lazy_min),
+            // The octree answers for bricks without 1-cells from the index.
+            Method::Octree => Some(0),
         };
         Accessor::with_lazy(cache, lazy)
     }
@@ -541,6 +660,39 @@ impl super::traverse::CodeSource for Accessor<'_, '_> {
             _ => code,
         }
     }
+
+    /// Top-down through the octree: the levels above the bricks from the
+    /// index (no read), then the brick's own levels. Without an octree
+    /// in the cache, the trait's single-cell answer.
+    #[inline]
+    fn empty_level(&mut self, c: [u32; 3]) -> Option<u8> {
+        let Some(oc) = self.cache.octree.as_ref() else {
+            return (self.code(c, None) != OBJECT).then_some(0);
+        };
+        let lb = oc.lb;
+        if let Some(p) = &oc.bricks {
+            let bs = self.brick_size;
+            if let Some(j) = p.empty_level([c[0] / bs, c[1] / bs, c[2] / bs].map(u64::from)) {
+                return Some((lb + j) as u8);
+            }
+        }
+        let (b, l) = self.brick(c);
+        if b.code(l) == OBJECT {
+            return None;
+        }
+        if let Codes::Uniform(_) = b.codes {
+            return Some(lb as u8);
+        }
+        for (i, f) in b.levels.iter().enumerate().rev() {
+            let s = i as u32 + 1;
+            let d = b.cells.map(|n| n.div_ceil(1 << s));
+            let n = l.map(|x| x >> s);
+            if f[((n[2] * d[1] + n[1]) * d[0] + n[0]) as usize] {
+                return Some(s as u8);
+            }
+        }
+        Some(0)
+    }
 }
 
 impl Accessor<'_, '_> {
@@ -559,6 +711,7 @@ static EMPTY: RBrick = RBrick {
     codes: Codes::Uniform(0),
     values: Vec::new(),
     octants: Vec::new(),
+    levels: Vec::new(),
     bytes: 0,
 };
 

@@ -343,6 +343,19 @@ pub fn render_part(
                 .into(),
         });
     }
+    if opts.method.needs_regular_grid() {
+        if let Some(k) = (0..3).find(|&k| !vol.header().axes[k].is_uniform()) {
+            return Err(RenderError::Incompatible {
+                path: vol.path().to_path_buf(),
+                msg: format!(
+                    "--traversal {:?} needs a regular grid, but axis {} has varying spacing: \
+                     the DDA steps in cells of one size per axis (use cd or fvt)",
+                    opts.method,
+                    ["x", "y", "z"][k]
+                ),
+            });
+        }
+    }
     if shard.n == 0 || shard.k >= shard.n {
         return Err(RenderError::Option {
             option: "--shard",
@@ -351,6 +364,11 @@ pub fn render_part(
     }
     let h = vol.header();
     let cache = BrickCache::new(vol, opts.cache_bytes);
+    let cache = if opts.method == Method::Octree {
+        cache.with_octree()
+    } else {
+        cache
+    };
     let (w, hgt) = (camera.width, camera.height);
     let results = match opts.precision {
         Precision::F64 => render_tiles::<f64>(vol, &cache, camera, opts, shard, progress),

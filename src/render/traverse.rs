@@ -134,6 +134,40 @@ pub enum Method {
     Cd { min_leap: u8 },
     /// CD with the octant (anisotropic) codes of section 4.2.1.
     CdAniso { min_leap: u8 },
+    /// Octree (min-max pyramid) traversal in the spirit of SMART (paper
+    /// section 5.1): at each cell the largest empty aligned node holding
+    /// it is found top-down ([`CodeSource::empty_level`]) and the ray
+    /// leaps to the node's exit face by the same step as CD, so it lands
+    /// exactly where FVT would.
+    Octree,
+    /// Floating-point 3D DDA with distance-coded leaps (RADC, proximity
+    /// clouds; paper section 3, eqs. 2-3): from a sample in a cell at
+    /// distance `d`, the next sample is `(d - 1) / D(r)` further along the
+    /// ray (`D` the ray direction's norm in the distance's metric, in cell
+    /// units; `- 1` because distances are from cell centres), at least one
+    /// cell along the major axis. With `switch_fvt`, cells with `d < 2`
+    /// (no leap of a whole cell) are walked by single-cell steps until a
+    /// leap is possible again; without it the DDA samples one cell per
+    /// major-axis step there and may miss 1-cells (Fig. 18a only).
+    /// Regular grids only (every axis uniform).
+    Dda { kind: DistKind, switch_fvt: bool },
+}
+
+impl Method {
+    /// Whether every 1-cell the FVT visits is visited, in the same order
+    /// with the same entry and exit (tests/generators.rs checks these bit
+    /// for bit against FVT).
+    pub fn is_exact(self) -> bool {
+        match self {
+            Method::Dda { kind, switch_fvt } => switch_fvt && kind == DistKind::Chessboard,
+            _ => true,
+        }
+    }
+
+    /// Whether the method needs every axis uniform.
+    pub fn needs_regular_grid(self) -> bool {
+        matches!(self, Method::Dda { .. })
+    }
 }
 
 /// One axis in both orientations.
@@ -361,6 +395,24 @@ impl<'g, T: Real> Walk<'g, T> {
         }
     }
 
+    /// Far faces, in the mirrored frame, of the octree node of level `l`
+    /// holding original cell `real`: the node spans `[a, a + 2^l)` along
+    /// each axis of the original grid (clipped to the volume), so its far
+    /// face is `a + 2^l` on an unmirrored axis and `n - a` on a mirrored
+    /// one.
+    #[inline(always)]
+    fn node_far(&self, real: [u32; 3], l: u8) -> [u32; 3] {
+        let l = l.min(40);
+        std::array::from_fn(|k| {
+            let a = (real[k] as u64 >> l) << l;
+            if self.mirror[k] {
+                (self.n[k] as u64 - a) as u32
+            } else {
+                (a + (1u64 << l)).min(self.n[k] as u64) as u32
+            }
+        })
+    }
+
     /// Original cell index of mirrored cell `v`.
     #[inline(always)]
     fn real(&self, v: [u32; 3]) -> [u32; 3] {
@@ -510,15 +562,40 @@ where
         w.plane_t(2, v[2] + 1),
     ];
     let (min_leap, aniso) = match method {
-        Method::Fvt => (u8::MAX, None),
+        Method::Fvt | Method::Octree => (u8::MAX, None),
         Method::Cd { min_leap } => (min_leap.max(1), None),
         Method::CdAniso { min_leap } => (min_leap.max(1), Some(octant)),
+        Method::Dda { kind, switch_fvt } => {
+            let st = Start {
+                v,
+                t_in,
+                t_out,
+                to_t: &to_t,
+            };
+            return dda(&w, st, kind, switch_fvt, src, visit);
+        }
     };
+    let octree = method == Method::Octree;
     loop {
         let real = w.real(v);
-        let code = src.code(real, aniso);
+        // What the cell is: a 1-cell, or the far faces of an empty region
+        // to leap to (None: a single-cell step).
+        let (object, leap) = if octree {
+            match src.empty_level(real) {
+                None => (true, None),
+                Some(0) => (false, None),
+                Some(l) => (false, Some(w.node_far(real, l))),
+            }
+        } else {
+            let code = src.code(real, aniso);
+            let leap = (code != OBJECT && code >= min_leap).then(|| {
+                let n = code as u32;
+                std::array::from_fn(|k| (v[k] + n + 1).min(w.n[k]))
+            });
+            (code == OBJECT, leap)
+        };
         counts.steps += 1;
-        if code == OBJECT {
+        if object {
             let t_exit = next[0].min(next[1]).min(next[2]).min(t_out);
             if t_exit > t_enter {
                 let vis = Visit {
@@ -531,11 +608,10 @@ where
                 }
             }
         }
-        if code != OBJECT && code >= min_leap {
-            // Macro step (Figs. 11, 12): the nearest far face of the cube.
+        if let Some(far) = leap {
+            // Macro step (Figs. 11, 12): the nearest far face of the
+            // region (CD: the cube of eq. 12; octree: the node).
             counts.macro_steps += 1;
-            let n = code as u32;
-            let far: [u32; 3] = std::array::from_fn(|k| (v[k] + n + 1).min(w.n[k]));
             let t_far = [
                 w.plane_t(0, far[0]),
                 w.plane_t(1, far[1]),
@@ -572,6 +648,161 @@ where
             }
             next[m] = w.plane_t(m, v[m] + 1);
             t_enter = t;
+        }
+    }
+}
+
+/// Where a walk starts: the first cell, the volume's entry and exit in
+/// the walk's parameter, and the map back to the ray's `t`.
+struct Start<'f, T> {
+    v: [u32; 3],
+    t_in: T,
+    t_out: T,
+    to_t: &'f dyn Fn(T) -> f64,
+}
+
+/// The DDA generators of [`Method::Dda`] (paper section 3, eqs. 2-3).
+///
+/// The walk runs in cell units: on a uniform axis of spacing `h` the ray
+/// advances `r_k = d_k / h` cells per unit of its parameter. A sample at
+/// parameter `t` lies in the cell the `t` rule of [`trace`] gives
+/// (Locate), so a leap lands exactly where FVT would be at that `t`. From
+/// a cell at distance `d` (in cells) the next sample is `(d - 1) / D(r)`
+/// further (eq. 2; `D` is `L1` for city block, `L2` for chamfer, `Linf`
+/// for chessboard, eq. 3), but at least `1 / Linf(r)`: one cell along the
+/// major axis, the DDA's own step. With `switch_fvt`, a cell with
+/// `d < 2` (whose leap would not cover a cell) is left by single-cell
+/// steps, and the DDA resumes from the face of the first cell with
+/// `d >= 2`. Leaps are shortened by a relative `2^-40` so that rounding
+/// cannot carry a chessboard leap onto the face of the cube at distance
+/// `d`: then every cell a chessboard leap passes lies within `Linf`
+/// distance `d - 1` of the start cell, all empty, and chessboard DDA with
+/// the switch visits exactly FVT's 1-cells. City block and chamfer leaps
+/// of length `d - 1` from a point that is not the centre can reach cells
+/// at distance `d + 1` (`L1`) and are not exact; tests/generators.rs
+/// counts what they miss.
+///
+/// A visit's entry and exit are the cell's slab interval along the ray,
+/// computed by the same `plane_t` as FVT (bit-identical where FVT visits
+/// the same cell). Without the switch, a cell sampled twice is visited
+/// once. On an axis that is not uniform the walk has no cell units; it
+/// takes single-cell steps there (renders refuse such grids first).
+fn dda<T, S, F>(
+    w: &Walk<'_, T>,
+    st: Start<'_, T>,
+    kind: DistKind,
+    switch_fvt: bool,
+    src: &mut S,
+    mut visit: F,
+) -> StepCounts
+where
+    T: Real,
+    S: CodeSource,
+    F: FnMut(&Visit, &mut S) -> Flow,
+{
+    let mut counts = StepCounts::default();
+    let Start {
+        mut v,
+        t_in,
+        t_out,
+        to_t,
+    } = st;
+    let regular = (0..3).all(|k| w.d[k] == T::zero() || w.uniform[k].is_some());
+    // Direction in cells per unit of t, and its norms (eq. 3).
+    let r: [f64; 3] = std::array::from_fn(|k| match w.uniform[k] {
+        Some(h) if w.d[k] != T::zero() => w.d[k].f64() / h.f64(),
+        _ => 0.0,
+    });
+    let linf = r[0].max(r[1]).max(r[2]);
+    let norm = match kind {
+        DistKind::Cityblock => r[0] + r[1] + r[2],
+        DistKind::Chessboard => linf,
+        DistKind::Chamfer => (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt(),
+    };
+    let unit_dt = 1.0 / linf;
+    let shrink = 1.0 - 2f64.powi(-40);
+    let unit = kind.unit() as f64;
+    // Slab interval of cell v along the ray.
+    let span = |v: [u32; 3]| -> (T, T) {
+        let (mut a, mut b) = (t_in, t_out);
+        for k in 0..3 {
+            if w.d[k] != T::zero() {
+                a = a.max(w.plane_t(k, v[k]));
+                b = b.min(w.plane_t(k, v[k] + 1));
+            }
+        }
+        (a, b)
+    };
+    let mut t = t_in;
+    // Whether the walk is in single-cell steps (`next` valid) or samples.
+    let mut fvt = false;
+    let mut next = [T::zero(); 3];
+    let mut last_visit: Option<[u32; 3]> = None;
+    loop {
+        let real = w.real(v);
+        let dist = src.distance(real, kind);
+        counts.steps += 1;
+        if dist == 0 && last_visit != Some(v) {
+            let (a, b) = span(v);
+            if b > a {
+                let vis = Visit {
+                    cell: real,
+                    t_enter: to_t(a),
+                    t_exit: to_t(b),
+                };
+                if visit(&vis, src) == Flow::Stop {
+                    return counts;
+                }
+            }
+            last_visit = Some(v);
+        }
+        let leap = dist as f64 / unit - 1.0;
+        let mut single = !regular || (switch_fvt && leap < 1.0);
+        let mut tn = t;
+        if !single {
+            // The DDA resumes from the face single-cell steps entered by.
+            let from = if fvt { span(v).0 } else { t };
+            let dt = if leap >= 1.0 {
+                (leap / norm * shrink).max(unit_dt)
+            } else {
+                unit_dt
+            };
+            tn = T::of(from.f64() + dt);
+            // A step lost to rounding (t huge against a cell): one cell.
+            single = !(tn > from);
+        }
+        if single {
+            if !fvt {
+                fvt = true;
+                next = std::array::from_fn(|k| w.plane_t(k, v[k] + 1));
+            }
+            counts.cell_steps += 1;
+            let m = argmin(next);
+            if next[m] >= t_out {
+                return counts;
+            }
+            v[m] += 1;
+            if v[m] >= w.n[m] {
+                return counts;
+            }
+            next[m] = w.plane_t(m, v[m] + 1);
+            continue;
+        }
+        fvt = false;
+        if leap >= 1.0 {
+            counts.macro_steps += 1;
+        }
+        if tn >= t_out {
+            return counts;
+        }
+        t = tn;
+        for k in 0..3 {
+            if w.d[k] != T::zero() {
+                v[k] = w.locate(k, t, v[k], w.n[k]);
+                if v[k] >= w.n[k] {
+                    return counts;
+                }
+            }
         }
     }
 }
