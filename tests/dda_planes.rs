@@ -62,8 +62,8 @@ fn brute(obj: &[u8], cells: [usize; 3]) -> [Vec<u8>; 3] {
             let ch = 3 * (d[0] - d[1]) + 4 * (d[1] - d[2]) + 5 * d[2];
             best = [best[0].min(l1), best[1].min(d[0]), best[2].min(ch)];
         }
-        for k in 0..3 {
-            out[k][i] = best[k] as u8;
+        for (o, b) in out.iter_mut().zip(best) {
+            o[i] = b as u8;
         }
     }
     out
@@ -74,7 +74,7 @@ fn brute(obj: &[u8], cells: [usize; 3]) -> [Vec<u8>; 3] {
 fn check_distances(vol: &PackedVolume, obj: &[u8]) -> (u64, u64) {
     let h = vol.header();
     let cells = h.cells().map(|c| c as usize);
-    let [cx, cy, cz] = cells;
+    let [cx, cy, _] = cells;
     let want = brute(obj, cells);
     let max_code = h.codes.max_code();
     let cache = BrickCache::new(vol, 64 << 20);
@@ -121,7 +121,6 @@ fn check_distances(vol: &PackedVolume, obj: &[u8]) -> (u64, u64) {
         }
     }
     assert!(acc.error.is_none());
-    let _ = cz;
     (uniform_bricks, uniform_cells)
 }
 
