@@ -23,10 +23,17 @@ use proptest::prelude::*;
 const KINDS: [DistKind; 3] = [DistKind::Cityblock, DistKind::Chessboard, DistKind::Chamfer];
 
 /// Preps the stack at `side` twice, with and without `--dda`.
-fn prep_both(dir: &Path, side: &Path, iso: f64, brick: usize) -> (PackedVolume, PackedVolume) {
+fn prep_both(
+    dir: &Path,
+    side: &Path,
+    iso: f64,
+    brick: usize,
+    aniso: bool,
+) -> (PackedVolume, PackedVolume) {
     let src = RawSource::open(side).unwrap();
     let mut opts = PrepOptions::new(Classification::Iso { iso });
     opts.brick_size = brick;
+    opts.aniso = aniso;
     let plain = dir.join("plain.cdv");
     prep(&src, &plain, &opts, &NoProgress).unwrap();
     opts.dda = true;
@@ -193,7 +200,7 @@ fn planes_through_the_cache_with_uniform_bricks() {
     values[(10 * dims[1] + 2) * dims[0] + 30] = 160.0;
     let dir = tempfile::tempdir().unwrap();
     let side = write_stack(dir.path(), "v", dims, "u8", &values, ["1", "1", "1"], "");
-    let (dda, plain) = prep_both(dir.path(), &side, 150.0, 8);
+    let (dda, plain) = prep_both(dir.path(), &side, 150.0, 8, false);
     assert_eq!(dda.header().codes.max_code(), 63);
     let obj = classify_iso(&values, dims, 150.0);
     let (ub, uc) = check_distances(&dda, &obj);
@@ -283,10 +290,14 @@ fn volume() -> impl Strategy<Value = ([usize; 3], Vec<f64>, usize)> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
     #[test]
-    fn random_volumes((dims, values, brick) in volume(), dtype in prop_oneof![Just("u8"), Just("i16"), Just("f32")]) {
+    fn random_volumes(
+        (dims, values, brick) in volume(),
+        dtype in prop_oneof![Just("u8"), Just("i16"), Just("f32")],
+        aniso in any::<bool>(),
+    ) {
         let dir = tempfile::tempdir().unwrap();
         let side = write_stack(dir.path(), "v", dims, dtype, &values, ["1", "0.5", "2"], "");
-        let (dda, plain) = prep_both(dir.path(), &side, 150.0, brick);
+        let (dda, plain) = prep_both(dir.path(), &side, 150.0, brick, aniso);
         let obj = classify_iso(&values, dims, 150.0);
         check_distances(&dda, &obj);
         check_extends_plain(&dda, &plain);
