@@ -111,6 +111,10 @@ pub struct PrepSettings {
     /// Also compute anisotropic (octant) codes, paper section 4.2.1.
     #[arg(long)]
     pub aniso: bool,
+    /// Also store extra city-block and chamfer distance planes for the DDA
+    /// traversals (paper section 3), 2 bytes per cell.
+    #[arg(long)]
+    pub dda: bool,
     /// Directory for the temporary spill (default: beside the output).
     #[arg(long)]
     pub temp_dir: Option<PathBuf>,

@@ -11,7 +11,7 @@
 
 use crate::grid::{Axis, MAX_SAMPLES_PER_AXIS};
 use crate::render::cache::OBJECT;
-use crate::render::traverse::{trace, CodeSource, Flow, Method, Ray, Real, TGrid, Visit};
+use crate::render::traverse::{trace, CodeSource, DistKind, Flow, Method, Ray, Real, TGrid, Visit};
 
 /// Largest code the in-memory volume stores (the format's cap, docs/FORMAT.md).
 pub const MAX_CODE: u8 = 254;
@@ -117,6 +117,33 @@ impl CodeSource for &MemVolume {
             }
         }
         Some(0)
+    }
+
+    /// By brute force over `objects`, by definition (see [`distance_between`]).
+    fn distance(&mut self, c: [u32; 3], kind: DistKind) -> u8 {
+        self.objects
+            .iter()
+            .map(|o| distance_between(c, *o, kind))
+            .min()
+            .unwrap_or(u64::MAX)
+            .min(MAX_CODE as u64) as u8
+    }
+}
+
+/// Distance of `kind` between the centres of cells `a` and `b`, in stored
+/// units ([`DistKind::unit`]), unsaturated. Chamfer 3-4-5: with the
+/// absolute offsets sorted `p >= q >= r`, `3(p-q) + 4(q-r) + 5r`, the
+/// length of the shortest 26-neighbour path with weights 3 (face), 4
+/// (edge) and 5 (corner).
+pub fn distance_between(a: [u32; 3], b: [u32; 3], kind: DistKind) -> u64 {
+    let mut d = [0, 1, 2].map(|k| a[k].abs_diff(b[k]) as u64);
+    match kind {
+        DistKind::Cityblock => d.iter().sum(),
+        DistKind::Chessboard => d[0].max(d[1]).max(d[2]),
+        DistKind::Chamfer => {
+            d.sort_unstable_by(|x, y| y.cmp(x));
+            3 * (d[0] - d[1]) + 4 * (d[1] - d[2]) + 5 * d[2]
+        }
     }
 }
 
@@ -407,4 +434,40 @@ pub fn rays(axes: &[Axis; 3]) -> Vec<(String, Ray)> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// The brute-force distances of the in-memory volume equal the
+        /// streaming transforms of src/dt.rs (and the chessboard one the
+        /// code plus one).
+        #[test]
+        fn mem_volume_distances_equal_the_transforms(
+            dims in [1usize..8, 1usize..8, 1usize..8],
+            bits in proptest::collection::vec(0u8..12, 512),
+        ) {
+            let n = dims.iter().product::<usize>();
+            let obj: Vec<u8> = bits[..n].iter().map(|&b| (b == 0) as u8).collect();
+            let objects: Vec<[u32; 3]> = (0..n)
+                .filter(|&i| obj[i] != 0)
+                .map(|i| [(i % dims[0]) as u32, (i / dims[0] % dims[1]) as u32, (i / dims[0] / dims[1]) as u32])
+                .collect();
+            let axes = dims.map(|d| Axis::uniform(0.0, 1.0, d + 1).expect("axis"));
+            let vol = MemVolume::new(axes, objects);
+            let [cb, ch] = crate::dt::dda_3d(&obj, dims);
+            let cheb = crate::dt::chessboard_3d(&obj, dims);
+            let mut src = &vol;
+            for i in 0..n {
+                let c = [(i % dims[0]) as u32, (i / dims[0] % dims[1]) as u32, (i / dims[0] / dims[1]) as u32];
+                prop_assert_eq!(src.distance(c, DistKind::Cityblock), cb[i]);
+                prop_assert_eq!(src.distance(c, DistKind::Chamfer), ch[i]);
+                prop_assert_eq!(src.distance(c, DistKind::Chessboard), cheb[i].min(254));
+            }
+        }
+    }
 }

@@ -27,6 +27,20 @@
 //!
 //! Memory is a few slices of `(nx-1)(ny-1)` bytes, whatever nz is. Rows
 //! are processed in parallel (rayon) where the recurrence allows.
+//!
+//! With DDA planes ([`ForwardDt::with_dda`], paper section 3, Figs. 4 and
+//! 19), the same two z passes also run the classic two-pass raster
+//! transforms of the city-block (`L1`, 6-neighbour half masks, weight 1)
+//! and chamfer 3-4-5 (26-neighbour half masks, weights 3 face, 4 edge, 5
+//! corner) distances, saturating at [`DDA_FAR`]. The forward pass visits z,
+//! y, x ascending and takes the minimum over the 13 (chamfer) or 3 (city
+//! block) neighbours already visited; the backward pass mirrors it. Both
+//! are exact for their shortest-path distances: any shortest 26-path
+//! between two cells can be made monotone in every coordinate and its
+//! steps reordered so that the forward-mask steps come first, and every
+//! such path stays in the bounding box of its ends, so inside the volume.
+//! The spill record then holds 3 bytes per cell (chessboard, city block,
+//! chamfer forward values).
 
 use std::io;
 
@@ -116,6 +130,171 @@ pub fn merge_slice(cur: &mut [u8], prev: &[u8], ncx: usize, ncy: usize) {
                 merge_plus_one(row, eroded);
             },
         );
+}
+
+/// Saturated value of the DDA distance planes (city block, chamfer): "no
+/// 1-cell within 254 units". Matches the 254 cap of
+/// [`crate::render::traverse::CodeSource::distance`].
+pub const DDA_FAR: u8 = 254;
+
+/// Metrics of the DDA distance planes (the chessboard one is the code).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DdaMetric {
+    /// `L1`, in cells: 6-neighbour steps of weight 1.
+    Cityblock,
+    /// Chamfer 3-4-5 (Borgefors), in thirds of a cell: face, edge and
+    /// corner steps of weights 3, 4 and 5.
+    Chamfer,
+}
+
+impl DdaMetric {
+    /// Weights of face, edge and corner steps (`None`: not in the mask).
+    #[inline]
+    fn weights(self) -> (u8, Option<u8>, Option<u8>) {
+        match self {
+            DdaMetric::Cityblock => (1, None, None),
+            DdaMetric::Chamfer => (3, Some(4), Some(5)),
+        }
+    }
+}
+
+/// `a + w`, saturating (the caller's `min` with a value `<= DDA_FAR` keeps
+/// the result `<= DDA_FAR`).
+#[inline(always)]
+fn plus(a: u8, w: u8) -> u8 {
+    a.saturating_add(w)
+}
+
+/// One slice of a two-pass DDA transform. `cur` holds the slice's start
+/// values (the forward pass: 0 on 1-cells, [`DDA_FAR`] elsewhere; the
+/// backward pass: the forward values); `other` is the slice already done
+/// in the pass's z direction (`None` at the volume's end). Rows are then
+/// visited in the pass's y direction and cells in its x direction, each
+/// taking the minimum over its neighbours already visited plus their
+/// weights (the half mask).
+pub fn dda_slice(
+    metric: DdaMetric,
+    cur: &mut [u8],
+    other: Option<&[u8]>,
+    ncx: usize,
+    ncy: usize,
+    forward: bool,
+) {
+    let (wf, we, wc) = metric.weights();
+    // The neighbouring slice: all 9 (chamfer) or 1 (city block) of its
+    // cells next to each cell are in the half mask. Rows are independent.
+    if let Some(other) = other {
+        cur.par_chunks_mut(ncx)
+            .enumerate()
+            .with_min_len(8)
+            .for_each(|(y, row)| {
+                let mid = &other[y * ncx..(y + 1) * ncx];
+                merge_row(row, mid, wf, we);
+                if let (Some(we), Some(wc)) = (we, wc) {
+                    for yy in [y.wrapping_sub(1), y + 1] {
+                        if yy < ncy {
+                            merge_row(row, &other[yy * ncx..(yy + 1) * ncx], we, Some(wc));
+                        }
+                    }
+                }
+            });
+    }
+    // In the slice: the row before (3 or 1 cells), then the cell before.
+    let rows: Box<dyn Iterator<Item = usize>> = if forward {
+        Box::new(0..ncy)
+    } else {
+        Box::new((0..ncy).rev())
+    };
+    let mut prev_row: Option<usize> = None;
+    for y in rows {
+        if let Some(p) = prev_row {
+            let (row, before) = if p < y {
+                let (a, b) = cur.split_at_mut(y * ncx);
+                (&mut b[..ncx], &a[p * ncx..(p + 1) * ncx])
+            } else {
+                let (a, b) = cur.split_at_mut(p * ncx);
+                (&mut a[y * ncx..(y + 1) * ncx], &b[..ncx])
+            };
+            merge_row(row, before, wf, we);
+        }
+        let row = &mut cur[y * ncx..(y + 1) * ncx];
+        if forward {
+            for x in 1..ncx {
+                row[x] = row[x].min(plus(row[x - 1], wf));
+            }
+        } else {
+            for x in (0..ncx.saturating_sub(1)).rev() {
+                row[x] = row[x].min(plus(row[x + 1], wf));
+            }
+        }
+        prev_row = Some(y);
+    }
+}
+
+/// `row[x] = min(row[x], n[x] + w0, n[x-1] + w1, n[x+1] + w1)` (the side
+/// terms only with `w1`; edges use what exists).
+#[inline]
+fn merge_row(row: &mut [u8], n: &[u8], w0: u8, w1: Option<u8>) {
+    let len = row.len();
+    let n = &n[..len];
+    for (r, &v) in row.iter_mut().zip(n) {
+        *r = (*r).min(plus(v, w0));
+    }
+    if let Some(w1) = w1 {
+        if len > 1 {
+            for (r, &v) in row[1..].iter_mut().zip(&n[..len - 1]) {
+                *r = (*r).min(plus(v, w1));
+            }
+            for (r, &v) in row[..len - 1].iter_mut().zip(&n[1..]) {
+                *r = (*r).min(plus(v, w1));
+            }
+        }
+    }
+}
+
+/// The city-block and chamfer slices of one pass.
+struct DdaPass {
+    /// `[city block, chamfer]` of the slice done last (empty before the
+    /// first) and of the current one.
+    prev: [Vec<u8>; 2],
+    cur: [Vec<u8>; 2],
+}
+
+const DDA_METRICS: [DdaMetric; 2] = [DdaMetric::Cityblock, DdaMetric::Chamfer];
+
+impl DdaPass {
+    fn new(n: usize) -> DdaPass {
+        DdaPass {
+            prev: [Vec::new(), Vec::new()],
+            cur: [vec![0; n], vec![0; n]],
+        }
+    }
+
+    /// Runs both metrics on `cur` (already holding the start values).
+    fn run(&mut self, ncx: usize, ncy: usize, forward: bool) {
+        let [c0, c1] = &mut self.cur;
+        let (p0, p1) = (&self.prev[0], &self.prev[1]);
+        let o0 = (!p0.is_empty()).then_some(&p0[..]);
+        let o1 = (!p1.is_empty()).then_some(&p1[..]);
+        rayon::join(
+            || dda_slice(DDA_METRICS[0], c0, o0, ncx, ncy, forward),
+            || dda_slice(DDA_METRICS[1], c1, o1, ncx, ncy, forward),
+        );
+    }
+
+    /// The current slice becomes the previous one.
+    fn advance(&mut self) {
+        std::mem::swap(&mut self.prev, &mut self.cur);
+        for c in self.cur.iter_mut() {
+            c.resize(self.prev[0].len(), 0);
+        }
+    }
+}
+
+/// Bytes per cell slice of the forward spill record: the chessboard
+/// forward values, plus the city-block and chamfer ones with DDA planes.
+pub fn spill_record(n_cells_slice: usize, dda: bool) -> usize {
+    n_cells_slice * if dda { 3 } else { 1 }
 }
 
 /// Where the forward pass keeps its slices until the backward pass reads
@@ -288,6 +467,9 @@ pub struct ForwardDt {
     prev: Vec<u8>,
     cur: Vec<u8>,
     aniso: Option<AnisoPass>,
+    dda: Option<DdaPass>,
+    /// The spill record (chessboard, city block, chamfer) with DDA planes.
+    record: Vec<u8>,
 }
 
 /// Four octants computed in one z direction, reduced to blocks.
@@ -355,7 +537,18 @@ impl ForwardDt {
             prev: vec![0; ncx * ncy],
             cur: vec![0; ncx * ncy],
             aniso: aniso.then(|| AnisoPass::new(true, ncx, ncy)),
+            dda: None,
+            record: Vec::new(),
         }
+    }
+
+    /// Also runs the forward city-block and chamfer passes; the spill
+    /// record grows to [`spill_record`]`(n, true)` bytes.
+    pub fn with_dda(mut self, dda: bool) -> ForwardDt {
+        let n = self.ncx * self.ncy;
+        self.dda = dda.then(|| DdaPass::new(n));
+        self.record = if dda { vec![0; 3 * n] } else { Vec::new() };
+        self
     }
 
     /// Consumes the class slice `z` (in order) and spills `F(z)`. With
@@ -373,7 +566,21 @@ impl ForwardDt {
         if self.z > 0 {
             merge_slice(&mut self.cur, &self.prev, ncx, ncy);
         }
-        spill.put(self.z, &self.cur)?;
+        match self.dda.as_mut() {
+            None => spill.put(self.z, &self.cur)?,
+            Some(d) => {
+                let n = ncx * ncy;
+                for (c, &o) in d.cur.iter_mut().flat_map(|c| c.iter_mut().zip(obj)) {
+                    *c = if o != 0 { 0 } else { DDA_FAR };
+                }
+                d.run(ncx, ncy, true);
+                self.record[..n].copy_from_slice(&self.cur);
+                self.record[n..2 * n].copy_from_slice(&d.cur[0]);
+                self.record[2 * n..].copy_from_slice(&d.cur[1]);
+                spill.put(self.z, &self.record)?;
+                d.advance();
+            }
+        }
         if let Some(a) = self.aniso.as_mut() {
             // The isotropic in-slice D2 is 0 exactly on 1-cells; F(z) too.
             a.push(&self.cur, ncx, ncy);
@@ -401,6 +608,8 @@ pub struct BackwardDt {
     cur: Vec<u8>,
     started: bool,
     aniso: Option<AnisoPass>,
+    dda: Option<DdaPass>,
+    record: Vec<u8>,
 }
 
 /// The 8 octant block codes of one block slab: `codes[o][by * nbx + bx]`.
@@ -416,7 +625,25 @@ impl BackwardDt {
             cur: vec![0; ncx * ncy],
             started: false,
             aniso: aniso.then(|| AnisoPass::new(false, ncx, ncy)),
+            dda: None,
+            record: Vec::new(),
         }
+    }
+
+    /// Also finishes the city-block and chamfer transforms (the spill must
+    /// come from a [`ForwardDt::with_dda`] with the same flag).
+    pub fn with_dda(mut self, dda: bool) -> BackwardDt {
+        let n = self.ncx * self.ncy;
+        self.dda = dda.then(|| DdaPass::new(n));
+        self.record = if dda { vec![0; 3 * n] } else { Vec::new() };
+        self
+    }
+
+    /// The final city-block and chamfer distances of the slice the last
+    /// [`BackwardDt::step`] computed (`None` without DDA planes).
+    pub fn dda(&self) -> Option<[&[u8]; 2]> {
+        // After `step`, `advance` has moved the slice into `prev`.
+        self.dda.as_ref().map(|d| [&d.prev[0][..], &d.prev[1][..]])
     }
 
     /// Computes `G(z)` for the next z (they must come in decreasing order,
@@ -431,7 +658,18 @@ impl BackwardDt {
         debug_assert!(z < self.ncz);
         let (ncx, ncy) = (self.ncx, self.ncy);
         std::mem::swap(&mut self.next, &mut self.cur);
-        spill.get(z, &mut self.cur)?;
+        match self.dda.as_mut() {
+            None => spill.get(z, &mut self.cur)?,
+            Some(d) => {
+                let n = ncx * ncy;
+                spill.get(z, &mut self.record)?;
+                self.cur.copy_from_slice(&self.record[..n]);
+                d.cur[0].copy_from_slice(&self.record[n..2 * n]);
+                d.cur[1].copy_from_slice(&self.record[2 * n..]);
+                d.run(ncx, ncy, false);
+                d.advance();
+            }
+        }
         if self.started {
             merge_slice(&mut self.cur, &self.next, ncx, ncy);
         }
@@ -507,6 +745,29 @@ pub fn octant_blocks_3d(obj: &[u8], dims: [usize; 3]) -> [Vec<u8>; 8] {
             for o in 0..8 {
                 out[o][bz * nb..(bz + 1) * nb].copy_from_slice(&b[o]);
             }
+        }
+    }
+    out
+}
+
+/// City-block and chamfer 3-4-5 distances in memory through the streaming
+/// passes: `[city block, chamfer]`, x fastest, saturated at [`DDA_FAR`].
+pub fn dda_3d(obj: &[u8], dims: [usize; 3]) -> [Vec<u8>; 2] {
+    let [ncx, ncy, ncz] = dims;
+    let n = ncx * ncy;
+    let mut spill = MemSpill::default();
+    let mut fwd = ForwardDt::new(ncx, ncy, false).with_dda(true);
+    for z in 0..ncz {
+        fwd.push(&obj[z * n..(z + 1) * n], z + 1 == ncz, &mut spill, None)
+            .expect("memory spill");
+    }
+    let mut out = [vec![0u8; n * ncz], vec![0u8; n * ncz]];
+    let mut bwd = BackwardDt::new(ncx, ncy, ncz, false).with_dda(true);
+    for z in (0..ncz).rev() {
+        bwd.step(z, &mut spill, None).expect("memory spill");
+        let planes = bwd.dda().expect("dda pass");
+        for (o, p) in out.iter_mut().zip(planes) {
+            o[z * n..(z + 1) * n].copy_from_slice(p);
         }
     }
     out
@@ -635,5 +896,222 @@ mod tests {
         assert_eq!(d, brute(&obj, dims, None));
         assert_eq!(d[3 * 9 + 3], 5);
         assert_eq!(d[(10 * 10 + 3) * 9 + 3], 5);
+    }
+
+    // ---- DDA planes (city block, chamfer 3-4-5) ----
+
+    fn objects(obj: &[u8], dims: [usize; 3]) -> Vec<[i64; 3]> {
+        let [nx, ny, _] = dims;
+        (0..obj.len())
+            .filter(|&i| obj[i] != 0)
+            .map(|i| [(i % nx) as i64, (i / nx % ny) as i64, (i / nx / ny) as i64])
+            .collect()
+    }
+
+    /// Closed form of the chamfer 3-4-5 distance between two cells: with
+    /// the absolute offsets sorted `a >= b >= c`, `3(a-b) + 4(b-c) + 5c`.
+    fn chamfer_closed(d: [i64; 3]) -> i64 {
+        let mut d = d.map(i64::abs);
+        d.sort_unstable_by(|x, y| y.cmp(x));
+        3 * (d[0] - d[1]) + 4 * (d[1] - d[2]) + 5 * d[2]
+    }
+
+    /// Brute force over the 1-cells: `metric(offset)` minimised, saturated
+    /// at DDA_FAR.
+    fn brute_dda(obj: &[u8], dims: [usize; 3], metric: fn([i64; 3]) -> i64) -> Vec<u8> {
+        let [nx, ny, _] = dims;
+        let objs = objects(obj, dims);
+        (0..obj.len())
+            .map(|i| {
+                let v = [(i % nx) as i64, (i / nx % ny) as i64, (i / nx / ny) as i64];
+                objs.iter()
+                    .map(|q| metric([q[0] - v[0], q[1] - v[1], q[2] - v[2]]))
+                    .min()
+                    .unwrap_or(i64::MAX)
+                    .min(DDA_FAR as i64) as u8
+            })
+            .collect()
+    }
+
+    fn l1(d: [i64; 3]) -> i64 {
+        d.iter().map(|v| v.abs()).sum()
+    }
+
+    /// Multi-source Dijkstra over the 26-neighbour graph of the volume's
+    /// cells with weights 3 (face), 4 (edge), 5 (corner), saturated at
+    /// DDA_FAR. Independent of the two-pass recurrence.
+    fn dijkstra_chamfer(obj: &[u8], dims: [usize; 3]) -> Vec<u8> {
+        use std::cmp::Reverse;
+        use std::collections::BinaryHeap;
+        let [nx, ny, nz] = dims;
+        let mut dist = vec![u32::MAX; obj.len()];
+        let mut heap = BinaryHeap::new();
+        for (i, &o) in obj.iter().enumerate() {
+            if o != 0 {
+                dist[i] = 0;
+                heap.push(Reverse((0u32, i)));
+            }
+        }
+        while let Some(Reverse((d, i))) = heap.pop() {
+            if d > dist[i] {
+                continue;
+            }
+            let v = [(i % nx) as i64, (i / nx % ny) as i64, (i / nx / ny) as i64];
+            for dz in -1i64..=1 {
+                for dy in -1i64..=1 {
+                    for dx in -1i64..=1 {
+                        let k = dx.abs() + dy.abs() + dz.abs();
+                        if k == 0 {
+                            continue;
+                        }
+                        let w = [0, 3, 4, 5][k as usize];
+                        let u = [v[0] + dx, v[1] + dy, v[2] + dz];
+                        if u[0] < 0
+                            || u[1] < 0
+                            || u[2] < 0
+                            || u[0] >= nx as i64
+                            || u[1] >= ny as i64
+                            || u[2] >= nz as i64
+                        {
+                            continue;
+                        }
+                        let j = (u[2] as usize * ny + u[1] as usize) * nx + u[0] as usize;
+                        if d + w < dist[j] {
+                            dist[j] = d + w;
+                            heap.push(Reverse((d + w, j)));
+                        }
+                    }
+                }
+            }
+        }
+        dist.iter().map(|&d| d.min(DDA_FAR as u32) as u8).collect()
+    }
+
+    /// The textbook whole-volume two-pass raster transform, with explicit
+    /// half masks (no slices, no streaming).
+    fn whole_volume_two_pass(obj: &[u8], dims: [usize; 3], chamfer: bool) -> Vec<u8> {
+        let [nx, ny, nz] = dims;
+        let mut d: Vec<u32> = obj
+            .iter()
+            .map(|&o| if o != 0 { 0 } else { DDA_FAR as u32 })
+            .collect();
+        // Forward half mask: neighbours before the cell in raster order.
+        let mut fwd: Vec<([i64; 3], u32)> = Vec::new();
+        for dz in -1i64..=1 {
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let before = (dz, dy, dx) < (0, 0, 0);
+                    let k = dx.abs() + dy.abs() + dz.abs();
+                    if !before || (!chamfer && k != 1) {
+                        continue;
+                    }
+                    let w = if chamfer { [0, 3, 4, 5][k as usize] } else { 1 };
+                    fwd.push(([dx, dy, dz], w));
+                }
+            }
+        }
+        let at = |x: i64, y: i64, z: i64| -> Option<usize> {
+            (x >= 0 && y >= 0 && z >= 0 && x < nx as i64 && y < ny as i64 && z < nz as i64)
+                .then(|| (z as usize * ny + y as usize) * nx + x as usize)
+        };
+        let total = obj.len();
+        for pass in 0..2 {
+            for r in 0..total {
+                let i = if pass == 0 { r } else { total - 1 - r };
+                let v = [(i % nx) as i64, (i / nx % ny) as i64, (i / nx / ny) as i64];
+                let sign = if pass == 0 { 1 } else { -1 };
+                for &(o, w) in &fwd {
+                    if let Some(j) = at(v[0] + sign * o[0], v[1] + sign * o[1], v[2] + sign * o[2])
+                    {
+                        d[i] = d[i].min(d[j] + w);
+                    }
+                }
+            }
+        }
+        d.iter().map(|&v| v.min(DDA_FAR as u32) as u8).collect()
+    }
+
+    fn dda_volume() -> impl Strategy<Value = (Vec<u8>, [usize; 3])> {
+        (1usize..10, 1usize..10, 1usize..10, 0u32..=100).prop_flat_map(|(x, y, z, pct)| {
+            let n = x * y * z;
+            (
+                proptest::collection::vec((0u32..100).prop_map(move |r| (r < pct / 4) as u8), n),
+                Just([x, y, z]),
+            )
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        #[test]
+        fn dda_planes_equal_oracles((obj, dims) in dda_volume()) {
+            let [cb, ch] = dda_3d(&obj, dims);
+            prop_assert_eq!(&cb, &brute_dda(&obj, dims, l1), "city block");
+            let dij = dijkstra_chamfer(&obj, dims);
+            prop_assert_eq!(&ch, &dij, "chamfer vs Dijkstra");
+            prop_assert_eq!(&dij, &brute_dda(&obj, dims, chamfer_closed), "closed form");
+            prop_assert_eq!(&cb, &whole_volume_two_pass(&obj, dims, false));
+            prop_assert_eq!(&ch, &whole_volume_two_pass(&obj, dims, true));
+        }
+
+        /// The chessboard distances and octant blocks are unchanged when the
+        /// spill also carries the DDA planes.
+        #[test]
+        fn dda_leaves_chessboard_alone((obj, dims) in dda_volume()) {
+            let [ncx, ncy, ncz] = dims;
+            let n = ncx * ncy;
+            let (mut spill, mut bspill) = (MemSpill::default(), MemSpill::default());
+            let mut fwd = ForwardDt::new(ncx, ncy, true).with_dda(true);
+            for z in 0..ncz {
+                fwd.push(&obj[z * n..(z + 1) * n], z + 1 == ncz, &mut spill, Some(&mut bspill))
+                    .unwrap();
+            }
+            let mut g = vec![0u8; n * ncz];
+            let mut bwd = BackwardDt::new(ncx, ncy, ncz, true).with_dda(true);
+            for z in (0..ncz).rev() {
+                let (d, _) = bwd.step(z, &mut spill, Some(&mut bspill)).unwrap();
+                g[z * n..(z + 1) * n].copy_from_slice(d);
+            }
+            prop_assert_eq!(g, chessboard_3d(&obj, dims));
+        }
+    }
+
+    #[test]
+    fn dda_empty_full_single_and_saturated() {
+        for dims in [[1, 1, 1], [5, 1, 7], [3, 4, 5], [1, 9, 1]] {
+            let n: usize = dims.iter().product();
+            let [cb, ch] = dda_3d(&vec![0; n], dims);
+            assert_eq!((cb, ch), (vec![DDA_FAR; n], vec![DDA_FAR; n]));
+            let [cb, ch] = dda_3d(&vec![1; n], dims);
+            assert_eq!((cb, ch), (vec![0; n], vec![0; n]));
+            for i in [0, n / 2, n - 1] {
+                let mut obj = vec![0; n];
+                obj[i] = 1;
+                let [cb, ch] = dda_3d(&obj, dims);
+                assert_eq!(cb, brute_dda(&obj, dims, l1));
+                assert_eq!(ch, brute_dda(&obj, dims, chamfer_closed));
+                assert_eq!(ch, dijkstra_chamfer(&obj, dims));
+            }
+        }
+        // Long thin volumes: saturation at 254 along each axis and a
+        // diagonal (corner steps of 5).
+        let dims = [300, 2, 2];
+        let mut obj = vec![0; 1200];
+        obj[0] = 1;
+        let [cb, ch] = dda_3d(&obj, dims);
+        assert_eq!(cb, brute_dda(&obj, dims, l1));
+        assert_eq!(ch, dijkstra_chamfer(&obj, dims));
+        assert_eq!((cb[254], cb[255], cb[299]), (254, 254, 254));
+        assert_eq!((ch[84], ch[85], ch[299]), (252, 254, 254));
+        // (1, 1, 0): one edge step; (1, 1, 1): one corner step.
+        assert_eq!((ch[301], ch[901]), (4, 5));
+        let dims = [40, 40, 40];
+        let mut obj = vec![0; 64000];
+        obj[0] = 1;
+        let [cb, ch] = dda_3d(&obj, dims);
+        assert_eq!(cb, brute_dda(&obj, dims, l1));
+        assert_eq!(ch, brute_dda(&obj, dims, chamfer_closed));
+        assert_eq!(ch[(39 * 40 + 39) * 40 + 39], 195);
+        assert_eq!(cb[(39 * 40 + 39) * 40 + 39], 117);
     }
 }

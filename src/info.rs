@@ -39,6 +39,8 @@ pub struct Info {
     /// `[code, count]` for every code that occurs.
     pub code_histogram: Vec<[u64; 2]>,
     pub aniso_block: Option<u32>,
+    /// City-block and chamfer distance planes present (`--dda`).
+    pub dda: bool,
     pub input_bytes: u64,
     pub payload_bytes: u64,
     /// Input sample bytes divided by file bytes.
@@ -89,6 +91,7 @@ impl Info {
                 .map(|(c, &n)| [c as u64, n])
                 .collect(),
             aniso_block: h.aniso_block,
+            dda: h.dda,
             input_bytes: s.input_bytes,
             payload_bytes: s.payload_bytes,
             compression_ratio: s.input_bytes as f64 / vol.file_len().max(1) as f64,
@@ -141,6 +144,12 @@ impl Info {
         );
         if let Some(g) = self.aniso_block {
             let _ = writeln!(o, "aniso codes  8 octants per {g}^3 block");
+        }
+        if self.dda {
+            let _ = writeln!(
+                o,
+                "dda planes   city block + chamfer 3-4-5, 1 byte each per cell"
+            );
         }
         let _ = writeln!(
             o,

@@ -422,6 +422,7 @@ fn prep_options(a: cli::PrepSettings) -> Result<PrepOptions> {
         brick_size: a.brick,
         zstd_level: a.zstd_level,
         aniso: a.aniso,
+        dda: a.dda,
         temp_dir: a.temp_dir,
     })
 }

@@ -32,6 +32,9 @@ pub struct PrepOptions {
     pub zstd_level: i32,
     /// Also compute the anisotropic octant codes (section 4.2.1).
     pub aniso: bool,
+    /// Also compute the city-block and chamfer 3-4-5 distance planes of
+    /// the DDA traversals (paper section 3): 2 bytes per cell.
+    pub dda: bool,
     /// Where the one-byte-per-cell spill goes (default: beside the output).
     pub temp_dir: Option<PathBuf>,
 }
@@ -43,6 +46,7 @@ impl PrepOptions {
             brick_size: 32,
             zstd_level: 3,
             aniso: false,
+            dda: false,
             temp_dir: None,
         }
     }
@@ -131,7 +135,8 @@ pub fn prep(
         what: "temporary spill file",
         source,
     };
-    let mut spill = FileSpill::new_in(&temp_dir, n_cells_slice).map_err(spill_err)?;
+    let mut spill = FileSpill::new_in(&temp_dir, dt::spill_record(n_cells_slice, opts.dda))
+        .map_err(spill_err)?;
     let nb_slice = ncx.div_ceil(ANISO_BLOCK) * ncy.div_ceil(ANISO_BLOCK);
     let mut block_spill = if opts.aniso {
         Some(FileSpill::new_in(&temp_dir, 4 * nb_slice).map_err(spill_err)?)
@@ -151,7 +156,7 @@ pub fn prep(
     let flags_len = if is_tf { 0 } else { n_cells_slice };
     let mut flags = [vec![0u8; flags_len], vec![0u8; flags_len]];
     let mut obj = vec![0u8; n_cells_slice];
-    let mut fwd = ForwardDt::new(ncx, ncy, opts.aniso);
+    let mut fwd = ForwardDt::new(ncx, ncy, opts.aniso).with_dda(opts.dda);
     let mut summary = Summary {
         cells: (ncx * ncy) as u64 * ncz as u64,
         input_bytes: (nx * ny) as u64 * nz as u64 * meta.dtype.size() as u64,
@@ -227,6 +232,7 @@ pub fn prep(
         brick_size: b as u32,
         bricks,
         aniso_block: opts.aniso.then_some(ANISO_BLOCK as u32),
+        dda: opts.dda,
         zstd_level: opts.zstd_level,
         source: meta.origin_desc.clone(),
         notes: src.report(),
@@ -245,11 +251,14 @@ pub fn prep(
     }
     let mut writer = PackedWriter::create(out, header.brick_count())?;
     let mut hist = vec![0u64; codes.max_code() as usize + 1];
-    let mut bwd = BackwardDt::new(ncx, ncy, ncz, opts.aniso);
+    let mut bwd = BackwardDt::new(ncx, ncy, ncz, opts.aniso).with_dda(opts.dda);
     // Distances of cell slices z0..=z1 of the current slab (the last one
     // is the first slice of the slab above, kept from the previous round).
     let mut slab_dist = vec![FAR; (b + 1) * n_cells_slice];
     let mut slab_blocks: Vec<Option<OctantBlocks>> = vec![None; b / ANISO_BLOCK];
+    // City-block and chamfer planes of cell slices z0..z1 (with --dda).
+    let dda_len = if opts.dda { b * n_cells_slice } else { 0 };
+    let mut slab_dda = [vec![0u8; dda_len], vec![0u8; dda_len]];
     let mut scratch = SlabScratch::default();
     progress.begin("backward DT + bricks", ncz as u64);
     for bz in (0..bricks[2] as usize).rev() {
@@ -278,6 +287,12 @@ pub fn prep(
             if let Some(bl) = blocks {
                 slab_blocks[(z - z0) / ANISO_BLOCK] = Some(bl);
             }
+            if let Some(planes) = bwd.dda() {
+                let at = (z - z0) * n_cells_slice..(z - z0 + 1) * n_cells_slice;
+                for (s, p) in slab_dda.iter_mut().zip(planes) {
+                    s[at.clone()].copy_from_slice(p);
+                }
+            }
             progress.advance(1);
         }
         st.backward += lap(&mut t);
@@ -286,6 +301,7 @@ pub fn prep(
             src,
             dist: &slab_dist,
             blocks: &slab_blocks,
+            dda: opts.dda.then_some([&slab_dda[0][..], &slab_dda[1][..]]),
             z0,
             z1,
             has_upper: z1 < ncz,
@@ -328,7 +344,7 @@ pub fn prep(
             source,
         })?
         .len();
-    let temp_bytes = header.summary.cells
+    let temp_bytes = header.summary.cells * if opts.dda { 3 } else { 1 }
         + if opts.aniso {
             4 * nb_slice as u64 * ncz.div_ceil(ANISO_BLOCK) as u64
         } else {
@@ -358,6 +374,9 @@ struct SlabCtx<'a> {
     /// holds cell slice z1 when `has_upper`.
     dist: &'a [u8],
     blocks: &'a [Option<OctantBlocks>],
+    /// City-block and chamfer planes, slab-local cell slice k at
+    /// `k * ncx * ncy` (with --dda).
+    dda: Option<[&'a [u8]; 2]>,
     z0: usize,
     z1: usize,
     has_upper: bool,
@@ -473,6 +492,17 @@ fn emit_slab<W: Word>(
                 }
                 if h.aniso_block.is_some() {
                     bytes.extend(octant_payload(ctx, c, max_code));
+                }
+                if let Some(planes) = ctx.dda {
+                    // City block, then chamfer: the brick's cells, x fastest.
+                    for p in planes {
+                        for k in 0..nzc {
+                            for y in y0..y1 {
+                                let row = &p[k * n_cells_slice + y * ncx..];
+                                bytes.extend_from_slice(&row[x0..x1]);
+                            }
+                        }
+                    }
                 }
                 debug_assert_eq!(bytes.len(), n_bytes);
                 let raw_len = bytes.len() as u64;

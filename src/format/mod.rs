@@ -110,6 +110,11 @@ pub struct Header {
     pub bricks: [u64; 3],
     /// Anisotropic (octant) codes: cells per block edge, when present.
     pub aniso_block: Option<u32>,
+    /// City-block and chamfer 3-4-5 distance planes for the DDA traversals
+    /// (one `u8` each per cell, after the octant planes); absent (false)
+    /// in older files and omitted from the JSON when false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub dda: bool,
     pub zstd_level: i32,
     pub source: String,
     /// What the input told about itself that a reader should know (a
@@ -168,7 +173,21 @@ impl Header {
         let aniso = self.aniso_block.map_or(0, |g| {
             8 * (self.brick_size as u64).div_ceil(g as u64).pow(3)
         });
-        s * s * s * self.storage.size() as u64 + aniso
+        let dda = if self.dda {
+            2 * (self.brick_size as u64).pow(3)
+        } else {
+            0
+        };
+        s * s * s * self.storage.size() as u64 + aniso + dda
+    }
+
+    /// Bytes of the DDA planes of brick `c` (0 without them).
+    pub fn dda_len(&self, c: [u64; 3]) -> u64 {
+        if !self.dda {
+            return 0;
+        }
+        let s = self.brick_samples(c);
+        2 * (s[0] - 1) * (s[1] - 1) * (s[2] - 1)
     }
 
     /// Exact decompressed payload size of brick `c`.
@@ -176,7 +195,7 @@ impl Header {
         let s = self.brick_samples(c);
         let words = s[0] * s[1] * s[2] * self.storage.size() as u64;
         let aniso = self.brick_blocks(c).map_or(0, |b| 8 * b[0] * b[1] * b[2]);
-        words + aniso
+        words + aniso + self.dda_len(c)
     }
 }
 

@@ -64,6 +64,9 @@ pub enum BrickData {
         samples: Vec<Sample>,
         /// Per anisotropic block (x fastest): the 8 octant codes.
         octants: Option<Vec<[u8; 8]>>,
+        /// DDA planes: `[city block, chamfer 3-4-5]`, one byte per cell of
+        /// the brick, x fastest (files prepared with `--dda`).
+        dda: Option<[Vec<u8>; 2]>,
     },
 }
 
@@ -326,9 +329,18 @@ impl PackedVolume {
                         .map(|i| std::array::from_fn(|o| a[o * nb + i]))
                         .collect()
                 });
+                let dda = h.dda.then(|| {
+                    let len = (h.dda_len(coords) / 2) as usize;
+                    let start = raw.len() - 2 * len;
+                    [
+                        raw[start..start + len].to_vec(),
+                        raw[start + len..].to_vec(),
+                    ]
+                });
                 BrickData::Words {
                     samples: samples_v,
                     octants,
+                    dda,
                 }
             }
         };

@@ -51,6 +51,10 @@ pub struct RBrick {
     pub levels: Vec<Vec<bool>>,
     /// Bytes this brick holds (for the cache budget).
     pub bytes: usize,
+    /// DDA planes `[city block, chamfer 3-4-5]`, one byte per cell, x
+    /// fastest (files prepared with `--dda`); empty for uniform bricks and
+    /// files without them.
+    pub dda: [Vec<u8>; 2],
 }
 
 #[derive(Debug)]
@@ -124,6 +128,7 @@ impl RBrick {
                 octants: Vec::new(),
                 levels: Vec::new(),
                 bytes: std::mem::size_of::<RBrick>(),
+                dda: [Vec::new(), Vec::new()],
             };
             return Ok((b, 0));
         };
@@ -250,8 +255,13 @@ impl RBrick {
             }
             None => Vec::new(),
         };
-        let bytes =
-            std::mem::size_of::<RBrick>() + plane.len() + values.len() * 4 + octants.len() * 8;
+        let dda = dda_planes(h, coords, raw);
+        let bytes = std::mem::size_of::<RBrick>()
+            + plane.len()
+            + values.len() * 4
+            + octants.len() * 8
+            + dda[0].len()
+            + dda[1].len();
         Ok(RBrick {
             first,
             cells,
@@ -260,6 +270,7 @@ impl RBrick {
             octants,
             levels: Vec::new(),
             bytes,
+            dda,
         })
     }
 }
@@ -345,6 +356,20 @@ struct Octree {
     lb: u32,
     /// Levels above (power-of-two brick sizes only).
     bricks: Option<BrickPyramid>,
+}
+
+/// The DDA planes at the end of a brick payload (empty without them; the
+/// reader has checked the payload's length).
+fn dda_planes(h: &crate::format::Header, coords: [u64; 3], raw: &[u8]) -> [Vec<u8>; 2] {
+    let len = h.dda_len(coords) as usize / 2;
+    if len == 0 {
+        return [Vec::new(), Vec::new()];
+    }
+    let start = raw.len() - 2 * len;
+    [
+        raw[start..start + len].to_vec(),
+        raw[start + len..].to_vec(),
+    ]
 }
 
 type Scratch = (Vec<f64>, Vec<u32>);
@@ -528,6 +553,7 @@ impl<'v> BrickCache<'v> {
                 octants: Vec::new(),
                 levels: Vec::new(),
                 bytes: std::mem::size_of::<RBrick>(),
+                dda: [Vec::new(), Vec::new()],
             }
         } else {
             let (b, raw) = RBrick::decode(self.vol, id, self.octree.as_ref().map(|o| o.lb))?;
@@ -584,7 +610,13 @@ impl<'a, 'v> Accessor<'a, 'v> {
         use super::traverse::Method;
         let lazy = match method {
             Method::Fvt => Some(0),
-            Method::Cd { .. } | Method::CdAniso { .. } | Method::Dda { .. } => Some(cd_lazy_min),
+            Method::Cd { .. } | Method::CdAniso { .. } => Some(cd_lazy_min),
+            // City block and chamfer need the planes of every brick they
+            // cross (a stand-in answers only the chessboard bound).
+            Method::Dda { kind, .. } => match kind {
+                super::traverse::DistKind::Chessboard => Some(cd_lazy_min),
+                _ => None,
+            },
             // The octree answers for bricks without 1-cells from the index.
             Method::Octree => Some(0),
         };
@@ -693,6 +725,30 @@ impl super::traverse::CodeSource for Accessor<'_, '_> {
         }
         Some(0)
     }
+
+    /// From the brick's DDA planes when it has them, never below the
+    /// chessboard lower bound (so a corrupt plane cannot stall a ray);
+    /// otherwise the chessboard bound itself.
+    #[inline]
+    fn distance(&mut self, c: [u32; 3], kind: super::traverse::DistKind) -> u8 {
+        use super::traverse::DistKind;
+        let (b, l) = self.brick(c);
+        let code = b.code(l);
+        if code == OBJECT {
+            return 0;
+        }
+        let bound = ((code as u32 + 1) * kind.unit()).min(254) as u8;
+        let plane = match kind {
+            DistKind::Chessboard => return bound,
+            DistKind::Cityblock => &b.dda[0],
+            DistKind::Chamfer => &b.dda[1],
+        };
+        if plane.is_empty() {
+            return bound;
+        }
+        let i = ((l[2] * b.cells[1] + l[1]) * b.cells[0] + l[0]) as usize;
+        plane[i].clamp(bound, 254)
+    }
 }
 
 impl Accessor<'_, '_> {
@@ -713,6 +769,7 @@ static EMPTY: RBrick = RBrick {
     octants: Vec::new(),
     levels: Vec::new(),
     bytes: 0,
+    dda: [Vec::new(), Vec::new()],
 };
 
 #[cfg(test)]
