@@ -98,6 +98,24 @@
 //!    is the neighbouring rays' (interpolated, or shifted for nearest), off
 //!    by up to the surface's slope times half a cell.
 //!
+//! # Measured
+//!
+//! tests/template.rs, sphere phantom (48^3, cubic and 0.8 x 1 x 1.5 mm
+//! grids, 96 x 96, four views), against FVT: hit/miss differs on
+//! 0.65-1.02 % of the pixels; over pixels both hit, the median depth
+//! difference is 0.03-0.09 mm (nearest warp 0.19-0.31 mm; without the
+//! gap refinement up to 0.23 mm on the diagonal view), the 95th percentile
+//! 0.63-1.23 mm. On random volumes the single-step template skips 46 % of
+//! the 1-cell visits of FVT along the same rays (it visits one cell per
+//! slab, FVT about two), and never visits a cell the ray misses.
+//!
+//! `cargo run --release --example template_timing` (256^3 spheres, depth
+//! and surface, CD with leaps, 2 cores shared with other jobs, load ~6.7,
+//! best of 3): 512 x 512: render 244-385 ms, template 220-306 ms; 1024 x
+//! 1024: render 623-901 ms, template 272-379 ms. The template traces one
+//! ray per base-plane cell (65 025 on the axis view, 155 820 oblique)
+//! whatever the image size, and both decode the same 32 MB of bricks.
+//!
 //! # Refused inputs
 //!
 //! * **Perspective cameras**: rays are not parallel, so no two rays follow
