@@ -1,5 +1,5 @@
 //! Template-based CD ray generation (paper section 4.2.2, after Yagel and
-//! Kaufman's ray templates [28] with 26-connected templates [29]).
+//! Kaufman's ray templates \[28\] with 26-connected templates \[29\]).
 //!
 //! # What is computed
 //!
