@@ -15,6 +15,7 @@ pub mod cache;
 pub mod camera;
 pub mod shade;
 pub mod shard;
+pub mod template;
 pub mod traverse;
 
 use std::time::Instant;
@@ -145,6 +146,9 @@ pub enum RenderError {
     },
     #[error("option {option}: {msg}")]
     Option { option: &'static str, msg: String },
+    /// Inputs the template traversal (template.rs) cannot render.
+    #[error("template traversal: {0}")]
+    Template(String),
 }
 
 /// Per-pixel result before colouring.
