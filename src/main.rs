@@ -306,7 +306,20 @@ fn render_cmd(
         cli::TraversalArg::DdaCityblock => dda(DistKind::Cityblock),
         cli::TraversalArg::DdaChessboard => dda(DistKind::Chessboard),
         cli::TraversalArg::DdaChamfer => dda(DistKind::Chamfer),
-        cli::TraversalArg::Template => anyhow::bail!("--traversal template: not wired yet"),
+        // Template-based CD (section 4.2.2): its own renderer, leaping
+        // like cd.
+        cli::TraversalArg::Template => Method::Cd { min_leap },
+    };
+    let template = a.traversal == cli::TraversalArg::Template;
+    if template && a.shard.is_some() {
+        bail!("--traversal template renders whole images: drop --shard");
+    }
+    let render = |vol: &PackedVolume, cam: &Camera, opts: &RenderOptions, pr: &dyn Progress| {
+        if template {
+            cdvol::render::template::render_template(vol, cam, opts, pr)
+        } else {
+            render(vol, cam, opts, pr)
+        }
     };
     let opts = RenderOptions {
         mode,

@@ -493,10 +493,11 @@ pub fn render_template_with(
     let min_leap = match opts.method {
         Method::Fvt => None,
         Method::Cd { min_leap } => Some(min_leap),
-        Method::CdAniso { .. } => {
-            return Err(refuse(
-                "cd-aniso: octant codes have no template leap rule here; use cd or fvt",
-            ))
+        m @ (Method::CdAniso { .. } | Method::Octree | Method::Dda { .. }) => {
+            return Err(refuse(&format!(
+                "{m:?} (cd-aniso, octree, dda): templates leap by chessboard codes only (cd) or \
+                 step every entry (fvt)"
+            )))
         }
     };
     let tol = opts.hit_params.newton_tol;
