@@ -12,7 +12,7 @@ import json, os, sys, time
 import numpy as np
 import pyopenvdb as vdb
 
-t0 = time.perf_counter()
+t0 = time.perf_counter()  # after the imports
 side, out = sys.argv[1], sys.argv[2]
 meta = json.load(open(side))
 nx, ny, nz = meta["dims"]
@@ -32,5 +32,5 @@ g.transform = vdb.createLinearTransform(
 )
 g.name = "ct_neg"
 vdb.write(out, grids=[g])
-print(f"ct2vdb {out}: {g.activeVoxelCount()} active voxels, {time.perf_counter() - t0:.3f} s",
-      file=sys.stderr)
+print(json.dumps({"convert_s": time.perf_counter() - t0, "active_voxels": g.activeVoxelCount(),
+                  "openvdb": ".".join(map(str, vdb.LIBRARY_VERSION))}))
