@@ -1,0 +1,232 @@
+#!/usr/bin/env python3
+"""Driver of tools/peers/run.sh: cdvol and its peers on the same CT, view
+and image size, timed in one run, repeats interleaved.
+
+Run with the peers venv's python (it needs PIL). Writes into OUT_DIR:
+  timings-raw.csv   every measurement
+  timings.csv       medians: tool, mode, threads, setup_s, render_s, ...
+  RESULTS.md        the ratio tables (generated; PEERS.md quotes them)
+  *.png, montage.png
+
+usage: bench.py --cdvol BIN --ct SIDECAR --work DIR --out DIR [--reps 5]
+                [--size 512] [--threads 1,2] [--view 35,15] [--iso 300]
+"""
+import argparse, csv, json, math, os, re, shutil, statistics, subprocess, sys, time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+ap = argparse.ArgumentParser()
+ap.add_argument("--cdvol", required=True)
+ap.add_argument("--ct", required=True)
+ap.add_argument("--work", required=True)
+ap.add_argument("--out", required=True)
+ap.add_argument("--venv-python", default=sys.executable)
+ap.add_argument("--reps", type=int, default=5)
+ap.add_argument("--size", type=int, default=512)
+ap.add_argument("--threads", default="1,2")
+ap.add_argument("--view", default="35,15")
+ap.add_argument("--iso", type=float, default=300.0)
+ap.add_argument("--tf", default=os.path.join(HERE, "skin-bone-tf.json"))
+a = ap.parse_args()
+os.makedirs(a.work, exist_ok=True)
+os.makedirs(a.out, exist_ok=True)
+threads = [int(t) for t in a.threads.split(",")]
+W = a.work
+
+# ---- the view: cdvol's orthographic orbit (Camera::orbit), spelled out as
+# eye / target / up / frame so every renderer gets the same numbers.
+meta = json.load(open(a.ct))
+org = meta.get("origin", [0, 0, 0])
+hi = [org[k] + (meta["dims"][k] - 1) * meta["xyz"[k]] for k in range(3)]
+centre = [0.5 * (org[k] + hi[k]) for k in range(3)]
+radius = 0.5 * math.sqrt(sum((hi[k] - org[k]) ** 2 for k in range(3)))
+az, el = (math.radians(float(x)) for x in a.view.split(","))
+back = [math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)]
+eye = [centre[k] + 2 * radius * back[k] for k in range(3)]
+up = [0.0, 0.0, 1.0]
+frame = 2 * radius * 1.02
+fmt = lambda v: ",".join(f"{x:.4f}" for x in v)
+CAM = dict(eye=fmt(eye), target=fmt(centre), up=fmt(up), frame=f"{frame:.4f}")
+print(f"view {a.view}: eye {CAM['eye']} target {CAM['target']} up {CAM['up']} "
+      f"ortho frame {CAM['frame']} mm, {a.size}x{a.size}", flush=True)
+
+
+def pin(n):
+    """Every process of an n-thread run is also pinned to n cores."""
+    return ["taskset", "-c", ",".join(str(i) for i in range(n))]
+
+
+def run(cmd, **kw):
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    dt = time.perf_counter() - t0
+    if p.returncode != 0:
+        sys.exit(f"failed ({p.returncode}): {' '.join(cmd)}\n{p.stdout}\n{p.stderr}")
+    return dt, p.stdout, p.stderr
+
+
+rows = []  # raw measurements
+
+
+def record(rep, tool, mode, n, setup_s, render_s, core_s, note=""):
+    rows.append(dict(rep=rep, tool=tool, mode=mode, threads=n, setup_s=setup_s,
+                     render_s=render_s, render_core_s=core_s, note=note))
+
+
+cam_args = ["--eye", CAM["eye"], "--target", CAM["target"], "--up", CAM["up"],
+            "--frame", CAM["frame"], "--width", str(a.size), "--height", str(a.size)]
+img = lambda name: os.path.join(W, name)
+
+
+def cdvol(rep, n):
+    b = a.cdvol
+    st = img("stats.json")
+    s_iso, _, _ = run(pin(n) + [b, "prep", "-q", "--iso", str(a.iso), a.ct, "-o", img("ct-iso.cdv")])
+    s_tf, _, _ = run(pin(n) + [b, "prep", "-q", "--classify-tf", a.tf, a.ct, "-o", img("ct-tf.cdv")])
+    for mode, f, extra, setup in [
+        ("surface", "ct-iso.cdv", [], s_iso),
+        ("mip", "ct-iso.cdv", [], s_iso),
+        ("composite", "ct-tf.cdv", ["--tf", a.tf, "--step", "0.5"], s_tf),
+    ]:
+        t, _, _ = run(pin(n) + [b, "render", "-q", img(f), "-o", img(f"cdvol-{mode}-{n}.png"),
+                                "--mode", mode, "--threads", str(n), "--stats", st] + cam_args + extra)
+        core = json.load(open(st))["seconds_total"]
+        record(rep, "cdvol", mode, n, setup, t, core)
+
+
+def vdb(rep, n):
+    # setup: raw -> negated FloatGrid (.vdb) -> level set at -iso (bone inside)
+    _, out, _ = run(pin(n) + ["/usr/bin/python3", os.path.join(HERE, "ct2vdb.py"), a.ct, img("ct.vdb")])
+    conv = json.loads(out)["convert_s"]  # after python's imports
+    t_ls, _, _ = run(pin(n) + ["vdb_tool", "-read", img("ct.vdb"), "-iso2ls", f"iso={-a.iso}",
+                               f"voxel={min(meta['x'], meta['y'], meta['z'])}", "-write", img("ls.vdb")])
+    t, out, err = run(pin(n) + ["vdb_render", img("ls.vdb"), img(f"vdb_render-surface-{n}.png"),
+                                "-res", f"{a.size}x{a.size}", "-camera", "ortho", "-frame", CAM["frame"],
+                                "-translate", CAM["eye"], "-lookat", CAM["target"], "-up", CAM["up"],
+                                "-shader", "diffuse", "-cpus", str(n), "-v"])
+    m = re.findall(r"ray-tracing.*?\n.*?completed in ([0-9.]+) sec", out + err, re.S)
+    core = float(m[-1]) if m else float("nan")
+    record(rep, "vdb_render", "surface", n, conv + t_ls, t, core,
+           f"convert {conv:.3f} + iso2ls {t_ls:.3f}")
+
+
+def vtkr(rep, n):
+    for mode in ["composite", "mip"]:
+        wall, out, _ = run(pin(n) + [a.venv_python, os.path.join(HERE, "vtk_render.py"), a.ct, mode,
+                                     img(f"vtk-{mode}-{n}.png"), "--tf", a.tf, "--step", "0.5",
+                                     "--iso", str(a.iso), "--size", str(a.size), "--threads", str(n),
+                                     "--renders", "3"]
+                           + [x for k in ("eye", "target", "up", "frame") for x in (f"--{k}", CAM[k])])
+        d = json.loads(out.strip().splitlines()[-1])
+        r = statistics.median(d["render_s"])
+        # setup: raw -> vtkImageData, plus what the first Render() costs over
+        # a later one (the mapper's one-time work); the render is a later one.
+        setup = d["load_s"] + max(0.0, d["first_s"] - r)
+        record(rep, "vtk", mode, n, setup, r, r, f"load {d['load_s']:.3f} first {d['first_s']:.3f} "
+               f"process {wall:.3f} threads {d['threads']}")
+
+
+tools = [cdvol, vdb, vtkr]
+for rep in range(a.reps):
+    for i in range(len(tools)):
+        # rotate the order each repeat, so no tool always runs first
+        for n in threads:
+            tools[(i + rep) % len(tools)](rep, n)
+    print(f"repeat {rep + 1}/{a.reps} done", flush=True)
+
+# ---- tables
+with open(os.path.join(a.out, "timings-raw.csv"), "w", newline="") as f:
+    w = csv.DictWriter(f, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows(rows)
+
+med = {}
+for key in sorted({(r["tool"], r["mode"], r["threads"]) for r in rows}):
+    rs = [r for r in rows if (r["tool"], r["mode"], r["threads"]) == key]
+    med[key] = {k: statistics.median(r[k] for r in rs) for k in ("setup_s", "render_s", "render_core_s")}
+    med[key]["repeats"] = len(rs)
+    med[key]["min_render_core_s"] = min(r["render_core_s"] for r in rs)
+    med[key]["min_setup_s"] = min(r["setup_s"] for r in rs)
+with open(os.path.join(a.out, "timings.csv"), "w", newline="") as f:
+    w = csv.writer(f)
+    w.writerow(["tool", "mode", "threads", "setup_s", "render_s", "render_core_s", "repeats",
+                "min_setup_s", "min_render_core_s"])
+    for (tool, mode, n), m in med.items():
+        w.writerow([tool, mode, n, f"{m['setup_s']:.4f}", f"{m['render_s']:.4f}",
+                    f"{m['render_core_s']:.4f}", m["repeats"], f"{m['min_setup_s']:.4f}",
+                    f"{m['min_render_core_s']:.4f}"])
+
+# ---- images: keep the 1-thread ones (the 2-thread ones are the same picture)
+from PIL import Image, ImageChops, ImageDraw, ImageStat
+
+pairs = [("surface", "vdb_render"), ("composite", "vtk"), ("mip", "vtk")]
+n0 = threads[0]
+diffs = {}
+for mode, peer in pairs:
+    for tool in ("cdvol", peer):
+        shutil.copy(img(f"{tool}-{mode}-{n0}.png"), os.path.join(a.out, f"{tool}-{mode}.png"))
+    x = Image.open(img(f"cdvol-{mode}-{n0}.png")).convert("RGB")
+    y = Image.open(img(f"{peer}-{mode}-{n0}.png")).convert("RGB")
+    d = ImageChops.difference(x, y).convert("L")
+    hist = d.histogram()
+    big = sum(hist[17:]) / (a.size * a.size)
+    diffs[mode] = (ImageStat.Stat(d).mean[0], big)
+
+lab = 22
+S = a.size
+mont = Image.new("RGB", (2 * S, 3 * (S + lab)), "black")
+dr = ImageDraw.Draw(mont)
+for row, (mode, peer) in enumerate(pairs):
+    for col, tool in enumerate(("cdvol", peer)):
+        mont.paste(Image.open(os.path.join(a.out, f"{tool}-{mode}.png")).convert("RGB"),
+                   (col * S, row * (S + lab) + lab))
+        m = med[(tool, mode, n0)]
+        dr.text((col * S + 6, row * (S + lab) + 5),
+                f"{tool} {mode}: render {m['render_core_s']:.3f} s, setup {m['setup_s']:.3f} s ({n0} thread)",
+                fill="white")
+mont.save(os.path.join(a.out, "montage.png"))
+
+# ---- ratio tables
+def ratio(peer, cd, key):
+    return med[peer][key] / med[cd][key]
+
+
+lines = [f"View {a.view} (azimuth, elevation), orthographic, eye {CAM['eye']}, target "
+         f"{CAM['target']}, up {CAM['up']}, frame {CAM['frame']} mm, {a.size}x{a.size}; "
+         f"medians of {a.reps} interleaved repeats.", "",
+         "Time ratio = peer time / cdvol time (above 1: cdvol is faster).", "",
+         "| mode | peer | threads | cdvol render s | peer render s | ratio render | "
+         "cdvol setup+render s | peer setup+render s | ratio incl. setup | target | met? |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
+target = {"surface": 4.0, "composite": 3.0, "mip": 3.0}
+for mode, peer in pairs:
+    for n in threads:
+        c, p = med[("cdvol", mode, n)], med[(peer, mode, n)]
+        rr = p["render_core_s"] / c["render_core_s"]
+        tot_c = c["setup_s"] + c["render_s"]
+        tot_p = p["setup_s"] + p["render_s"]
+        ok = "yes" if rr >= target[mode] else "no"
+        lines.append(f"| {mode} | {peer} | {n} | {c['render_core_s']:.3f} | {p['render_core_s']:.3f} | "
+                     f"{rr:.2f} | {tot_c:.3f} | {tot_p:.3f} | {tot_p / tot_c:.2f} | "
+                     f">= {target[mode]:.0f} (render) | {ok} |")
+lines += ["", "The same from the fastest of the repeats (the least disturbed figure on a shared machine):", "",
+          "| mode | peer | threads | cdvol render s | peer render s | ratio render | cdvol setup s | peer setup s |",
+          "|---|---|---|---|---|---|---|---|"]
+for mode, peer in pairs:
+    for n in threads:
+        c, p = med[("cdvol", mode, n)], med[(peer, mode, n)]
+        lines.append(f"| {mode} | {peer} | {n} | {c['min_render_core_s']:.3f} | {p['min_render_core_s']:.3f} | "
+                     f"{p['min_render_core_s'] / c['min_render_core_s']:.2f} | {c['min_setup_s']:.3f} | "
+                     f"{p['min_setup_s']:.3f} |")
+lines += ["", "Wall-clock render processes (cdvol and vdb_render: the whole `render` process, "
+          "reading the file and writing the PNG; VTK: Render() in-process):", "",
+          "| tool | mode | threads | setup s | render s (wall) | render s (core) |", "|---|---|---|---|---|---|"]
+for (tool, mode, n), m in med.items():
+    lines.append(f"| {tool} | {mode} | {n} | {m['setup_s']:.3f} | {m['render_s']:.3f} | {m['render_core_s']:.3f} |")
+lines += ["", "Image agreement (1-thread images, 8-bit, per pixel |cdvol - peer| of the grey level):", "",
+          "| mode | peer | mean abs diff | pixels differing by > 16 |", "|---|---|---|---|"]
+for mode, peer in pairs:
+    mean, big = diffs[mode]
+    lines.append(f"| {mode} | {peer} | {mean:.2f} | {100 * big:.2f} % |")
+open(os.path.join(a.out, "RESULTS.md"), "w").write("\n".join(lines) + "\n")
+print("\n".join(lines))

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# cdvol against the tools users would otherwise pick, on the real head CT,
+# same view and image size, in one run (docs/peers/PEERS.md):
+#   surface    cdvol  vs  OpenVDB vdb_render (CT -> level set by vdb_tool -iso2ls)
+#   composite  cdvol  vs  VTK vtkFixedPointVolumeRayCastMapper
+#   mip        cdvol  vs  VTK vtkFixedPointVolumeRayCastMapper (MIP blend)
+# at 1 and 2 threads, setup (prep / conversion / load) timed apart from the
+# render; medians of REPS interleaved repeats. Installs the peers itself.
+# Not part of CI.
+#
+# usage: tools/peers/run.sh [WORKDIR]   env: REPS=5 SIZE=512 THREADS=1,2 VIEW=35,15
+#        CDVOL=/path/to/cdvol (default: cargo build --release, copied into WORKDIR)
+#        OUT=docs/peers (where the CSVs, PNGs and RESULTS.md go)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+work=$(mkdir -p "${1:-$root/target/peers}" && cd "${1:-$root/target/peers}" && pwd)
+out=${OUT:-$root/docs/peers}
+"$root/tools/peers/install.sh" "$work/venv"
+ct=$root/target/ct
+if [ -n "${CT_DIR:-}" ]; then ct=$CT_DIR; fi
+[ -f "$ct/cranium.json" ] || "$root/tools/fetch-ct.sh" "$ct" >/dev/null
+if [ -z "${CDVOL:-}" ]; then
+    (cd "$root" && cargo build --release --quiet)
+    tdir=${CARGO_TARGET_DIR:-$root/target}
+    cp "$tdir/release/cdvol" "$work/cdvol"   # private copy: later builds can't change it mid-run
+    CDVOL=$work/cdvol
+fi
+"$CDVOL" --version >&2
+"$work/venv/bin/python" "$root/tools/peers/bench.py" --cdvol "$CDVOL" --ct "$ct/cranium.json" \
+    --work "$work" --out "$out" --reps "${REPS:-5}" --size "${SIZE:-512}" \
+    --threads "${THREADS:-1,2}" --view "${VIEW:-35,15}"
