@@ -52,6 +52,48 @@ pub enum ExperimentCmd {
     /// composite step, on the sphere phantom (analytic truth) and the real
     /// CT: writes docs/TRADEOFFS.md, tradeoffs.csv and tradeoffs.svg.
     Tradeoffs(TradeoffsArgs),
+    /// Fig. 16: background traversal time vs scene complexity (fvt,
+    /// octree, cd, ...) on 128^3 sphere scenes.
+    Fig16(PaperArgs),
+    /// Fig. 17: cost maps of fvt, octree and cd on the real CT, one PNG.
+    Fig17(PaperArgs),
+    /// Fig. 18: mean step length of the DDA distances and CD.
+    Fig18(PaperArgs),
+    /// Fig. 20: CD switched to FVT at distance 1, 2, 3.
+    Fig20(PaperArgs),
+    /// Fig. 22: surface detection, samples on faces vs equidistant.
+    Fig22(PaperArgs),
+    /// Table 1: single-cell vs macro-region traversal, rectilinear CT.
+    Table1(PaperArgs),
+    /// Table 2: initialisation per ray and step cost of every generator.
+    Table2(PaperArgs),
+    /// Every paper experiment: writes docs/EXPERIMENTS.md and
+    /// docs/experiments/ (CSV, SVG, PNG).
+    All(PaperArgs),
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct PaperArgs {
+    /// The Markdown report; CSV, SVG and PNG files go to `experiments/`
+    /// beside it.
+    #[arg(long, default_value = "docs/EXPERIMENTS.md")]
+    pub out: PathBuf,
+    /// Sidecar of the real CT (tools/fetch-ct.sh DIR writes DIR/cranium.json);
+    /// table1 and fig17 need it.
+    #[arg(long)]
+    pub ct: Option<PathBuf>,
+    /// Sphere scenes: N subregions per axis (paper: 2..21).
+    #[arg(long, value_delimiter = ',', default_value = "2,3,4,5,6,8,10,13,17,21")]
+    pub ns: Vec<usize>,
+    /// Scene edge in samples (paper: 128).
+    #[arg(long, default_value_t = 128)]
+    pub size: usize,
+    /// Rays per image edge (paper: 250).
+    #[arg(long, default_value_t = 250)]
+    pub rays: u32,
+    /// Repetitions per setting (median reported).
+    #[arg(long, default_value_t = 5)]
+    pub runs: usize,
 }
 
 #[derive(Args, Debug)]

@@ -205,20 +205,57 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             }
         }
         Command::Experiment(cli::ExperimentCmd::Tradeoffs(a)) => {
-            let o = cdvol::experiment::TradeoffOptions {
-                out: a.out.clone(),
-                ct: a.ct.clone(),
-                size: a.size,
-                runs: a.runs,
-            };
-            let rows = cdvol::experiment::tradeoffs(&o, progress)?;
-            println!(
-                "{} settings measured; wrote {}",
-                rows.len(),
-                a.out.display()
-            );
+            tradeoffs_cmd(&a, progress)?;
+        }
+        Command::Experiment(e) => {
+            let path = cdvol::experiment::paper::run(&paper_job(&e)?, progress)?;
+            println!("wrote {}", path.display());
         }
     }
+    Ok(())
+}
+
+/// The paper experiment `e` names, with its options.
+fn paper_job(e: &cli::ExperimentCmd) -> Result<cdvol::experiment::paper::Job> {
+    use cdvol::experiment::paper::Which;
+    let (which, a) = match e {
+        cli::ExperimentCmd::Fig16(a) => (Which::Fig16, a),
+        cli::ExperimentCmd::Fig17(a) => (Which::Fig17, a),
+        cli::ExperimentCmd::Fig18(a) => (Which::Fig18, a),
+        cli::ExperimentCmd::Fig20(a) => (Which::Fig20, a),
+        cli::ExperimentCmd::Fig22(a) => (Which::Fig22, a),
+        cli::ExperimentCmd::Table1(a) => (Which::Table1, a),
+        cli::ExperimentCmd::Table2(a) => (Which::Table2, a),
+        cli::ExperimentCmd::All(a) => (Which::All, a),
+        cli::ExperimentCmd::Tradeoffs(_) => bail!("tradeoffs is not a paper experiment"),
+    };
+    Ok(cdvol::experiment::paper::Job {
+        which,
+        out: a.out.clone(),
+        opts: cdvol::experiment::paper::PaperOptions {
+            dir: a.out.parent().unwrap_or(Path::new(".")).join("experiments"),
+            ns: a.ns.clone(),
+            size: a.size,
+            rays: a.rays,
+            runs: a.runs,
+            ct: a.ct.clone(),
+        },
+    })
+}
+
+fn tradeoffs_cmd(a: &cli::TradeoffsArgs, progress: &dyn Progress) -> Result<()> {
+    let o = cdvol::experiment::TradeoffOptions {
+        out: a.out.clone(),
+        ct: a.ct.clone(),
+        size: a.size,
+        runs: a.runs,
+    };
+    let rows = cdvol::experiment::tradeoffs(&o, progress)?;
+    println!(
+        "{} settings measured; wrote {}",
+        rows.len(),
+        a.out.display()
+    );
     Ok(())
 }
 

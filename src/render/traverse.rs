@@ -725,10 +725,10 @@ where
     // Slab interval of cell v along the ray.
     let span = |v: [u32; 3]| -> (T, T) {
         let (mut a, mut b) = (t_in, t_out);
-        for k in 0..3 {
+        for (k, &vk) in v.iter().enumerate() {
             if w.d[k] != T::zero() {
-                a = a.max(w.plane_t(k, v[k]));
-                b = b.min(w.plane_t(k, v[k] + 1));
+                a = a.max(w.plane_t(k, vk));
+                b = b.min(w.plane_t(k, vk + 1));
             }
         }
         (a, b)
@@ -796,10 +796,10 @@ where
             return counts;
         }
         t = tn;
-        for k in 0..3 {
+        for (k, vk) in v.iter_mut().enumerate() {
             if w.d[k] != T::zero() {
-                v[k] = w.locate(k, t, v[k], w.n[k]);
-                if v[k] >= w.n[k] {
+                *vk = w.locate(k, t, *vk, w.n[k]);
+                if *vk >= w.n[k] {
                     return counts;
                 }
             }

@@ -8,6 +8,8 @@
 //! the fastest setting of the same table (the machines are shared and
 //! noisy; ratios measured in one run are what carry over).
 
+pub mod paper;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
