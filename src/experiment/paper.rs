@@ -606,7 +606,8 @@ impl Sweep {
              \nWhy city block leaps furthest here: along an axis `D1(r) = Dinf(r) = 1`, so \
              eq. 2 advances `d - 1` cells for every distance, and the city-block distance to \
              a sphere is the largest of the three. The paper measured nearly equal steps; \
-             its DDA advanced by whole samples, which we do not reproduce exactly.\n",
+             we have not pinned down why ours differ (its DDA may round leaps to whole \
+             samples or normalise differently).\n",
         );
         s.push_str(
             "\nPaper (Fig. 18): without the switch the DDA's mean step is nearly the same for \
