@@ -108,7 +108,11 @@ impl CodeSource for &MemVolume {
         if self.is_object(c) {
             return None;
         }
-        let top = self.ncells.iter().map(|&n| n.next_power_of_two().trailing_zeros()).max();
+        let top = self
+            .ncells
+            .iter()
+            .map(|&n| n.next_power_of_two().trailing_zeros())
+            .max();
         for l in (1..=top.unwrap_or(0)).rev() {
             let a = c.map(|x| (x >> l) << l);
             let inside = |o: &[u32; 3]| (0..3).all(|k| o[k] >= a[k] && o[k] - a[k] < (1 << l));

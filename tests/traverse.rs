@@ -409,7 +409,10 @@ fn generators_leap_and_misses_are_counted() {
     use proptest::strategy::ValueTree;
     let mut runner = proptest::test_runner::TestRunner::deterministic();
     let rays = proptest::collection::vec(
-        ([coord(), coord(), coord()], [component(), component(), component()]),
+        (
+            [coord(), coord(), coord()],
+            [component(), component(), component()],
+        ),
         16,
     );
     let mut totals: std::collections::BTreeMap<String, (u64, u64, u64)> = Default::default();
