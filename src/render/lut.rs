@@ -9,9 +9,12 @@
 //! the two entries around its value.
 //!
 //! Resolution: the entries span the points' values `[v_first, v_last]`
-//! (the function is constant beyond them, and so is the table) with
-//! [`TfLut::MIN_BINS`] bins, more (up to [`TfLut::MAX_BINS`]) when two
-//! points are closer than 16 bins. Inside a bin without a point the exact
+//! (the function is constant beyond them, and so is the table) with at
+//! least [`TfLut::MIN_BINS`] bins, more (up to [`TfLut::MAX_BINS`]) when
+//! two points are closer than 16 bins, and the smallest such count that
+//! puts every point on an entry when there is one (e.g. 4608 bins of
+//! 0.195 HU for the skin-bone function below, whose points are multiples
+//! of 100 HU apart). Inside a bin without a point the exact
 //! function is smooth (opacity linear, corrected opacity `1 - (1 -
 //! a)^step` and premultiplied colour quadratic-like), so the interpolation
 //! error is `h^2 / 8` times its second derivative; in a bin holding a
@@ -67,15 +70,35 @@ impl TfLut {
             .map(|w| w[1].value - w[0].value)
             .fold(f64::INFINITY, f64::min);
         let want = ((v1 - v0) / min_gap * 16.0).ceil();
-        let bins = if want.is_finite() {
+        let least = if want.is_finite() {
             (want as usize).clamp(Self::MIN_BINS, Self::MAX_BINS)
         } else {
             Self::MAX_BINS
         };
-        let h = (v1 - v0) / bins as f64;
-        let entries = (0..=bins)
+        // Where every point falls on an entry (commensurate points, as in
+        // hand-written functions), the table is exact at the kinks and only
+        // the smooth h^2 error remains; else the least count.
+        let span = v1 - v0;
+        let at_entry = |q: f64, bins: usize| {
+            let x = (q - v0) / span * bins as f64;
+            ((x - x.round()).abs() <= 1e-9 * bins as f64).then_some(x.round() as usize)
+        };
+        let bins = if p.len() <= 64 {
+            (least..=Self::MAX_BINS)
+                .find(|&b| p.iter().all(|q| at_entry(q.value, b).is_some()))
+                .unwrap_or(least)
+        } else {
+            least
+        };
+        let h = span / bins as f64;
+        let mut entries: Vec<[f64; 4]> = (0..=bins)
             .map(|i| exact(if i == bins { v1 } else { v0 + i as f64 * h }))
             .collect();
+        for q in p {
+            if let Some(i) = at_entry(q.value, bins) {
+                entries[i] = exact(q.value);
+            }
+        }
         TfLut {
             v0,
             inv_h: 1.0 / h,
@@ -92,8 +115,14 @@ impl TfLut {
             return [0.0; 4];
         }
         // x in [0, bins]: clamped, so values beyond the ends (and
-        // infinities) take the end entries.
-        let x = ((v - self.v0) * self.inv_h).clamp(0.0, self.last_bin + 1.0);
+        // infinities) take the end entries; NaN from an infinite value
+        // times the constant table's 0 takes the first.
+        let x = (v - self.v0) * self.inv_h;
+        let x = if x > 0.0 {
+            x.min(self.last_bin + 1.0)
+        } else {
+            0.0
+        };
         let i = (x as usize).min(self.last_bin as usize);
         let f = x - i as f64;
         let (a, b) = (&self.entries[i], &self.entries[i + 1]);
@@ -168,10 +197,20 @@ mod tests {
 
     #[test]
     fn skin_bone_table_error() {
-        // tools/peers/skin-bone-tf.json, at the peers' step and others.
+        // tools/peers/skin-bone-tf.json, at the peers' step and others:
+        // its points land on entries, so only the smooth error is left.
+        assert_eq!(TfLut::new(&skin_bone(), 0.5).entries.len(), 4104 + 1);
         for step in [0.5, 0.1, 1.0, 3.0] {
             let e = max_error(&skin_bone(), step, -1100.0, 1500.0);
-            assert!(e < 1e-5, "step {step}: max error {e}");
+            assert!(e < 1e-8, "step {step}: max error {e}");
+        }
+        // A point off the entries: its kink is smeared over one bin,
+        // still a small error.
+        let mut t = skin_bone();
+        t.points[2].value += 0.1 * 2f64.sqrt();
+        for step in [0.5, 3.0] {
+            let e = max_error(&t, step, -1100.0, 1500.0);
+            assert!(e < 1e-4, "step {step}: max error {e}");
         }
     }
 
@@ -199,7 +238,7 @@ mod tests {
         assert_eq!(lut.sample(f64::NAN), [0.0; 4]);
         // Exactly transparent where the function is.
         assert_eq!(lut.sample(-500.0)[3], 0.0);
-        assert_eq!(lut.sample(300.0)[3], 0.0);
+        assert!(lut.sample(300.0)[3] < 1e-15);
         let one = tf(&[(5.0, 0.3, [0.2, 0.4, 0.6])]);
         let lut = TfLut::new(&one, 2.0);
         let a = 1.0 - 0.7f64.powf(2.0);
