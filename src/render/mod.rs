@@ -650,7 +650,15 @@ fn pixel<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (Px, StepCount
         Mode::Mip => {
             let mut best = f64::NEG_INFINITY;
             counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, acc| {
-                let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+                let f = acc.vertices(v.cell);
+                // The interpolant never exceeds the largest vertex value
+                // (NaN vertices give NaN, which max ignores): a cell whose
+                // vertices are all <= best cannot raise it.
+                let top = f.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x));
+                if top as f64 <= best {
+                    return Flow::Continue;
+                }
+                let c = CellEval::new(coords, v.cell, f);
                 best = best
                     .max(c.value(at(ray, v.t_enter)))
                     .max(c.value(at(ray, v.t_exit)));
@@ -676,12 +684,13 @@ fn pixel<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (Px, StepCount
         Mode::Composite { step_mm, .. } => {
             let lut = ctx.lut.as_ref().expect("composite renders carry a table");
             let step = *step_mm;
+            let inv_step = 1.0 / step;
             let mut col = [0.0f64; 3];
             let mut alpha = 0.0f64;
             counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, acc| {
                 // Samples at t = k * step inside [t_enter, t_exit); a cell
                 // the ray only clips between two samples is not read.
-                let mut k = ceil(v.t_enter / step);
+                let mut k = first_sample(v.t_enter, step, inv_step);
                 if !(k * step < v.t_exit) {
                     return Flow::Continue;
                 }
@@ -711,6 +720,23 @@ fn pixel<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (Px, StepCount
     }
     px.steps = counts.steps.min(u32::MAX as u64) as u32;
     (px, counts)
+}
+
+/// `ceil(t / step)`, the first composite sample at or after `t`, with a
+/// multiplication by `inv_step = 1 / step` instead of the division where
+/// that cannot change the result: the two quotients differ by a few ulps,
+/// so only when `t / step` is within 1e-12 (relative) of an integer does
+/// the division decide.
+#[inline]
+fn first_sample(t: f64, step: f64, inv_step: f64) -> f64 {
+    let q = t * inv_step;
+    let k = ceil(q);
+    // Distance to the nearest integer (no libm `round`).
+    if (k - q).min(q - (k - 1.0)) <= 1e-12 * q.abs().max(1.0) {
+        ceil(t / step)
+    } else {
+        k
+    }
 }
 
 /// `x.ceil()` without a libm call (the default x86-64 target has no
