@@ -494,7 +494,7 @@ pub fn render_template_with(
         Method::Fvt => None,
         Method::Cd { min_leap } => Some(min_leap),
         m @ (Method::CdAniso { .. } | Method::Octree | Method::Dda { .. }) => {
-            return Err(refuse(&format!(
+            return Err(refuse(format!(
                 "{m:?} (cd-aniso, octree, dda): templates leap by chessboard codes only (cd) or \
                  step every entry (fvt)"
             )))
