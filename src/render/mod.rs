@@ -916,3 +916,48 @@ pub fn save(frame: &Frame, path: &std::path::Path) -> Result<Vec<std::path::Path
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{ceil, first_sample};
+
+    #[test]
+    fn ceil_and_first_sample_match_the_division() {
+        for x in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.5,
+            -2.5,
+            1e15,
+            4503599627370495.5,
+            1e300,
+        ] {
+            assert_eq!(ceil(x), x.ceil(), "{x}");
+        }
+        assert!(ceil(f64::NAN).is_nan());
+        assert_eq!(ceil(f64::INFINITY), f64::INFINITY);
+        // Entry points on, next to and between sample positions.
+        for step in [0.5, 0.3, 0.7, 1.3, 1e-4, 0.1] {
+            let inv = 1.0 / step;
+            for i in 0..20_000 {
+                let k = i as f64;
+                for t in [
+                    k * step,
+                    (k * step).next_up(),
+                    (k * step).next_down(),
+                    (k + 0.5) * step,
+                ] {
+                    assert_eq!(
+                        first_sample(t, step, inv),
+                        (t / step).ceil(),
+                        "{t} / {step}"
+                    );
+                }
+            }
+        }
+    }
+}
