@@ -91,7 +91,7 @@ impl RBrick {
     }
 
     /// The 8 vertex values of local cell `l`, x fastest.
-    #[inline]
+    #[inline(always)]
     pub fn vertices(&self, l: [u32; 3]) -> [f32; 8] {
         let sx = (self.cells[0] + 1) as usize;
         let sy = (self.cells[1] + 1) as usize;

@@ -13,6 +13,7 @@
 
 pub mod cache;
 pub mod camera;
+pub mod lut;
 pub mod shade;
 pub mod shard;
 pub mod template;
@@ -28,7 +29,7 @@ use crate::format::FormatError;
 use crate::progress::Progress;
 use cache::{Accessor, BrickCache, CacheCounters};
 use camera::Camera;
-use shade::{at, find_hit_with, shade, CellEval, HitMethod, HitParams};
+use shade::{at, find_hit_with, shade, AlongRay, CellEval, HitMethod, HitParams};
 use traverse::{trace, Flow, Method, Ray, Real, StepCounts, TGrid};
 
 /// What a pixel shows.
@@ -465,6 +466,10 @@ fn render_tiles<T: Real>(
             Classification::Iso { iso } => cache::to_f32(iso) as f64,
             _ => f64::NAN,
         },
+        lut: match &opts.mode {
+            Mode::Composite { tf, step_mm } => Some(lut::TfLut::new(tf, *step_mm)),
+            _ => None,
+        },
     };
     progress.begin("render tiles", tiles.len() as u64);
     let results = tiles
@@ -509,6 +514,8 @@ struct Ctx<'a, T> {
     camera: &'a Camera,
     opts: &'a RenderOptions,
     iso: f64,
+    /// The composite mode's transfer function, tabulated for its step.
+    lut: Option<lut::TfLut>,
 }
 
 struct TileOut {
@@ -643,7 +650,15 @@ fn pixel<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (Px, StepCount
         Mode::Mip => {
             let mut best = f64::NEG_INFINITY;
             counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, acc| {
-                let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+                let f = acc.vertices(v.cell);
+                // The interpolant never exceeds the largest vertex value
+                // (NaN vertices give NaN, which max ignores): a cell whose
+                // vertices are all <= best cannot raise it.
+                let top = f.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x));
+                if top as f64 <= best {
+                    return Flow::Continue;
+                }
+                let c = CellEval::new(coords, v.cell, f);
                 best = best
                     .max(c.value(at(ray, v.t_enter)))
                     .max(c.value(at(ray, v.t_exit)));
@@ -666,26 +681,36 @@ fn pixel<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (Px, StepCount
                 px.hit = found.is_some();
             }
         }
-        Mode::Composite { tf, step_mm } => {
+        Mode::Composite { step_mm, .. } => {
+            let lut = ctx.lut.as_ref().expect("composite renders carry a table");
+            let step = *step_mm;
+            let inv_step = 1.0 / step;
             let mut col = [0.0f64; 3];
             let mut alpha = 0.0f64;
             counts = trace(g, ray, 0.0, ctx.opts.method, acc, |v, acc| {
-                let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
-                // Samples at t = k * step inside [t_enter, t_exit).
-                let mut k = (v.t_enter / step_mm).ceil();
-                while k * step_mm < v.t_exit {
-                    let val = c.value(at(ray, k * step_mm));
-                    let (rgb, a) = tf_sample(tf, val);
-                    // Opacity is per mm; corrected for the step length.
-                    let a = 1.0 - (1.0 - a).powf(*step_mm);
-                    for i in 0..3 {
-                        col[i] += (1.0 - alpha) * a * rgb[i];
+                // Samples at t = k * step inside [t_enter, t_exit); a cell
+                // the ray only clips between two samples is not read.
+                let mut k = first_sample(v.t_enter, step, inv_step);
+                if !(k * step < v.t_exit) {
+                    return Flow::Continue;
+                }
+                let c = AlongRay::new(coords, v.cell, acc.vertices(v.cell), ray);
+                while k * step < v.t_exit {
+                    let val = c.value(k * step);
+                    let [r, gr, b, a] = lut.sample(val);
+                    k += 1.0;
+                    if a == 0.0 {
+                        // Transparent: adds nothing.
+                        continue;
                     }
-                    alpha += (1.0 - alpha) * a;
+                    let w = 1.0 - alpha;
+                    col[0] += w * r;
+                    col[1] += w * gr;
+                    col[2] += w * b;
+                    alpha += w * a;
                     if alpha > 0.99 {
                         return Flow::Stop;
                     }
-                    k += 1.0;
                 }
                 Flow::Continue
             });
@@ -697,24 +722,40 @@ fn pixel<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (Px, StepCount
     (px, counts)
 }
 
-/// Colour and opacity of the transfer function at `v`.
-fn tf_sample(tf: &TransferFunction, v: f64) -> ([f64; 3], f64) {
-    let p = &tf.points;
-    if v.is_nan() {
-        // Interpolated from a NaN sample: background, transparent.
-        return ([0.0; 3], 0.0);
-    }
-    let a = tf.opacity(v);
-    let rgb = if v <= p[0].value {
-        p[0].color
-    } else if v >= p[p.len() - 1].value {
-        p[p.len() - 1].color
+/// `ceil(t / step)`, the first composite sample at or after `t`, with a
+/// multiplication by `inv_step = 1 / step` instead of the division where
+/// that cannot change the result: the two quotients differ by a few ulps,
+/// so only when `t / step` is within 1e-12 (relative) of an integer does
+/// the division decide.
+#[inline]
+fn first_sample(t: f64, step: f64, inv_step: f64) -> f64 {
+    let q = t * inv_step;
+    let k = ceil(q);
+    // Distance to the nearest integer (no libm `round`).
+    if (k - q).min(q - (k - 1.0)) <= 1e-12 * q.abs().max(1.0) {
+        ceil(t / step)
     } else {
-        let i = p.partition_point(|q| q.value <= v);
-        let f = (v - p[i - 1].value) / (p[i].value - p[i - 1].value);
-        std::array::from_fn(|k| p[i - 1].color[k] + f * (p[i].color[k] - p[i - 1].color[k]))
-    };
-    (rgb, a)
+        k
+    }
+}
+
+/// `x.ceil()` without a libm call (the default x86-64 target has no
+/// rounding instruction); the same value for every `x`.
+#[inline]
+fn ceil(x: f64) -> f64 {
+    const BIG: f64 = (1u64 << 52) as f64;
+    if x.abs() < BIG {
+        // |x| < 2^52: truncation is exact in i64, and so is adding 1.
+        let t = x as i64 as f64;
+        if t < x {
+            t + 1.0
+        } else {
+            t
+        }
+    } else {
+        // Already an integer, infinite or NaN.
+        x
+    }
 }
 
 /// The value range MIP maps to black..white: the file's rescaled raw range.
@@ -874,4 +915,49 @@ pub fn save(frame: &Frame, path: &std::path::Path) -> Result<Vec<std::path::Path
         out.push(p16);
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{ceil, first_sample};
+
+    #[test]
+    fn ceil_and_first_sample_match_the_division() {
+        for x in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.5,
+            -2.5,
+            1e15,
+            4503599627370495.5,
+            1e300,
+        ] {
+            assert_eq!(ceil(x), x.ceil(), "{x}");
+        }
+        assert!(ceil(f64::NAN).is_nan());
+        assert_eq!(ceil(f64::INFINITY), f64::INFINITY);
+        // Entry points on, next to and between sample positions.
+        for step in [0.5, 0.3, 0.7, 1.3, 1e-4, 0.1] {
+            let inv = 1.0 / step;
+            for i in 0..20_000 {
+                let k = i as f64;
+                for t in [
+                    k * step,
+                    (k * step).next_up(),
+                    (k * step).next_down(),
+                    (k + 0.5) * step,
+                ] {
+                    assert_eq!(
+                        first_sample(t, step, inv),
+                        (t / step).ceil(),
+                        "{t} / {step}"
+                    );
+                }
+            }
+        }
+    }
 }

@@ -687,6 +687,7 @@ struct Start<'f, T> {
 /// the same cell). Without the switch, a cell sampled twice is visited
 /// once. On an axis that is not uniform the walk has no cell units; it
 /// takes single-cell steps there (renders refuse such grids first).
+#[allow(clippy::needless_range_loop)] // v[k], w.d[k], w.n[k] side by side
 fn dda<T, S, F>(
     w: &Walk<'_, T>,
     st: Start<'_, T>,
