@@ -381,17 +381,28 @@ fn render_cmd(
         if a.frames > 1 {
             // A turntable; --shard splits the frames.
             let (mut files, mut total, mut per_frame) = (Vec::new(), Stats::default(), Vec::new());
+            // One cache for every frame: later frames reuse decoded bricks.
+            let cache = cdvol::render::cache::BrickCache::for_render(&vol, &opts);
             for f in 0..a.frames {
                 if a.shard.is_some_and(|s| f % s.n != s.k) {
                     continue;
                 }
                 let cam = camera_at(a.orbit * f as f64 / a.frames as f64)?;
-                let (frame, stats) = render(&vol, &cam, &opts, progress)?;
+                let (frame, stats) = if template {
+                    render(&vol, &cam, &opts, progress)?
+                } else {
+                    cdvol::render::render_in(&vol, &cache, &cam, &opts, progress)?
+                };
                 let path = numbered(&a.output, f);
                 files.extend(cdvol::render::save(&frame, &path).map_err(anyhow::Error::msg)?);
                 total.merge(&stats);
                 per_frame.push(stats);
             }
+            // The frames shared one cache: its own count is exact.
+            if !template {
+                total.bricks_distinct = cache.distinct_read();
+            }
+            total.bricks_total = vol.header().brick_count();
             if let Some(p) = &a.stats {
                 write_json(p, &per_frame)?;
                 files.push(p.clone());

@@ -15,7 +15,7 @@ use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::{Method, TGrid};
-use cdvol::render::{render, Frame, Mode, RenderOptions, Stats};
+use cdvol::render::{render, render_in, Frame, Mode, RenderOptions, Stats};
 
 fn packed(sidecar: &Path, out: &Path, iso: f64, aniso: bool) -> PackedVolume {
     let src = RawSource::open(sidecar).unwrap();
@@ -314,6 +314,20 @@ fn same_image_whatever_cache_threads_and_tiles() {
     assert_eq!(ws.bricks_read, ws.bricks_distinct);
     assert_eq!(gs.bricks_distinct, ws.bricks_distinct);
     assert!(0 < ws.bricks_distinct && ws.bricks_distinct <= ws.bricks_total);
+    // Frames sharing one cache (turntables): the same image, and a second
+    // frame of the same view reads nothing; a small shared cache re-reads.
+    for o in [&big, &small] {
+        let shared = cdvol::render::cache::BrickCache::for_render(&vol, o);
+        let (f1, s1) = render_in(&vol, &shared, &c, o, &NoProgress).unwrap();
+        let (f2, s2) = render_in(&vol, &shared, &c, o, &NoProgress).unwrap();
+        assert!(same(&f1, &want) && same(&f2, &want));
+        assert!(s1.bricks_read > 0);
+        if o.cache_bytes == big.cache_bytes {
+            assert_eq!(s2.bricks_read, 0);
+        } else {
+            assert!(s2.bricks_read > 0);
+        }
+    }
 }
 
 #[test]

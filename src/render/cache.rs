@@ -501,6 +501,19 @@ impl<'v> BrickCache<'v> {
         self
     }
 
+    /// The cache a render with `opts` uses: its byte budget, and the
+    /// octree when the traversal is [`Method::Octree`].
+    ///
+    /// [`Method::Octree`]: super::traverse::Method::Octree
+    pub fn for_render(vol: &'v PackedVolume, opts: &super::RenderOptions) -> BrickCache<'v> {
+        let c = BrickCache::new(vol, opts.cache_bytes);
+        if opts.method == super::traverse::Method::Octree {
+            c.with_octree()
+        } else {
+            c
+        }
+    }
+
     pub fn volume(&self) -> &PackedVolume {
         self.vol
     }

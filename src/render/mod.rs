@@ -235,8 +235,27 @@ pub fn render(
     opts: &RenderOptions,
     progress: &dyn Progress,
 ) -> Result<(Frame, Stats), RenderError> {
+    render_in(
+        vol,
+        &BrickCache::for_render(vol, opts),
+        camera,
+        opts,
+        progress,
+    )
+}
+
+/// [`render`] with a brick cache that outlives it: the frames of a
+/// turntable share the bricks they decode (a frame's `bricks_distinct`
+/// then counts the cache's whole history).
+pub fn render_in(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    progress: &dyn Progress,
+) -> Result<(Frame, Stats), RenderError> {
     let t0 = Instant::now();
-    let part = render_part(vol, camera, opts, Shard::WHOLE, progress)?;
+    let part = render_part_in(vol, cache, camera, opts, Shard::WHOLE, progress)?;
     let (frame, mut stats) = shard::finish(&part.key, part.tiles, part.stats);
     stats.seconds_total = t0.elapsed().as_secs_f64();
     Ok((frame, stats))
@@ -307,6 +326,20 @@ pub fn render_part(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<shard::Part, RenderError> {
+    let cache = BrickCache::for_render(vol, opts);
+    render_part_in(vol, &cache, camera, opts, shard, progress)
+}
+
+/// [`render_part`] with a brick cache from [`BrickCache::for_render`]
+/// (with another cache the result is the same, only slower or larger).
+pub fn render_part_in(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<shard::Part, RenderError> {
     let t0 = Instant::now();
     check_mode(vol, &opts.mode)?;
     if opts.tile == 0 {
@@ -368,16 +401,10 @@ pub fn render_part(
         });
     }
     let h = vol.header();
-    let cache = BrickCache::new(vol, opts.cache_bytes);
-    let cache = if opts.method == Method::Octree {
-        cache.with_octree()
-    } else {
-        cache
-    };
     let (w, hgt) = (camera.width, camera.height);
     let results = match opts.precision {
-        Precision::F64 => render_tiles::<f64>(vol, &cache, camera, opts, shard, progress),
-        Precision::F32 => render_tiles::<f32>(vol, &cache, camera, opts, shard, progress),
+        Precision::F64 => render_tiles::<f64>(vol, cache, camera, opts, shard, progress),
+        Precision::F32 => render_tiles::<f32>(vol, cache, camera, opts, shard, progress),
     };
 
     // Merge counters; keep the tiles' pixels for colouring.
