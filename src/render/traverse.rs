@@ -368,12 +368,15 @@ impl<'g, T: Real> Walk<'g, T> {
     fn locate(&self, k: usize, t: T, lo: u32, hi: u32) -> u32 {
         if let Some(h) = self.uniform[k] {
             let p = self.o[k] + t * self.d[k];
-            let est = ((p - self.s[k][0]) / h).floor().f64();
-            let mut j = if est.is_nan() {
-                lo as f64
+            // Clamped before truncating: inside (lo, hi) the estimate is
+            // positive, where truncation is floor (no libm call); NaN
+            // goes to lo.
+            let est = ((p - self.s[k][0]) / h).f64();
+            let mut j = if est > lo as f64 {
+                est.min(hi as f64) as u32
             } else {
-                est.clamp(lo as f64, hi as f64)
-            } as u32;
+                lo
+            };
             while j < hi && self.plane_t(k, j + 1) <= t {
                 j += 1;
             }
