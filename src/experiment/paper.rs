@@ -524,8 +524,8 @@ impl Sweep {
         let _ = writeln!(
             s,
             "\nPaper (Fig. 16): CD about 10x faster than FVT for a simple scene, the gap \
-             closing to parity at SVR ~0.9 (2,744+ spheres); SMART (octree) between the two, \
-             slower than CD throughout. Ours: fvt/cd {:.2} at N = {} down to {:.2} at N = {}; \
+             closing to parity at SVR ~0.9 (2,744+ spheres); SMART (octree) needs more time \
+             than CD throughout. Ours: fvt/cd {:.2} at N = {} down to {:.2} at N = {}; \
              octree/cd {:.2} and {:.2}.\n\n\
              Why not 10x: time falls by the step ratio divided by the cost ratio of a step. At \
              N = {} the steps fall {:.1}x, but a CD step (with the ray's set-up spread over \
