@@ -145,10 +145,11 @@ pub enum Method {
     /// distance `d`, the next sample is `(d - 1) / D(r)` further along the
     /// ray (`D` the ray direction's norm in the distance's metric, in cell
     /// units; `- 1` because distances are from cell centres), at least one
-    /// cell along the major axis. With `switch_fvt`, cells with `d < 2`
-    /// (no leap of a whole cell) are walked by single-cell steps until a
-    /// leap is possible again; without it the DDA samples one cell per
-    /// major-axis step there and may miss 1-cells (Fig. 18a only).
+    /// cell along the major axis. With `switch_fvt`, cells whose free
+    /// length along the ray is shorter than that one DDA step are walked
+    /// by single-cell steps until a leap is possible again; without it the
+    /// DDA samples one cell per major-axis step there and may miss 1-cells
+    /// (Fig. 18a only).
     /// Regular grids only (every axis uniform).
     Dda { kind: DistKind, switch_fvt: bool },
 }
@@ -673,10 +674,10 @@ struct Start<'f, T> {
 /// a cell at distance `d` (in cells) the next sample is `(d - 1) / D(r)`
 /// further (eq. 2; `D` is `L1` for city block, `L2` for chamfer, `Linf`
 /// for chessboard, eq. 3), but at least `1 / Linf(r)`: one cell along the
-/// major axis, the DDA's own step. With `switch_fvt`, a cell with
-/// `d < 2` (whose leap would not cover a cell) is left by single-cell
-/// steps, and the DDA resumes from the face of the first cell with
-/// `d >= 2`. Leaps are shortened by a relative `2^-40` so that rounding
+/// major axis, the DDA's own step. With `switch_fvt`, a cell whose free
+/// length `(d - 1) / D(r)` is shorter than that step (for chessboard:
+/// `d < 2`) is left by single-cell steps, and the DDA resumes from the
+/// face of the first cell where it is not. Leaps are shortened by a relative `2^-40` so that rounding
 /// cannot carry a chessboard leap onto the face of the cube at distance
 /// `d`: then every cell a chessboard leap passes lies within `Linf`
 /// distance `d - 1` of the start cell, all empty, and chessboard DDA with
@@ -761,7 +762,9 @@ where
             last_visit = Some(v);
         }
         let leap = dist as f64 / unit - 1.0;
-        let mut single = !regular || (switch_fvt && leap < 1.0);
+        // Near objects (the free length along the ray, eq. 2, is shorter
+        // than one DDA step) the switch takes single-cell steps.
+        let mut single = !regular || (switch_fvt && leap / norm < unit_dt);
         let mut tn = t;
         if !single {
             // The DDA resumes from the face single-cell steps entered by.
