@@ -268,23 +268,7 @@ fn planes_through_the_cache_with_uniform_bricks() {
 }
 
 fn volume() -> impl Strategy<Value = ([usize; 3], Vec<f64>, usize)> {
-    (
-        2usize..17,
-        2usize..15,
-        2usize..13,
-        0u32..40,
-        prop_oneof![Just(4usize), Just(8)],
-    )
-        .prop_flat_map(|(x, y, z, pct, brick)| {
-            (
-                Just([x, y, z]),
-                proptest::collection::vec(
-                    (0u32..1000).prop_map(move |r| if r < pct { 200.0 } else { (r % 100) as f64 }),
-                    x * y * z,
-                ),
-                Just(brick),
-            )
-        })
+    random_volume([17, 15, 13], 40)
 }
 
 proptest! {

@@ -158,23 +158,7 @@ fn check_octants(vol: &PackedVolume, obj: &[u8], cells: [usize; 3], max_code: u3
 }
 
 fn volume() -> impl Strategy<Value = ([usize; 3], Vec<f64>, usize)> {
-    (
-        2usize..19,
-        2usize..17,
-        2usize..15,
-        0u32..30,
-        prop_oneof![Just(4usize), Just(8)],
-    )
-        .prop_flat_map(|(x, y, z, pct, brick)| {
-            (
-                Just([x, y, z]),
-                proptest::collection::vec(
-                    (0u32..1000).prop_map(move |r| if r < pct { 200.0 } else { (r % 100) as f64 }),
-                    x * y * z,
-                ),
-                Just(brick),
-            )
-        })
+    random_volume([19, 17, 15], 30)
 }
 
 proptest! {

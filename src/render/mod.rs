@@ -104,6 +104,39 @@ pub struct Stats {
 }
 
 impl Stats {
+    /// The counters of a render with `opts` through `cache`, started at
+    /// `t0`; `traversal`, `width` and `height` are the caller's to fill.
+    pub(crate) fn counted(
+        rays: u64,
+        hits: u64,
+        steps: &StepCounts,
+        cc: &CacheCounters,
+        cache: &BrickCache,
+        opts: &RenderOptions,
+        t0: Instant,
+    ) -> Stats {
+        Stats {
+            rays,
+            steps: steps.steps,
+            macro_steps: steps.macro_steps,
+            cell_steps: steps.cell_steps,
+            hits,
+            bricks_read: cc.bricks_read,
+            bricks_distinct: cache.distinct_read(),
+            bricks_skipped: cc.bricks_skipped,
+            cache_hits: cc.cache_hits,
+            cache_misses: cc.cache_misses,
+            bytes_decompressed: cc.bytes_decompressed,
+            peak_cache_bytes: cache.peak_bytes() as u64,
+            bricks_total: cache.volume().header().brick_count(),
+            seconds_total: t0.elapsed().as_secs_f64(),
+            traversal: String::new(),
+            mode: mode_name(&opts.mode).into(),
+            width: 0,
+            height: 0,
+        }
+    }
+
     /// Adds the counters of `o` (another part or frame): sums, except
     /// `peak_cache_bytes` (the larger); `seconds_total` sums too.
     pub fn merge(&mut self, o: &Stats) {
@@ -400,7 +433,6 @@ pub fn render_part_in(
             msg: format!("{}/{}, expected K/N with 0 <= K < N", shard.k, shard.n),
         });
     }
-    let h = vol.header();
     let (w, hgt) = (camera.width, camera.height);
     let results = match opts.precision {
         Precision::F64 => render_tiles::<f64>(vol, cache, camera, opts, shard, progress),
@@ -428,26 +460,9 @@ pub fn render_part_in(
             pixels: r.pixels,
         });
     }
-    let stats = Stats {
-        rays,
-        steps: steps.steps,
-        macro_steps: steps.macro_steps,
-        cell_steps: steps.cell_steps,
-        hits,
-        bricks_read: cc.bricks_read,
-        bricks_distinct: cache.distinct_read(),
-        bricks_skipped: cc.bricks_skipped,
-        cache_hits: cc.cache_hits,
-        cache_misses: cc.cache_misses,
-        bytes_decompressed: cc.bytes_decompressed,
-        peak_cache_bytes: cache.peak_bytes() as u64,
-        bricks_total: h.brick_count(),
-        seconds_total: t0.elapsed().as_secs_f64(),
-        traversal: format!("{:?}", opts.method),
-        mode: mode_name(&opts.mode).into(),
-        width: w,
-        height: hgt,
-    };
+    let mut stats = Stats::counted(rays, hits, &steps, &cc, cache, opts, t0);
+    stats.traversal = format!("{:?}", opts.method);
+    (stats.width, stats.height) = (w, hgt);
     Ok(shard::Part {
         key: shard::RenderKey::new(vol, camera, opts, shard.n, shard.layout),
         shard,

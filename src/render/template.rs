@@ -635,26 +635,9 @@ pub fn render_template_with(
             }
         });
     let frame = colour(&colouring, w, hh, &px);
-    let stats = Stats {
-        rays: inter_px,
-        steps: steps.steps,
-        macro_steps: steps.macro_steps,
-        cell_steps: steps.cell_steps,
-        hits,
-        bricks_read: cc.bricks_read,
-        bricks_distinct: cache.distinct_read(),
-        bricks_skipped: cc.bricks_skipped,
-        cache_hits: cc.cache_hits,
-        cache_misses: cc.cache_misses,
-        bytes_decompressed: cc.bytes_decompressed,
-        peak_cache_bytes: cache.peak_bytes() as u64,
-        bricks_total: hdr.brick_count(),
-        seconds_total: t0.elapsed().as_secs_f64(),
-        traversal: format!("Template({:?})", opts.method),
-        mode: mode_name(&opts.mode).into(),
-        width: w,
-        height: hh,
-    };
+    let mut stats = Stats::counted(inter_px, hits, &steps, &cc, &cache, opts, t0);
+    stats.traversal = format!("Template({:?})", opts.method);
+    (stats.width, stats.height) = (w, hh);
     Ok((frame, stats))
 }
 

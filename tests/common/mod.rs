@@ -242,3 +242,30 @@ pub fn assert_same_volume(got: &PackedVolume, want: &PackedVolume, what: &str) {
         );
     }
 }
+
+/// Random small volumes for prep tests: dims below `max` per axis (at least
+/// 2), values 200 (above the tests' iso of 100) with probability `per_mille
+/// < pct`, else 0..99; brick size 4 or 8.
+pub fn random_volume(
+    max: [usize; 3],
+    max_pct: u32,
+) -> impl proptest::strategy::Strategy<Value = ([usize; 3], Vec<f64>, usize)> {
+    use proptest::prelude::*;
+    (
+        2usize..max[0],
+        2usize..max[1],
+        2usize..max[2],
+        0u32..max_pct,
+        prop_oneof![Just(4usize), Just(8)],
+    )
+        .prop_flat_map(|(x, y, z, pct, brick)| {
+            (
+                Just([x, y, z]),
+                proptest::collection::vec(
+                    (0u32..1000).prop_map(move |r| if r < pct { 200.0 } else { (r % 100) as f64 }),
+                    x * y * z,
+                ),
+                Just(brick),
+            )
+        })
+}
