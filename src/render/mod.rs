@@ -194,6 +194,29 @@ struct Px {
     hit: bool,
 }
 
+/// Checks the options every renderer shares: Newton's tolerance and the
+/// image size.
+pub(crate) fn check_tol_and_size(opts: &RenderOptions, camera: &Camera) -> Result<(), RenderError> {
+    let tol = opts.hit_params.newton_tol;
+    if !(0.0..1.0).contains(&tol) {
+        return Err(RenderError::Option {
+            option: "--newton-tol",
+            msg: format!("{tol}, expected a relative tolerance in [0, 1)"),
+        });
+    }
+    let pixels = camera.width as u64 * camera.height as u64;
+    if pixels > MAX_PIXELS {
+        return Err(RenderError::Option {
+            option: "--width/--height",
+            msg: format!(
+                "{} x {} = {pixels} pixels, expected at most {MAX_PIXELS}",
+                camera.width, camera.height
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// Checks that the mode can be rendered exactly from this file's
 /// classification (never render silently wrong).
 fn check_mode(vol: &PackedVolume, mode: &Mode) -> Result<(), RenderError> {
@@ -390,23 +413,7 @@ pub fn render_part_in(
             });
         }
     }
-    let tol = opts.hit_params.newton_tol;
-    if !(0.0..1.0).contains(&tol) {
-        return Err(RenderError::Option {
-            option: "--newton-tol",
-            msg: format!("{tol}, expected a relative tolerance in [0, 1)"),
-        });
-    }
-    let pixels = camera.width as u64 * camera.height as u64;
-    if pixels > MAX_PIXELS {
-        return Err(RenderError::Option {
-            option: "--width/--height",
-            msg: format!(
-                "{} x {} = {pixels} pixels, expected at most {MAX_PIXELS}",
-                camera.width, camera.height
-            ),
-        });
-    }
+    check_tol_and_size(opts, camera)?;
     if matches!(opts.method, Method::CdAniso { .. }) && vol.header().aniso_block.is_none() {
         return Err(RenderError::Incompatible {
             path: vol.path().to_path_buf(),

@@ -158,7 +158,8 @@ use super::shade::{self, at, find_hit_with, CellEval, HitMethod};
 use super::shard::Colouring;
 use super::traverse::{trace, CodeSource, Flow, Method, Ray, StepCounts, TGrid, Visit};
 use super::{
-    check_mode, colour, mode_name, Frame, Mode, Px, RenderError, RenderOptions, Stats, MAX_PIXELS,
+    check_mode, check_tol_and_size, colour, mode_name, Frame, Mode, Px, RenderError, RenderOptions,
+    Stats, MAX_PIXELS,
 };
 use crate::classify::Classification;
 use crate::format::reader::PackedVolume;
@@ -500,23 +501,7 @@ pub fn render_template_with(
             )))
         }
     };
-    let tol = opts.hit_params.newton_tol;
-    if !(0.0..1.0).contains(&tol) {
-        return Err(RenderError::Option {
-            option: "--newton-tol",
-            msg: format!("{tol}, expected a relative tolerance in [0, 1)"),
-        });
-    }
-    let pixels = camera.width as u64 * camera.height as u64;
-    if pixels > MAX_PIXELS {
-        return Err(RenderError::Option {
-            option: "--width/--height",
-            msg: format!(
-                "{} x {} = {pixels} pixels, expected at most {MAX_PIXELS}",
-                camera.width, camera.height
-            ),
-        });
-    }
+    check_tol_and_size(opts, camera)?;
     let hdr = vol.header();
     let axes: &[Axis; 3] = &hdr.axes;
     for (k, a) in axes.iter().enumerate() {
