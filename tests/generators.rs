@@ -32,15 +32,7 @@ fn packed(sidecar: &Path, out: &Path, iso: f64) -> PackedVolume {
 }
 
 fn opts(mode: Mode, method: Method) -> RenderOptions {
-    RenderOptions {
-        mode,
-        method,
-        tile: 16,
-        cache_bytes: 64 << 20,
-        cd_lazy_min: 4,
-        precision: Default::default(),
-        hit_params: Default::default(),
-    }
+    common::test_opts(mode, method)
 }
 
 fn depth() -> Mode {

@@ -41,15 +41,7 @@ fn cam(vol: &PackedVolume, view: [f64; 2], persp: bool, size: u32) -> Camera {
 }
 
 fn run(vol: &PackedVolume, c: &Camera, mode: &Mode, method: Method) -> (Frame, Stats) {
-    let o = RenderOptions {
-        mode: mode.clone(),
-        method,
-        tile: 16,
-        cache_bytes: 64 << 20,
-        cd_lazy_min: 4,
-        precision: Default::default(),
-        hit_params: Default::default(),
-    };
+    let o = common::test_opts(mode.clone(), method);
     render(vol, c, &o, &NoProgress).unwrap()
 }
 

@@ -2,6 +2,8 @@
 //! shape, the exactness of the CD leap, the images against the FVT/CD
 //! ray caster, the 26-connected template's skipped cells, and refusals.
 
+mod common;
+
 use std::path::Path;
 
 use cdvol::classify::Classification;
@@ -313,15 +315,7 @@ fn spheres(dir: &Path, name: &str, size: usize, spacing: &str) -> PackedVolume {
 }
 
 fn opts(mode: Mode, method: Method) -> RenderOptions {
-    RenderOptions {
-        mode,
-        method,
-        tile: 16,
-        cache_bytes: 64 << 20,
-        cd_lazy_min: 4,
-        precision: Default::default(),
-        hit_params: Default::default(),
-    }
+    common::test_opts(mode, method)
 }
 
 fn ortho(vol: &PackedVolume, view: [f64; 2], size: u32) -> Camera {

@@ -210,13 +210,9 @@ fn ramp(iso: f64, hi: f64) -> TransferFunction {
 
 fn opts(mode: Mode, precision: Precision, hit_params: HitParams) -> RenderOptions {
     RenderOptions {
-        mode,
-        method: Method::Cd { min_leap: 1 },
-        tile: 32,
-        cache_bytes: 512 << 20,
-        cd_lazy_min: crate::render::cache::LAZY_MIN_CODE_CD,
         precision,
         hit_params,
+        ..RenderOptions::new(mode, Method::Cd { min_leap: 1 })
     }
 }
 

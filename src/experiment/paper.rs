@@ -25,7 +25,7 @@ use crate::render::cache::{Accessor, BrickCache, LAZY_MIN_CODE_CD, OBJECT};
 use crate::render::camera::{Camera, Projection};
 use crate::render::shade::{at, CellEval, HitMethod, HitParams};
 use crate::render::traverse::{trace, CodeSource, DistKind, Flow, Method, Ray, StepCounts, TGrid};
-use crate::render::{render, Mode, Precision, RenderOptions};
+use crate::render::{render, Mode, RenderOptions};
 
 /// Options shared by the paper experiments.
 #[derive(Debug, Clone)]
@@ -1111,18 +1111,13 @@ pub fn table1(o: &PaperOptions, ct: &Path, pr: &dyn Progress) -> anyhow::Result<
     let mut totals = vec![Vec::new(); 2];
     for _ in 0..o.runs.max(1) {
         for (i, &m) in methods.iter().enumerate() {
-            let ro = RenderOptions {
-                mode: Mode::Surface {
+            let ro = RenderOptions::new(
+                Mode::Surface {
                     hit: HitMethod::Int,
                     shadows: false,
                 },
-                method: m,
-                tile: 32,
-                cache_bytes: 1 << 30,
-                cd_lazy_min: LAZY_MIN_CODE_CD,
-                precision: Precision::F64,
-                hit_params: HitParams::default(),
-            };
+                m,
+            );
             let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
             let t0 = Instant::now();
             pool.install(|| render(&vol, &cam, &ro, &NoProgress))?;
@@ -1266,15 +1261,7 @@ pub fn fig17(o: &PaperOptions, ct: &Path, pr: &dyn Progress) -> anyhow::Result<S
     let size = 2 * o.rays;
     let cam = Camera::orbit(grid.bounds(), 0.0, 0.0, None, None, size, size)
         .map_err(anyhow::Error::msg)?;
-    let ro = |mode, method| RenderOptions {
-        mode,
-        method,
-        tile: 32,
-        cache_bytes: 1 << 30,
-        cd_lazy_min: LAZY_MIN_CODE_CD,
-        precision: Precision::F64,
-        hit_params: HitParams::default(),
-    };
+    let ro = RenderOptions::new;
     pr.begin("fig17", 4);
     let (surface, _) = render(
         &vol,

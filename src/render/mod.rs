@@ -64,6 +64,23 @@ pub struct RenderOptions {
     pub hit_params: HitParams,
 }
 
+impl RenderOptions {
+    /// `mode` by `method` with the defaults of `cdvol render`: 32-pixel
+    /// tiles, a 512 MiB cache, CD's lazy threshold, f64, default hit
+    /// parameters.
+    pub fn new(mode: Mode, method: Method) -> RenderOptions {
+        RenderOptions {
+            mode,
+            method,
+            tile: 32,
+            cache_bytes: 512 << 20,
+            cd_lazy_min: cache::LAZY_MIN_CODE_CD,
+            precision: Precision::F64,
+            hit_params: HitParams::default(),
+        }
+    }
+}
+
 /// Arithmetic of the traversal. Shading and hits are always f64.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Precision {

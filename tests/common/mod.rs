@@ -269,3 +269,17 @@ pub fn random_volume(
             )
         })
 }
+
+/// Render options of the render tests: 16-pixel tiles, a 64 MiB cache and
+/// a low lazy threshold (so small test volumes exercise unread bricks).
+pub fn test_opts(
+    mode: cdvol::render::Mode,
+    method: cdvol::render::traverse::Method,
+) -> cdvol::render::RenderOptions {
+    cdvol::render::RenderOptions {
+        tile: 16,
+        cache_bytes: 64 << 20,
+        cd_lazy_min: 4,
+        ..cdvol::render::RenderOptions::new(mode, method)
+    }
+}
