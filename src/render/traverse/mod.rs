@@ -36,7 +36,10 @@
 use num_traits::Float;
 
 use super::cache::OBJECT;
-use crate::grid::{Axis, MAX_COORD_MM};
+use crate::grid::Axis;
+
+mod ray;
+pub use ray::{Ray, RayError, MAX_DIR, MIN_DIR};
 
 /// Arithmetic the walk runs in: `f64` (the default: it never misses a
 /// 1-cell in the extreme-case suite) or `f32` (measured in
@@ -122,6 +125,15 @@ impl DistKind {
             _ => 1,
         }
     }
+
+    /// Stable name (`cityblock`, `chessboard`, `chamfer`).
+    pub fn name(self) -> &'static str {
+        match self {
+            DistKind::Cityblock => "cityblock",
+            DistKind::Chessboard => "chessboard",
+            DistKind::Chamfer => "chamfer",
+        }
+    }
 }
 
 /// Which ray generator to use.
@@ -168,6 +180,37 @@ impl Method {
     /// Whether the method needs every axis uniform.
     pub fn needs_regular_grid(self) -> bool {
         matches!(self, Method::Dda { .. })
+    }
+
+    /// Stable name for stats, part-file keys and messages: the traversal's
+    /// name as `cdvol render --traversal` spells it, followed by any
+    /// parameter that differs from that traversal's default
+    /// (`cd min_leap=3`, `dda-chamfer no_switch`). Never Debug text.
+    pub fn name(self) -> String {
+        match self {
+            Method::Fvt => "fvt".into(),
+            Method::Octree => "octree".into(),
+            Method::Cd { min_leap } | Method::CdAniso { min_leap } => {
+                let base = if matches!(self, Method::Cd { .. }) {
+                    "cd"
+                } else {
+                    "cd-aniso"
+                };
+                if min_leap <= 1 {
+                    base.into()
+                } else {
+                    format!("{base} min_leap={min_leap}")
+                }
+            }
+            Method::Dda { kind, switch_fvt } => {
+                let base = format!("dda-{}", kind.name());
+                if switch_fvt {
+                    base
+                } else {
+                    format!("{base} no_switch")
+                }
+            }
+        }
     }
 }
 
@@ -216,82 +259,6 @@ impl<T: Real> TGrid<T> {
         let lo = std::array::from_fn(|k| self.axes[k].s[0][0].f64());
         let hi = std::array::from_fn(|k| self.axes[k].s[0].last().expect("axis").f64());
         (lo, hi)
-    }
-}
-
-/// A ray in mm: `origin + t * dir`, `t >= t_min`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Ray {
-    pub origin: [f64; 3],
-    pub dir: [f64; 3],
-}
-
-/// Smallest largest-component of a direction [`Ray::new`] accepts
-/// (2^-600). With [`MAX_DIR`] and origins and positions within
-/// [`MAX_COORD_MM`] (< 2^50), every `t` the walk reports is at most
-/// `2^51 / m <= 2^651`: finite; and f64 walks need no rescaling, so
-/// distinct crossings are reported distinct.
-pub const MIN_DIR: f64 = 2.409919865102884e-181;
-/// Largest largest-component of a direction [`Ray::new`] accepts (2^600).
-pub const MAX_DIR: f64 = 4.149515568880993e180;
-
-/// Why a ray cannot be traced.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum RayError {
-    #[error("ray direction {0:?} is zero, expected a non-zero direction")]
-    ZeroDirection([f64; 3]),
-    #[error("ray direction {0:?} is too short (largest component below {MIN_DIR:e}); scale it up")]
-    TinyDirection([f64; 3]),
-    #[error(
-        "ray direction {0:?} is too long (largest component above {MAX_DIR:e}); scale it down"
-    )]
-    HugeDirection([f64; 3]),
-    #[error("ray origin {0:?} is more than {MAX_COORD_MM:e} mm from 0 along an axis")]
-    FarOrigin([f64; 3]),
-    #[error("ray {what} {value:?} is not finite, expected finite numbers")]
-    NotFinite { what: &'static str, value: [f64; 3] },
-}
-
-impl Ray {
-    /// A checked ray: a finite origin within [`MAX_COORD_MM`] of 0 on every
-    /// axis, and a finite direction whose largest component is in
-    /// [[`MIN_DIR`], [`MAX_DIR`]]. Directions need not be normalised; other
-    /// components may be 0.0, -0.0, subnormal or tiny.
-    pub fn new(origin: [f64; 3], dir: [f64; 3]) -> Result<Ray, RayError> {
-        let r = Ray { origin, dir };
-        r.check()?;
-        Ok(r)
-    }
-
-    /// The checks of [`Ray::new`]; [`trace`] visits nothing on a ray that
-    /// fails them.
-    pub fn check(&self) -> Result<(), RayError> {
-        if !self.origin.iter().all(|x| x.is_finite()) {
-            return Err(RayError::NotFinite {
-                what: "origin",
-                value: self.origin,
-            });
-        }
-        if !self.dir.iter().all(|x| x.is_finite()) {
-            return Err(RayError::NotFinite {
-                what: "direction",
-                value: self.dir,
-            });
-        }
-        let m = self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs()));
-        if m == 0.0 {
-            return Err(RayError::ZeroDirection(self.dir));
-        }
-        if m < MIN_DIR {
-            return Err(RayError::TinyDirection(self.dir));
-        }
-        if m > MAX_DIR {
-            return Err(RayError::HugeDirection(self.dir));
-        }
-        if self.origin.iter().any(|x| x.abs() > MAX_COORD_MM) {
-            return Err(RayError::FarOrigin(self.origin));
-        }
-        Ok(())
     }
 }
 
