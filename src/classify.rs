@@ -151,13 +151,44 @@ impl Classification {
         }
     }
 
-    /// Classifies a cell from its 8 vertex values.
+    /// Classifies a cell from its 8 vertex values (NaN skipped).
+    #[inline]
     pub fn is_object_vertices(&self, v: &[f64; 8]) -> bool {
         let (lo, hi) = v
             .iter()
             .fold((f64::NAN, f64::NAN), |(lo, hi), &x| (lo.min(x), hi.max(x)));
         self.is_object(lo, hi)
     }
+
+    /// The one rule that reads a cell's class back from a packed file,
+    /// from its 8 vertex words (x fastest): `codes[i]` the code word `i`
+    /// carries, if any, and `values[i]` its rescaled value otherwise.
+    ///
+    /// A code at the minimum corner is the cell's code (docs/FORMAT.md,
+    /// "Embedding"). A code at any other vertex makes the cell a 0-cell
+    /// with code 0: prep replaces only samples that are vertices of no
+    /// 1-cell. Otherwise this classification decides from the 8 values,
+    /// which are then exact (a 0-cell there has code 0).
+    #[inline(always)]
+    pub fn cell_of_words(&self, codes: [Option<u32>; 8], values: [f64; 8]) -> CellClass {
+        if let Some(c) = codes[0] {
+            CellClass::Empty(c)
+        } else if codes.iter().any(Option::is_some) || !self.is_object_vertices(&values) {
+            CellClass::Empty(0)
+        } else {
+            CellClass::Object
+        }
+    }
+}
+
+/// Class of one cell as read back from a packed file
+/// ([`Classification::cell_of_words`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CellClass {
+    /// A 1-cell.
+    Object,
+    /// A 0-cell and its distance code.
+    Empty(u32),
 }
 
 /// Larger of two values, never NaN unless `m` is (`v` NaN keeps `m`).

@@ -382,7 +382,7 @@ fn render_cmd(
             // A turntable; --shard splits the frames.
             let (mut files, mut total, mut per_frame) = (Vec::new(), Stats::default(), Vec::new());
             // One cache for every frame: later frames reuse decoded bricks.
-            let cache = cdvol::render::cache::BrickCache::for_render(&vol, &opts);
+            let cache = cdvol::render::policy::cache_for(&vol, &opts);
             for f in 0..a.frames {
                 if a.shard.is_some_and(|s| f % s.n != s.k) {
                     continue;

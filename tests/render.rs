@@ -309,7 +309,7 @@ fn same_image_whatever_cache_threads_and_tiles() {
     // Frames sharing one cache (turntables): the same image, and a second
     // frame of the same view reads nothing; a small shared cache re-reads.
     for o in [&big, &small] {
-        let shared = cdvol::render::cache::BrickCache::for_render(&vol, o);
+        let shared = cdvol::render::policy::cache_for(&vol, o);
         let (f1, s1) = render_in(&vol, &shared, &c, o, &NoProgress).unwrap();
         let (f2, s2) = render_in(&vol, &shared, &c, o, &NoProgress).unwrap();
         assert!(same(&f1, &want) && same(&f2, &want));

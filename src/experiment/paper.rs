@@ -23,6 +23,7 @@ use crate::prep::{prep, PrepOptions};
 use crate::progress::{NoProgress, Progress};
 use crate::render::cache::{Accessor, BrickCache, LAZY_MIN_CODE_CD, OBJECT};
 use crate::render::camera::{Camera, Projection};
+use crate::render::policy::brick_policy;
 use crate::render::shade::{at, CellEval, HitMethod, HitParams};
 use crate::render::traverse::{trace, CodeSource, DistKind, Flow, Method, Ray, StepCounts, TGrid};
 use crate::render::{render, Mode, RenderOptions};
@@ -169,12 +170,8 @@ fn all_rays(cam: &Camera) -> Vec<Ray> {
 }
 
 fn cache_for(vol: &PackedVolume, m: Method) -> BrickCache<'_> {
-    let c = BrickCache::new(vol, 1 << 30);
-    if m == Method::Octree {
-        c.with_octree()
-    } else {
-        c
-    }
+    let planes = brick_policy(m, LAZY_MIN_CODE_CD).planes;
+    BrickCache::with_planes(vol, 1 << 30, planes)
 }
 
 /// Background traversal of every ray to its first 1-cell (no shading),
@@ -222,7 +219,7 @@ fn background(
     let caches: Vec<BrickCache> = methods.iter().map(|&m| cache_for(vol, m)).collect();
     let pass = |i: usize, count: bool| -> (f64, StepCounts, f64, Vec<Option<[u32; 3]>>) {
         let m = methods[i];
-        let mut acc = Accessor::for_method(&caches[i], m, LAZY_MIN_CODE_CD);
+        let mut acc = Accessor::for_policy(&caches[i], &brick_policy(m, LAZY_MIN_CODE_CD));
         let mut counts = StepCounts::default();
         let mut length = 0.0;
         let mut cells = Vec::new();
@@ -881,7 +878,7 @@ pub fn fig22(o: &PaperOptions, pr: &dyn Progress) -> anyhow::Result<String> {
     ];
     let one = |case: &Case| -> (f64, u64, f64) {
         let (_, m, hit) = *case;
-        let mut acc = Accessor::for_method(&cache, m, LAZY_MIN_CODE_CD);
+        let mut acc = Accessor::for_policy(&cache, &brick_policy(m, LAZY_MIN_CODE_CD));
         let (mut hits, mut tsum) = (0u64, 0.0);
         let t0 = Instant::now();
         for r in &rays {

@@ -7,6 +7,7 @@
 //! only at the end (index, summary) therefore sits at the end, and a
 //! truncated file has no footer and is refused.
 
+pub mod brick;
 pub mod reader;
 pub mod word;
 pub mod writer;

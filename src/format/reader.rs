@@ -6,12 +6,12 @@ use std::fs::File;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
-use super::word::Word;
+use super::brick::{dda_planes, decode_words, octant_codes, Values};
 use super::{
     FormatError, Header, IndexEntry, END_MAGIC, FOOTER_LEN, FORMAT_VERSION, INDEX_ENTRY_LEN, MAGIC,
     MAX_HEADER_LEN, PREAMBLE_LEN,
 };
-use crate::with_word;
+pub use crate::classify::CellClass;
 
 /// An open packed file. Brick payloads are read on demand with positioned
 /// reads (`pread`), so only the bricks asked for are ever read, and
@@ -34,14 +34,6 @@ pub enum Sample {
     Value(f64),
     /// The distance code of the cell whose minimum corner this sample is.
     Code(u32),
-}
-
-/// Class of one cell as read back from a packed file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CellClass {
-    Object,
-    /// A 0-cell and its code.
-    Empty(u32),
 }
 
 /// A decoded brick.
@@ -310,37 +302,17 @@ impl PackedVolume {
             None => BrickData::Uniform(self.index[id as usize].uniform_code),
             Some(raw) => {
                 let n = samples.iter().product::<usize>();
-                let wbytes = n * h.storage.size();
-                let enc = h.codes;
-                let samples_v: Vec<Sample> = with_word!(h.storage, W => {
-                    let words: Vec<W> = bytemuck::pod_collect_to_vec(&raw[..wbytes]);
-                    words
-                        .into_iter()
-                        .map(|w| match w.as_code(&enc) {
-                            Some(c) => Sample::Code(c),
-                            None => Sample::Value(w.to_raw()),
-                        })
-                        .collect()
-                });
-                let octants = h.brick_blocks(coords).map(|b| {
-                    let nb = (b[0] * b[1] * b[2]) as usize;
-                    let a = &raw[wbytes..];
-                    (0..nb)
-                        .map(|i| std::array::from_fn(|o| a[o * nb + i]))
-                        .collect()
-                });
-                let dda = h.dda.then(|| {
-                    let len = (h.dda_len(coords) / 2) as usize;
-                    let start = raw.len() - 2 * len;
-                    [
-                        raw[start..start + len].to_vec(),
-                        raw[start + len..].to_vec(),
-                    ]
-                });
+                let (mut values, mut codes) = (Vec::new(), Vec::new());
+                decode_words(h, &raw, n, Values::Raw, &mut values, &mut codes);
+                let samples_v = values
+                    .iter()
+                    .zip(&codes)
+                    .map(|(&v, &c)| c.map_or(Sample::Value(v), Sample::Code))
+                    .collect();
                 BrickData::Words {
                     samples: samples_v,
-                    octants,
-                    dda,
+                    octants: octant_codes(h, coords, &raw),
+                    dda: dda_planes(h, coords, &raw),
                 }
             }
         };
@@ -361,22 +333,16 @@ impl PackedVolume {
             BrickData::Uniform(c) => CellClass::Empty(*c),
             BrickData::Words { .. } => {
                 let v = brick.vertices(l).expect("words brick");
-                if let Sample::Code(c) = v[0] {
-                    return CellClass::Empty(c);
-                }
-                let mut vals = [0.0; 8];
-                for (o, s) in vals.iter_mut().zip(v) {
-                    match s {
-                        Sample::Value(x) => *o = self.header.rescale.apply(x),
-                        // A vertex of a 1-cell never carries a code.
-                        Sample::Code(_) => return CellClass::Empty(0),
-                    }
-                }
-                if self.header.classification.is_object_vertices(&vals) {
-                    CellClass::Object
-                } else {
-                    CellClass::Empty(0)
-                }
+                let rs = self.header.rescale;
+                let codes = v.map(|s| match s {
+                    Sample::Code(c) => Some(c),
+                    Sample::Value(_) => None,
+                });
+                let values = v.map(|s| match s {
+                    Sample::Value(x) => rs.apply(x),
+                    Sample::Code(_) => f64::NAN,
+                });
+                self.header.classification.cell_of_words(codes, values)
             }
         }
     }

@@ -9,6 +9,8 @@
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 
+use crate::classify::CellClass;
+use crate::format::brick::{dda_planes, decode_words, octant_codes, Values};
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
@@ -27,8 +29,8 @@ pub fn to_f32(v: f64) -> f32 {
     }
 }
 
-/// Code of a 1-cell in the decoded code plane.
-pub const OBJECT: u8 = 255;
+/// Code of a 1-cell in the decoded code plane (the traversal's constant).
+pub use super::traverse::OBJECT;
 
 /// A brick as the renderer uses it: a dense byte plane of cell codes
 /// (255 = 1-cell) and f32 rescaled sample values (NaN where the word held
@@ -45,7 +47,7 @@ pub struct RBrick {
     pub values: Vec<f32>,
     /// Per 4^3 block, the 8 octant codes (anisotropic files only).
     pub octants: Vec<[u8; 8]>,
-    /// Octree levels inside the brick ([`BrickCache::with_octree`] only):
+    /// Octree levels inside the brick ([`Planes::octree`] only):
     /// `levels[l - 1]` flags which nodes of `2^l` cells per axis hold no
     /// 1-cell, x fastest.
     pub levels: Vec<Vec<bool>>,
@@ -109,94 +111,94 @@ impl RBrick {
         ]
     }
 
-    fn decode(
-        vol: &PackedVolume,
-        id: u64,
-        octree: Option<u32>,
-    ) -> Result<(RBrick, u64), FormatError> {
-        let h = vol.header();
+    /// A brick without payload: every cell a 0-cell with `code` (a
+    /// uniform brick, or one stood in by its index code).
+    fn uniform(h: &crate::format::Header, id: u64, code: u32) -> RBrick {
         let coords = h.brick_coords(id);
-        let cells = h.brick_samples(coords).map(|s| (s - 1) as u32);
-        let first = std::array::from_fn(|k| (coords[k] * h.brick_size as u64) as u32);
+        RBrick {
+            first: std::array::from_fn(|k| (coords[k] * h.brick_size as u64) as u32),
+            cells: h.brick_samples(coords).map(|s| (s - 1) as u32),
+            codes: Codes::Uniform(code.min(254) as u8),
+            values: Vec::new(),
+            octants: Vec::new(),
+            levels: Vec::new(),
+            bytes: std::mem::size_of::<RBrick>(),
+            dda: [Vec::new(), Vec::new()],
+        }
+    }
+
+    /// Reads and decodes brick `id` with the format's decoder
+    /// ([`crate::format::brick`]), then builds what rendering adds on top:
+    /// the dense code plane, f32 values and the planes `planes` asks for.
+    /// Returns the brick and its decompressed payload size.
+    fn decode(vol: &PackedVolume, id: u64, planes: Planes) -> Result<(RBrick, u64), FormatError> {
+        let h = vol.header();
         let Some(raw) = vol.read_payload(id)? else {
-            let code = vol.index()[id as usize].uniform_code.min(254) as u8;
-            let b = RBrick {
-                first,
-                cells,
-                codes: Codes::Uniform(code),
-                values: Vec::new(),
-                octants: Vec::new(),
-                levels: Vec::new(),
-                bytes: std::mem::size_of::<RBrick>(),
-                dda: [Vec::new(), Vec::new()],
-            };
-            return Ok((b, 0));
+            return Ok((
+                RBrick::uniform(h, id, vol.index()[id as usize].uniform_code),
+                0,
+            ));
         };
-        let raw_len = raw.len() as u64;
-        let [sx, sy, sz] = cells.map(|c| (c + 1) as usize);
-        let n = sx * sy * sz;
-        // Rescaled values in f64 (the precision prep classified with) and
-        // the code carried by each word, if any.
-        let rs = h.rescale;
-        let enc = h.codes;
+        let coords = h.brick_coords(id);
+        let n = h.brick_samples(coords).iter().product::<u64>() as usize;
         // A brick without 1-cells needs only its codes: a cell is coded at
         // its minimum corner or has code 0; no values, no classification.
         let no_object = vol.index()[id as usize].has_no_object();
+        let mode = if no_object {
+            Values::Skip
+        } else {
+            Values::Rescaled
+        };
         // Per-thread scratch for the decoded words: no large transient
         // allocations per brick, which would fragment the heap between
         // the cache's long-lived buffers (docs/BENCHMARKS.md, "Larger
         // than RAM").
-        SCRATCH
-            .with_borrow_mut(|(vals, word_code)| {
-                vals.clear();
-                vals.resize(n, 0.0);
-                word_code.clear();
-                word_code.resize(n, u32::MAX);
-                crate::with_word!(h.storage, W => {
-                    use crate::format::word::Word;
-                    let size = std::mem::size_of::<W>();
-                    for (i, w) in raw[..n * size].chunks_exact(size).enumerate() {
-                        let w: W = bytemuck::pod_read_unaligned(w);
-                        match w.as_code(&enc) {
-                            Some(c) => word_code[i] = c,
-                            None if !no_object => vals[i] = rs.apply(w.to_raw()),
-                            None => {}
-                        }
-                    }
-                });
-                Self::assemble(vol, id, &raw, [sx, sy, sz], first, cells, vals, word_code)
-            })
-            .map(|mut b| {
-                if let (Some(lb), Codes::Plane(p)) = (octree, &b.codes) {
-                    b.levels = octree_levels(p, b.cells, lb);
-                    b.bytes += b.levels.iter().map(Vec::len).sum::<usize>();
-                }
-                (b, raw_len)
-            })
+        let mut b = SCRATCH.with_borrow_mut(|(vals, codes)| {
+            decode_words(h, &raw, n, mode, vals, codes);
+            RBrick::assemble(vol, id, no_object, vals, codes)
+        });
+        if planes.octants {
+            if let Some(o) = octant_codes(h, coords, &raw) {
+                b.octants = o.into_iter().map(|c| c.map(|x| x.min(254))).collect();
+            }
+        }
+        if planes.dda {
+            if let Some(d) = dda_planes(h, coords, &raw) {
+                b.dda = d;
+            }
+        }
+        if let (true, Codes::Plane(p)) = (planes.octree, &b.codes) {
+            b.levels = octree_levels(p, b.cells, h.brick_size.trailing_zeros());
+        }
+        b.bytes = std::mem::size_of::<RBrick>()
+            + b.codes.len()
+            + b.values.len() * 4
+            + b.octants.len() * 8
+            + b.dda[0].len()
+            + b.dda[1].len()
+            + b.levels.iter().map(Vec::len).sum::<usize>();
+        Ok((b, raw.len() as u64))
     }
 
-    /// The brick from its decoded words: `vals` (rescaled, f64) and
-    /// `word_code` (the code a word carries, `u32::MAX` for none).
-    #[allow(clippy::too_many_arguments)]
+    /// The code plane and f32 values of brick `id` from its decoded words:
+    /// `vals` (rescaled, f64) and `codes` (the code a word carries). Each
+    /// cell's class comes from [`Classification::cell_of_words`], the one
+    /// rule; a brick the index marks as holding no 1-cell skips it (each
+    /// of its cells is coded at its minimum corner or has code 0).
+    ///
+    /// [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
     fn assemble(
         vol: &PackedVolume,
         id: u64,
-        raw: &[u8],
-        [sx, sy, sz]: [usize; 3],
-        first: [u32; 3],
-        cells: [u32; 3],
+        no_object: bool,
         vals: &[f64],
-        word_code: &[u32],
-    ) -> Result<RBrick, FormatError> {
+        codes: &[Option<u32>],
+    ) -> RBrick {
         let h = vol.header();
-        let coords = h.brick_coords(id);
-        let n = sx * sy * sz;
-        let no_object = vol.index()[id as usize].has_no_object();
-        // Cell codes: a code word at the minimum corner gives the code; a
-        // code word at any other vertex means a 0-cell with code 0;
-        // otherwise the classification decides from the 8 values.
+        let mut b = RBrick::uniform(h, id, 0);
+        let [sx, sy, sz] = b.cells.map(|c| (c + 1) as usize);
         let cls = &h.classification;
-        let mut plane = Vec::with_capacity((cells[0] * cells[1] * cells[2]) as usize);
+        let mut plane = Vec::with_capacity((sx - 1) * (sy - 1) * (sz - 1));
         let offs = [
             0,
             1,
@@ -210,68 +212,38 @@ impl RBrick {
         for z in 0..sz - 1 {
             for y in 0..sy - 1 {
                 for x in 0..sx - 1 {
-                    let b = (z * sy + y) * sx + x;
-                    let corner = word_code[b];
-                    let code = if corner != u32::MAX {
-                        corner.min(254) as u8
-                    } else if no_object || offs.iter().any(|&o| word_code[b + o] != u32::MAX) {
-                        0
+                    let i = (z * sy + y) * sx + x;
+                    let class = if no_object {
+                        CellClass::Empty(codes[i].unwrap_or(0))
                     } else {
-                        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-                        for &o in &offs {
-                            let v = vals[b + o];
-                            if v < lo {
-                                lo = v;
-                            }
-                            if v > hi {
-                                hi = v;
-                            }
-                        }
-                        if cls.is_object(lo, hi) {
-                            OBJECT
-                        } else {
-                            0
-                        }
+                        cls.cell_of_words(offs.map(|o| codes[i + o]), offs.map(|o| vals[i + o]))
                     };
-                    plane.push(code);
+                    plane.push(match class {
+                        CellClass::Object => OBJECT,
+                        CellClass::Empty(c) => c.min(254) as u8,
+                    });
                 }
             }
         }
-        let values: Vec<f32> = if no_object {
-            Vec::new()
-        } else {
-            vals.iter()
-                .zip(word_code)
-                .map(|(&v, &c)| if c == u32::MAX { to_f32(v) } else { f32::NAN })
-                .collect()
-        };
-        let octants = match h.brick_blocks(coords) {
-            Some(nb) => {
-                let nb = (nb[0] * nb[1] * nb[2]) as usize;
-                let a = &raw[n * h.storage.size()..];
-                (0..nb)
-                    .map(|i| std::array::from_fn(|o| a[o * nb + i].min(254)))
-                    .collect()
-            }
-            None => Vec::new(),
-        };
-        let dda = dda_planes(h, coords, raw);
-        let bytes = std::mem::size_of::<RBrick>()
-            + plane.len()
-            + values.len() * 4
-            + octants.len() * 8
-            + dda[0].len()
-            + dda[1].len();
-        Ok(RBrick {
-            first,
-            cells,
-            codes: Codes::Plane(plane),
-            values,
-            octants,
-            levels: Vec::new(),
-            bytes,
-            dda,
-        })
+        if !no_object {
+            b.values = vals
+                .iter()
+                .zip(codes)
+                .map(|(&v, c)| if c.is_none() { to_f32(v) } else { f32::NAN })
+                .collect();
+        }
+        b.codes = Codes::Plane(plane);
+        b
+    }
+}
+
+impl Codes {
+    /// Bytes of the code plane.
+    fn len(&self) -> usize {
+        match self {
+            Codes::Uniform(_) => 0,
+            Codes::Plane(p) => p.len(),
+        }
     }
 }
 
@@ -349,30 +321,7 @@ impl BrickPyramid {
     }
 }
 
-/// The octree of a cache built [`BrickCache::with_octree`].
-#[derive(Debug)]
-struct Octree {
-    /// Levels inside a brick: `2^lb` divides the brick size.
-    lb: u32,
-    /// Levels above (power-of-two brick sizes only).
-    bricks: Option<BrickPyramid>,
-}
-
-/// The DDA planes at the end of a brick payload (empty without them; the
-/// reader has checked the payload's length).
-fn dda_planes(h: &crate::format::Header, coords: [u64; 3], raw: &[u8]) -> [Vec<u8>; 2] {
-    let len = h.dda_len(coords) as usize / 2;
-    if len == 0 {
-        return [Vec::new(), Vec::new()];
-    }
-    let start = raw.len() - 2 * len;
-    [
-        raw[start..start + len].to_vec(),
-        raw[start + len..].to_vec(),
-    ]
-}
-
-type Scratch = (Vec<f64>, Vec<u32>);
+type Scratch = (Vec<f64>, Vec<Option<u32>>);
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
@@ -468,50 +417,92 @@ impl<V: Clone> Lru<V> {
 /// hundreds of thousands of them.
 const ENTRY_BYTES: usize = 128;
 
+/// Which planes the cache builds beside each decoded brick's codes and
+/// values. On read, a plane not built answers as if the file had none
+/// (the isotropic code, the chessboard bound, single-cell octree levels),
+/// which is always conservative.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Planes {
+    /// The octant codes of anisotropic files (section 4.2.1).
+    pub octants: bool,
+    /// The city-block and chamfer planes of files prepared with `--dda`.
+    pub dda: bool,
+    /// Octree levels inside each brick and, for power-of-two brick sizes,
+    /// above the bricks from the index (section 5.1).
+    pub octree: bool,
+}
+
+impl Planes {
+    /// Codes and values only.
+    pub const NONE: Planes = Planes {
+        octants: false,
+        dda: false,
+        octree: false,
+    };
+
+    /// Every plane the file has; no octree.
+    pub const FILE: Planes = Planes {
+        octants: true,
+        dda: true,
+        octree: false,
+    };
+}
+
+/// What a traversal needs of the bricks, as plain data: the cache never
+/// sees the traversal method (the render maps a method to its policy).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BrickPolicy {
+    pub planes: Planes,
+    /// Whether a brick without 1-cells may stand in unread, as a uniform
+    /// brick of the smallest code in its index entry: `Some(m)` when that
+    /// code is at least `m` (`Some(0)`: always), `None`: read every brick
+    /// the ray enters. See [`BrickCache::get`].
+    pub stand_in_min: Option<u8>,
+}
+
 /// Decoded bricks under a byte budget, shared by all threads.
 pub struct BrickCache<'v> {
     vol: &'v PackedVolume,
     budget: usize,
     lru: Mutex<Lru<Arc<RBrick>>>,
-    octree: Option<Octree>,
+    planes: Planes,
+    /// The levels above the bricks, when `planes.octree` and the brick
+    /// size is a power of two (bricks are then octree nodes).
+    pyramid: Option<BrickPyramid>,
 }
 
 impl<'v> BrickCache<'v> {
+    /// A cache that builds every plane the file has, and no octree.
     pub fn new(vol: &'v PackedVolume, budget_bytes: usize) -> BrickCache<'v> {
+        BrickCache::with_planes(vol, budget_bytes, Planes::FILE)
+    }
+
+    /// A cache that builds `planes`. With the octree, the levels above the
+    /// bricks are built now from the index (no brick read), those inside
+    /// a brick with each decoded brick (one byte per node, ~1/7 byte per
+    /// cell, counted against the budget).
+    pub fn with_planes(
+        vol: &'v PackedVolume,
+        budget_bytes: usize,
+        planes: Planes,
+    ) -> BrickCache<'v> {
+        let bs = vol.header().brick_size;
         BrickCache {
             vol,
             budget: budget_bytes,
             lru: Mutex::new(Lru::new()),
-            octree: None,
+            planes,
+            pyramid: (planes.octree && bs.is_power_of_two()).then(|| BrickPyramid::new(vol)),
         }
     }
 
-    /// This cache, also holding the octree of [`Method::Octree`]: the
-    /// levels above the bricks built now from the index, those inside a
-    /// brick with each decoded brick (one bit per node, ~1/7 byte per
-    /// cell, counted against the budget).
-    ///
-    /// [`Method::Octree`]: super::traverse::Method::Octree
-    pub fn with_octree(mut self) -> BrickCache<'v> {
-        let bs = self.vol.header().brick_size;
-        self.octree = Some(Octree {
-            lb: bs.trailing_zeros(),
-            bricks: bs.is_power_of_two().then(|| BrickPyramid::new(self.vol)),
-        });
-        self
-    }
-
-    /// The cache a render with `opts` uses: its byte budget, and the
-    /// octree when the traversal is [`Method::Octree`].
-    ///
-    /// [`Method::Octree`]: super::traverse::Method::Octree
-    pub fn for_render(vol: &'v PackedVolume, opts: &super::RenderOptions) -> BrickCache<'v> {
-        let c = BrickCache::new(vol, opts.cache_bytes);
-        if opts.method == super::traverse::Method::Octree {
-            c.with_octree()
-        } else {
-            c
-        }
+    /// This cache, also building the octree ([`Planes::octree`]).
+    pub fn with_octree(self) -> BrickCache<'v> {
+        let planes = Planes {
+            octree: true,
+            ..self.planes
+        };
+        BrickCache::with_planes(self.vol, self.budget, planes)
     }
 
     pub fn volume(&self) -> &PackedVolume {
@@ -555,21 +546,10 @@ impl<'v> BrickCache<'v> {
         }
         c.cache_misses += 1;
         let b = if lazy {
-            let h = self.vol.header();
-            let coords = h.brick_coords(id);
             c.bricks_skipped += 1;
-            RBrick {
-                first: std::array::from_fn(|k| (coords[k] * h.brick_size as u64) as u32),
-                cells: h.brick_samples(coords).map(|s| (s - 1) as u32),
-                codes: Codes::Uniform(e.uniform_code.min(254) as u8),
-                values: Vec::new(),
-                octants: Vec::new(),
-                levels: Vec::new(),
-                bytes: std::mem::size_of::<RBrick>(),
-                dda: [Vec::new(), Vec::new()],
-            }
+            RBrick::uniform(self.vol.header(), id, e.uniform_code)
         } else {
-            let (b, raw) = RBrick::decode(self.vol, id, self.octree.as_ref().map(|o| o.lb))?;
+            let (b, raw) = RBrick::decode(self.vol, id, self.planes)?;
             c.bytes_decompressed += raw;
             b
         };
@@ -626,30 +606,14 @@ impl<'a, 'v> Accessor<'a, 'v> {
         Accessor::with_lazy(cache, None)
     }
 
-    /// An accessor for `method`: FVT never needs the codes of a brick
-    /// without 1-cells, so it reads none; CD reads them unless the brick's
-    /// smallest code is already `cd_lazy_min` or more.
-    pub fn for_method(
-        cache: &'a BrickCache<'v>,
-        method: super::traverse::Method,
-        cd_lazy_min: u8,
-    ) -> Accessor<'a, 'v> {
-        use super::traverse::Method;
-        let lazy = match method {
-            Method::Fvt => Some(0),
-            Method::Cd { .. } | Method::CdAniso { .. } => Some(cd_lazy_min),
-            // City block and chamfer need the planes of every brick they
-            // cross (a stand-in answers only the chessboard bound).
-            Method::Dda { kind, .. } => match kind {
-                super::traverse::DistKind::Chessboard => Some(cd_lazy_min),
-                _ => None,
-            },
-            // The octree answers for bricks without 1-cells from the index.
-            Method::Octree => Some(0),
-        };
-        Accessor::with_lazy(cache, lazy)
+    /// An accessor that stands bricks in as `policy` allows (its planes
+    /// are the cache's business).
+    pub fn for_policy(cache: &'a BrickCache<'v>, policy: &BrickPolicy) -> Accessor<'a, 'v> {
+        Accessor::with_lazy(cache, policy.stand_in_min)
     }
 
+    /// An accessor that stands in a brick without 1-cells by its index
+    /// code when that code is at least `lazy_min` (see [`BrickCache::get`]).
     pub fn with_lazy(cache: &'a BrickCache<'v>, lazy_min: Option<u8>) -> Accessor<'a, 'v> {
         let h = cache.volume().header();
         Accessor {
@@ -737,11 +701,11 @@ impl super::traverse::CodeSource for Accessor<'_, '_> {
     /// in the cache, the trait's single-cell answer.
     #[inline]
     fn empty_level(&mut self, c: [u32; 3]) -> Option<u8> {
-        let Some(oc) = self.cache.octree.as_ref() else {
+        if !self.cache.planes.octree {
             return (self.code(c, None) != OBJECT).then_some(0);
-        };
-        let lb = oc.lb;
-        if let Some(p) = &oc.bricks {
+        }
+        let lb = self.brick_size.trailing_zeros();
+        if let Some(p) = &self.cache.pyramid {
             let bs = self.brick_size;
             if let Some(j) = p.empty_level([c[0] / bs, c[1] / bs, c[2] / bs].map(u64::from)) {
                 return Some((lb + j) as u8);

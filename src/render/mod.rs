@@ -14,6 +14,7 @@
 pub mod cache;
 pub mod camera;
 pub mod lut;
+pub mod policy;
 pub mod shade;
 pub mod shard;
 pub mod template;
@@ -308,13 +309,7 @@ pub fn render(
     opts: &RenderOptions,
     progress: &dyn Progress,
 ) -> Result<(Frame, Stats), RenderError> {
-    render_in(
-        vol,
-        &BrickCache::for_render(vol, opts),
-        camera,
-        opts,
-        progress,
-    )
+    render_in(vol, &policy::cache_for(vol, opts), camera, opts, progress)
 }
 
 /// [`render`] with a brick cache that outlives it: the frames of a
@@ -399,11 +394,11 @@ pub fn render_part(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<shard::Part, RenderError> {
-    let cache = BrickCache::for_render(vol, opts);
+    let cache = policy::cache_for(vol, opts);
     render_part_in(vol, &cache, camera, opts, shard, progress)
 }
 
-/// [`render_part`] with a brick cache from [`BrickCache::for_render`]
+/// [`render_part`] with a brick cache from [`policy::cache_for`]
 /// (with another cache the result is the same, only slower or larger).
 pub fn render_part_in(
     vol: &PackedVolume,
@@ -599,7 +594,8 @@ fn render_tile<T: Real>(ctx: &Ctx<T>, cache: &BrickCache, x0: u32, y0: u32, ts: 
     let cam = ctx.camera;
     let w = ts.min(cam.width - x0);
     let hh = ts.min(cam.height - y0);
-    let mut acc = Accessor::for_method(cache, ctx.opts.method, ctx.opts.cd_lazy_min);
+    let policy = policy::brick_policy(ctx.opts.method, ctx.opts.cd_lazy_min);
+    let mut acc = Accessor::for_policy(cache, &policy);
     let mut pixels = Vec::with_capacity((w * hh) as usize);
     let mut steps = StepCounts::default();
     let mut hits = 0;

@@ -577,7 +577,8 @@ pub fn render_template_with(
     let rows: Vec<_> = (0..size[1])
         .into_par_iter()
         .map(|pb| {
-            let mut acc = Accessor::for_method(&cache, opts.method, opts.cd_lazy_min);
+            let policy = super::policy::brick_policy(opts.method, opts.cd_lazy_min);
+            let mut acc = Accessor::for_policy(&cache, &policy);
             let mut counts = StepCounts::default();
             let mut out = Vec::with_capacity(size[0] as usize);
             for pa in 0..size[0] {

@@ -35,11 +35,27 @@
 
 use num_traits::Float;
 
-use super::cache::OBJECT;
 use crate::grid::Axis;
 
+mod cd;
+mod dda;
+mod frame;
+mod fvt;
+mod octree;
 mod ray;
+mod walker;
+
+pub use cd::Cd;
+pub use dda::Dda;
+pub use fvt::Fvt;
+pub use octree::Octree;
 pub use ray::{Ray, RayError, MAX_DIR, MIN_DIR};
+pub use walker::{CellWalker, Walker};
+
+/// Code of a 1-cell in a [`CodeSource`]'s answers (and in the decoded code
+/// plane of the render cache): every other value is a 0-cell's code,
+/// saturated at 254.
+pub const OBJECT: u8 = 255;
 
 /// Arithmetic the walk runs in: `f64` (the default: it never misses a
 /// 1-cell in the extreme-case suite) or `f32` (measured in
@@ -297,145 +313,15 @@ pub enum Flow {
     Stop,
 }
 
-/// Per-ray state of the walk (mirrored, scaled frame).
-struct Walk<'g, T> {
-    s: [&'g [T]; 3],
-    uniform: [Option<T>; 3],
-    o: [T; 3],
-    /// `|d|`, divided by a power of two where `T` needs it (see [`trace`]).
-    d: [T; 3],
-    /// `1 / d` (+inf where `d == 0`).
-    inv_d: [T; 3],
-    /// Axes whose `1 / d` overflows (subnormal `d`): divide instead.
-    div: [bool; 3],
-    mirror: [bool; 3],
-    n: [u32; 3],
-}
-
-impl<'g, T: Real> Walk<'g, T> {
-    /// `t` at which the ray crosses plane `j` of axis `k` (+inf if the ray
-    /// is parallel to it). The one formula every traversal uses:
-    /// `(S'[j] - o') * (1 / d')`, a multiplication rather than a division
-    /// in the step (paper section 4.1, last paragraph), monotone in `j`.
-    #[inline(always)]
-    fn plane_t(&self, k: usize, j: u32) -> T {
-        if self.d[k] == T::zero() {
-            T::infinity()
-        } else if self.div[k] {
-            (self.s[k][j as usize] - self.o[k]) / self.d[k]
-        } else {
-            (self.s[k][j as usize] - self.o[k]) * self.inv_d[k]
-        }
-    }
-
-    /// Largest `j` in `[lo, hi]` with `plane_t(k, j) <= t` (`plane_t(k,
-    /// lo) <= t` must hold). Locate of Fig. 11: direct on uniform axes
-    /// (an estimate corrected by the same `plane_t`), binary search
-    /// bounded by the cube otherwise.
-    #[inline(always)]
-    fn locate(&self, k: usize, t: T, lo: u32, hi: u32) -> u32 {
-        if let Some(h) = self.uniform[k] {
-            let p = self.o[k] + t * self.d[k];
-            // Clamped before truncating: inside (lo, hi) the estimate is
-            // positive, where truncation is floor (no libm call); NaN
-            // goes to lo.
-            let est = ((p - self.s[k][0]) / h).f64();
-            let mut j = if est > lo as f64 {
-                est.min(hi as f64) as u32
-            } else {
-                lo
-            };
-            while j < hi && self.plane_t(k, j + 1) <= t {
-                j += 1;
-            }
-            while j > lo && self.plane_t(k, j) > t {
-                j -= 1;
-            }
-            j
-        } else {
-            let (mut a, mut b) = (lo, hi);
-            while a < b {
-                let m = a + (b - a).div_ceil(2);
-                if self.plane_t(k, m) <= t {
-                    a = m;
-                } else {
-                    b = m - 1;
-                }
-            }
-            a
-        }
-    }
-
-    /// Far faces, in the mirrored frame, of the octree node of level `l`
-    /// holding original cell `real`: the node spans `[a, a + 2^l)` along
-    /// each axis of the original grid (clipped to the volume), so its far
-    /// face is `a + 2^l` on an unmirrored axis and `n - a` on a mirrored
-    /// one.
-    #[inline(always)]
-    fn node_far(&self, real: [u32; 3], l: u8) -> [u32; 3] {
-        let l = l.min(40);
-        std::array::from_fn(|k| {
-            let a = (real[k] as u64 >> l) << l;
-            if self.mirror[k] {
-                (self.n[k] as u64 - a) as u32
-            } else {
-                (a + (1u64 << l)).min(self.n[k] as u64) as u32
-            }
-        })
-    }
-
-    /// Original cell index of mirrored cell `v`.
-    #[inline(always)]
-    fn real(&self, v: [u32; 3]) -> [u32; 3] {
-        std::array::from_fn(|k| {
-            if self.mirror[k] {
-                self.n[k] - 1 - v[k]
-            } else {
-                v[k]
-            }
-        })
-    }
-}
-
-/// Axis of the smallest `t`, ties to x, then y (paper Fig. 11a).
-#[inline(always)]
-fn argmin<T: Real>(t: [T; 3]) -> usize {
-    if t[0] <= t[1] && t[0] <= t[2] {
-        0
-    } else if t[1] <= t[2] {
-        1
-    } else {
-        2
-    }
-}
-
-/// Power of two `p` with `max |d_k| / p` in [1, 2) (exact scaling).
-fn pow2_scale(m: f64) -> f64 {
-    let e = m.log2().floor().clamp(-1022.0, 1023.0) as i32;
-    let mut p = 2f64.powi(e);
-    // log2 may round across a power of two; fix up exactly.
-    if m / p >= 2.0 {
-        p *= 2.0;
-    } else if m / p < 1.0 {
-        p *= 0.5;
-    }
-    p
-}
-
-/// Walks `ray` through the grid from `t_min` on, calling `visit` for every
-/// 1-cell it passes with positive length, in order, until `visit` says
-/// stop or the ray leaves the volume. Returns the step counts. A ray that
-/// fails [`Ray::check`], or a non-finite `t_min`, visits nothing.
+/// Walks `ray` through the grid from `t_min` on with `method`, calling
+/// `visit` for every 1-cell it passes with positive length, in order, until
+/// `visit` says stop or the ray leaves the volume. Returns the step counts.
+/// A ray that fails [`Ray::check`], or a non-finite `t_min`, visits nothing
+/// (see [`Frame::enter`](frame::Frame) for how extreme directions are
+/// scaled).
 ///
-/// Where the largest direction component `m` or `1 / m` is not a normal
-/// number of `T` (f32 outside its range; never in f64, as `m` is within
-/// 2^+-600), the direction is divided by a power of two `p` so that `m / p`
-/// lies in [1, 2); the walk's parameter is then `t * p`, and is reported
-/// divided by `p`. Both are exact, so in f64 every direction is walked as
-/// given. A component whose inverse overflows (subnormal) is divided by
-/// rather than multiplied with. A component that underflows to 0 in `T`
-/// (f32 only) is treated as parallel, keeping its sign for mirroring and
-/// leaving at once from the far face.
+/// The method is chosen once per ray; the loop then runs one walker
+/// ([`Walker`]) to the end, so no step tests which method it is in.
 ///
 /// Termination: every step raises one cell index by at least one and
 /// never lowers another, so a ray takes at most `ncx + ncy + ncz - 2`
@@ -446,337 +332,48 @@ pub fn trace<T, S, F>(
     t_min: f64,
     method: Method,
     src: &mut S,
-    mut visit: F,
+    visit: F,
 ) -> StepCounts
 where
     T: Real,
     S: CodeSource,
     F: FnMut(&Visit, &mut S) -> Flow,
 {
-    let mut counts = StepCounts::default();
-    if ray.check().is_err() || !t_min.is_finite() {
-        return counts;
-    }
-    let m = ray.dir.iter().fold(0.0f64, |m, d| m.max(d.abs()));
-    let p = if T::of(m).is_normal() && T::of(1.0 / m).is_normal() {
-        1.0
-    } else {
-        pow2_scale(m)
+    let Some((f, e)) = frame::Frame::enter(grid, ray, t_min) else {
+        return StepCounts::default();
     };
-    // Mirror axes with negative components (-0.0 is not negative).
-    let mirror = ray.dir.map(|d| d < 0.0);
-    let d: [T; 3] = std::array::from_fn(|k| T::of(ray.dir[k].abs() / p));
-    let inv_d = d.map(|x| T::one() / x);
-    let div = std::array::from_fn(|k| d[k] != T::zero() && !inv_d[k].is_finite());
-    let o: [T; 3] = std::array::from_fn(|k| {
-        T::of(if mirror[k] {
-            -ray.origin[k]
-        } else {
-            ray.origin[k]
-        })
-    });
-    if !o.iter().all(|x| x.is_finite()) {
-        // Only in f32: an origin beyond its range.
-        return counts;
-    }
-    let w = Walk {
-        s: std::array::from_fn(|k| &grid.axes[k].s[mirror[k] as usize][..]),
-        uniform: std::array::from_fn(|k| grid.axes[k].uniform),
-        o,
-        d,
-        inv_d,
-        div,
-        mirror,
-        n: grid.ncells,
-    };
-    let octant = (mirror[0] as usize) | (mirror[1] as usize) << 1 | (mirror[2] as usize) << 2;
-    let to_t = |t: T| t.f64() / p;
-
-    // Enter the volume: slab test, then the starting cell by the t rule.
-    let mut t_in = T::of(t_min * p);
-    let mut t_out = T::infinity();
-    for k in 0..3 {
-        let s = w.s[k];
-        if w.d[k] == T::zero() {
-            // Parallel: inside the closed slab. A flushed component still
-            // moves the ray, so on the far face it leaves at once.
-            let top = s[s.len() - 1];
-            let below_top = if ray.dir[k] == 0.0 {
-                w.o[k] <= top
-            } else {
-                w.o[k] < top
+    match method {
+        Method::Fvt => drive(CellWalker::new(f, e, Fvt), src, visit),
+        Method::Cd { min_leap } => {
+            let rule = Cd {
+                min_leap: min_leap.max(1),
+                octant: None,
             };
-            if !(w.o[k] >= s[0] && below_top) {
-                return counts;
-            }
-        } else {
-            t_in = t_in.max(w.plane_t(k, 0));
-            t_out = t_out.min(w.plane_t(k, w.n[k]));
+            drive(CellWalker::new(f, e, rule), src, visit)
         }
-    }
-    if !(t_in < t_out) {
-        return counts;
-    }
-    let mut v: [u32; 3] = std::array::from_fn(|k| {
-        if w.d[k] == T::zero() {
-            // Largest sample position <= o, kept inside the last cell.
-            let s = w.s[k];
-            (s.partition_point(|&x| x <= w.o[k]).max(1) - 1).min(w.n[k] as usize - 1) as u32
-        } else {
-            w.locate(k, t_in, 0, w.n[k] - 1)
-        }
-    });
-    let mut t_enter = t_in;
-    let mut next = [
-        w.plane_t(0, v[0] + 1),
-        w.plane_t(1, v[1] + 1),
-        w.plane_t(2, v[2] + 1),
-    ];
-    let (min_leap, aniso) = match method {
-        Method::Fvt | Method::Octree => (u8::MAX, None),
-        Method::Cd { min_leap } => (min_leap.max(1), None),
-        Method::CdAniso { min_leap } => (min_leap.max(1), Some(octant)),
-        Method::Dda { kind, switch_fvt } => {
-            let st = Start {
-                v,
-                t_in,
-                t_out,
-                to_t: &to_t,
+        Method::CdAniso { min_leap } => {
+            let rule = Cd {
+                min_leap: min_leap.max(1),
+                octant: Some(f.octant()),
             };
-            return dda(&w, st, kind, switch_fvt, src, visit);
+            drive(CellWalker::new(f, e, rule), src, visit)
         }
-    };
-    let octree = method == Method::Octree;
-    loop {
-        let real = w.real(v);
-        // What the cell is: a 1-cell, or the far faces of an empty region
-        // to leap to (None: a single-cell step).
-        let (object, leap) = if octree {
-            match src.empty_level(real) {
-                None => (true, None),
-                Some(0) => (false, None),
-                Some(l) => (false, Some(w.node_far(real, l))),
-            }
-        } else {
-            let code = src.code(real, aniso);
-            let leap = (code != OBJECT && code >= min_leap).then(|| {
-                let n = code as u32;
-                std::array::from_fn(|k| (v[k] + n + 1).min(w.n[k]))
-            });
-            (code == OBJECT, leap)
-        };
-        counts.steps += 1;
-        if object {
-            let t_exit = next[0].min(next[1]).min(next[2]).min(t_out);
-            if t_exit > t_enter {
-                let vis = Visit {
-                    cell: real,
-                    t_enter: to_t(t_enter),
-                    t_exit: to_t(t_exit),
-                };
-                if visit(&vis, src) == Flow::Stop {
-                    return counts;
-                }
-            }
-        }
-        if let Some(far) = leap {
-            // Macro step (Figs. 11, 12): the nearest far face of the
-            // region (CD: the cube of eq. 12; octree: the node).
-            counts.macro_steps += 1;
-            let t_far = [
-                w.plane_t(0, far[0]),
-                w.plane_t(1, far[1]),
-                w.plane_t(2, far[2]),
-            ];
-            let m = argmin(t_far);
-            let t = t_far[m];
-            if far[m] >= w.n[m] {
-                return counts;
-            }
-            for k in 0..3 {
-                if k == m {
-                    v[k] = far[k];
-                } else if w.d[k] != T::zero() {
-                    v[k] = w.locate(k, t, v[k], far[k]);
-                    if v[k] >= w.n[k] {
-                        return counts;
-                    }
-                }
-                next[k] = w.plane_t(k, v[k] + 1);
-            }
-            t_enter = t;
-        } else {
-            // Single-cell step (MasterStep_1 / SlaveStep_1).
-            counts.cell_steps += 1;
-            let m = argmin(next);
-            let t = next[m];
-            if t >= t_out {
-                return counts;
-            }
-            v[m] += 1;
-            if v[m] >= w.n[m] {
-                return counts;
-            }
-            next[m] = w.plane_t(m, v[m] + 1);
-            t_enter = t;
-        }
+        Method::Octree => drive(CellWalker::new(f, e, Octree), src, visit),
+        Method::Dda { kind, switch_fvt } => drive(Dda::new(f, e, kind, switch_fvt), src, visit),
     }
 }
 
-/// Where a walk starts: the first cell, the volume's entry and exit in
-/// the walk's parameter, and the map back to the ray's `t`.
-struct Start<'f, T> {
-    v: [u32; 3],
-    t_in: T,
-    t_out: T,
-    to_t: &'f dyn Fn(T) -> f64,
-}
-
-/// The DDA generators of [`Method::Dda`] (paper section 3, eqs. 2-3).
-///
-/// The walk runs in cell units: on a uniform axis of spacing `h` the ray
-/// advances `r_k = d_k / h` cells per unit of its parameter. A sample at
-/// parameter `t` lies in the cell the `t` rule of [`trace`] gives
-/// (Locate), so a leap lands exactly where FVT would be at that `t`. From
-/// a cell at distance `d` (in cells) the next sample is `(d - 1) / D(r)`
-/// further (eq. 2; `D` is `L1` for city block, `L2` for chamfer, `Linf`
-/// for chessboard, eq. 3), but at least `1 / Linf(r)`: one cell along the
-/// major axis, the DDA's own step. With `switch_fvt`, a cell whose free
-/// length `(d - 1) / D(r)` is shorter than that step (for chessboard:
-/// `d < 2`) is left by single-cell steps, and the DDA resumes from the
-/// face of the first cell where it is not. Leaps are shortened by a relative `2^-40` so that rounding
-/// cannot carry a chessboard leap onto the face of the cube at distance
-/// `d`: then every cell a chessboard leap passes lies within `Linf`
-/// distance `d - 1` of the start cell, all empty, and chessboard DDA with
-/// the switch visits exactly FVT's 1-cells. City block and chamfer leaps
-/// of length `d - 1` from a point that is not the centre can reach cells
-/// at distance `d + 1` (`L1`) and are not exact; tests/generators.rs
-/// counts what they miss.
-///
-/// A visit's entry and exit are the cell's slab interval along the ray,
-/// computed by the same `plane_t` as FVT (bit-identical where FVT visits
-/// the same cell). Without the switch, a cell sampled twice is visited
-/// once. On an axis that is not uniform the walk has no cell units; it
-/// takes single-cell steps there (renders refuse such grids first).
-#[allow(clippy::needless_range_loop)] // v[k], w.d[k], w.n[k] side by side
-fn dda<T, S, F>(
-    w: &Walk<'_, T>,
-    st: Start<'_, T>,
-    kind: DistKind,
-    switch_fvt: bool,
-    src: &mut S,
-    mut visit: F,
-) -> StepCounts
+/// Runs walker `w` to the end or until `visit` says stop.
+#[inline(always)]
+fn drive<S, W, F>(mut w: W, src: &mut S, mut visit: F) -> StepCounts
 where
-    T: Real,
-    S: CodeSource,
+    W: Walker<S>,
     F: FnMut(&Visit, &mut S) -> Flow,
 {
-    let mut counts = StepCounts::default();
-    let Start {
-        mut v,
-        t_in,
-        t_out,
-        to_t,
-    } = st;
-    let regular = (0..3).all(|k| w.d[k] == T::zero() || w.uniform[k].is_some());
-    // Direction in cells per unit of t, and its norms (eq. 3).
-    let r: [f64; 3] = std::array::from_fn(|k| match w.uniform[k] {
-        Some(h) if w.d[k] != T::zero() => w.d[k].f64() / h.f64(),
-        _ => 0.0,
-    });
-    let linf = r[0].max(r[1]).max(r[2]);
-    let norm = match kind {
-        DistKind::Cityblock => r[0] + r[1] + r[2],
-        DistKind::Chessboard => linf,
-        DistKind::Chamfer => (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt(),
-    };
-    let unit_dt = 1.0 / linf;
-    let shrink = 1.0 - 2f64.powi(-40);
-    let unit = kind.unit() as f64;
-    // Slab interval of cell v along the ray.
-    let span = |v: [u32; 3]| -> (T, T) {
-        let (mut a, mut b) = (t_in, t_out);
-        for (k, &vk) in v.iter().enumerate() {
-            if w.d[k] != T::zero() {
-                a = a.max(w.plane_t(k, vk));
-                b = b.min(w.plane_t(k, vk + 1));
-            }
-        }
-        (a, b)
-    };
-    let mut t = t_in;
-    // Whether the walk is in single-cell steps (`next` valid) or samples.
-    let mut fvt = false;
-    let mut next = [T::zero(); 3];
-    let mut last_visit: Option<[u32; 3]> = None;
-    loop {
-        let real = w.real(v);
-        let dist = src.distance(real, kind);
-        counts.steps += 1;
-        if dist == 0 && last_visit != Some(v) {
-            let (a, b) = span(v);
-            if b > a {
-                let vis = Visit {
-                    cell: real,
-                    t_enter: to_t(a),
-                    t_exit: to_t(b),
-                };
-                if visit(&vis, src) == Flow::Stop {
-                    return counts;
-                }
-            }
-            last_visit = Some(v);
-        }
-        let leap = dist as f64 / unit - 1.0;
-        // Near objects (the free length along the ray, eq. 2, is shorter
-        // than one DDA step) the switch takes single-cell steps.
-        let mut single = !regular || (switch_fvt && leap / norm < unit_dt);
-        let mut tn = t;
-        if !single {
-            // The DDA resumes from the face single-cell steps entered by.
-            let from = if fvt { span(v).0 } else { t };
-            let dt = if leap >= 1.0 {
-                (leap / norm * shrink).max(unit_dt)
-            } else {
-                unit_dt
-            };
-            tn = T::of(from.f64() + dt);
-            // A step lost to rounding (t huge against a cell): one cell.
-            single = !(tn > from);
-        }
-        if single {
-            if !fvt {
-                fvt = true;
-                next = std::array::from_fn(|k| w.plane_t(k, v[k] + 1));
-            }
-            counts.cell_steps += 1;
-            let m = argmin(next);
-            if next[m] >= t_out {
-                return counts;
-            }
-            v[m] += 1;
-            if v[m] >= w.n[m] {
-                return counts;
-            }
-            next[m] = w.plane_t(m, v[m] + 1);
-            continue;
-        }
-        fvt = false;
-        if leap >= 1.0 {
-            counts.macro_steps += 1;
-        }
-        if tn >= t_out {
-            return counts;
-        }
-        t = tn;
-        for (k, vk) in v.iter_mut().enumerate() {
-            if w.d[k] != T::zero() {
-                *vk = w.locate(k, t, *vk, w.n[k]);
-                if *vk >= w.n[k] {
-                    return counts;
-                }
-            }
+    while let Some(v) = w.next_visit(src) {
+        if visit(&v, src) == Flow::Stop {
+            break;
         }
     }
+    w.counts()
 }

@@ -1,0 +1,58 @@
+//! What each traversal needs of the bricks, as the cache's plain
+//! [`BrickPolicy`]: the one place that maps a [`Method`] to which planes
+//! to build and when a brick may stand in unread. The cache itself never
+//! sees the method.
+
+use super::cache::{BrickCache, BrickPolicy, Planes};
+use super::traverse::{DistKind, Method};
+use super::RenderOptions;
+use crate::format::reader::PackedVolume;
+
+/// The policy of `method`. FVT never needs the codes of a brick without
+/// 1-cells, so it reads none; CD reads them unless the brick's smallest
+/// code is already `cd_lazy_min` or more (below it the brick's own larger
+/// codes leap further, docs/BENCHMARKS.md "Render levers"); city block and
+/// chamfer DDA need the planes of every brick they cross (a stand-in
+/// answers only the chessboard bound); the octree answers for bricks
+/// without 1-cells from the index.
+pub fn brick_policy(method: Method, cd_lazy_min: u8) -> BrickPolicy {
+    let (stand_in_min, planes) = match method {
+        Method::Fvt => (Some(0), Planes::NONE),
+        Method::Cd { .. } => (Some(cd_lazy_min), Planes::NONE),
+        Method::CdAniso { .. } => (
+            Some(cd_lazy_min),
+            Planes {
+                octants: true,
+                ..Planes::NONE
+            },
+        ),
+        Method::Dda { kind, .. } => match kind {
+            DistKind::Chessboard => (Some(cd_lazy_min), Planes::NONE),
+            DistKind::Cityblock | DistKind::Chamfer => (
+                None,
+                Planes {
+                    dda: true,
+                    ..Planes::NONE
+                },
+            ),
+        },
+        Method::Octree => (
+            Some(0),
+            Planes {
+                octree: true,
+                ..Planes::NONE
+            },
+        ),
+    };
+    BrickPolicy {
+        planes,
+        stand_in_min,
+    }
+}
+
+/// The brick cache a render with `opts` uses: its byte budget and the
+/// planes its traversal needs.
+pub fn cache_for<'v>(vol: &'v PackedVolume, opts: &RenderOptions) -> BrickCache<'v> {
+    let p = brick_policy(opts.method, opts.cd_lazy_min);
+    BrickCache::with_planes(vol, opts.cache_bytes, p.planes)
+}

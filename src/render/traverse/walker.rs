@@ -1,0 +1,114 @@
+//! The walker interface and the cell-stepping walk that FVT, CD and the
+//! octree share (paper Figs. 11-12): at each cell the method's rule says
+//! what the cell is (a 1-cell to visit, a cell to step over, or an empty
+//! region to leap over), and the walk takes the matching move from
+//! [`super::frame`].
+
+use super::frame::{Cursor, Entry, Frame};
+use super::{CodeSource, Real, StepCounts, Visit};
+
+/// One ray generator walking one ray (paper section 5: FVT, CD, octree,
+/// DDA), in the manner of pbrt-v4's `DDAMajorantIterator`: each call
+/// yields the next 1-cell the ray passes with positive length, in order,
+/// reading cell codes from `src`.
+pub trait Walker<S> {
+    /// The next 1-cell with its entry and exit `t`, or `None` once the ray
+    /// has left the volume. A walker stops where it yields: the step out
+    /// of a visited cell is taken by the next call, so a caller that stops
+    /// asking has counted no step beyond the cell it stopped at.
+    fn next_visit(&mut self, src: &mut S) -> Option<Visit>;
+
+    /// The steps taken so far.
+    fn counts(&self) -> StepCounts;
+}
+
+/// What a cell-stepping method makes of the cell the walk is in.
+pub(super) enum Action {
+    /// A 1-cell: visit it, then take a single-cell step.
+    Visit,
+    /// An empty cell to cross by a single-cell step.
+    Step,
+    /// An empty region whose far faces are these planes (mirrored frame):
+    /// leap to the nearest of them.
+    Leap([u32; 3]),
+}
+
+/// The rule of one cell-stepping method: FVT, CD or the octree.
+pub(super) trait CellRule<S> {
+    /// What cell `v` (mirrored frame; `real` in the original grid) is.
+    fn at<T: Real>(&self, f: &Frame<'_, T>, v: [u32; 3], real: [u32; 3], src: &mut S) -> Action;
+}
+
+/// A walk by single-cell steps and leaps, the method's rule deciding at
+/// each cell which.
+pub struct CellWalker<'g, T, R> {
+    f: Frame<'g, T>,
+    c: Cursor<T>,
+    rule: R,
+    /// The last call yielded a visit; the step out of that cell is due.
+    pending: bool,
+    done: bool,
+    counts: StepCounts,
+}
+
+impl<'g, T: Real, R> CellWalker<'g, T, R> {
+    pub(super) fn new(f: Frame<'g, T>, e: Entry<T>, rule: R) -> Self {
+        let c = Cursor::new(&f, e);
+        CellWalker {
+            f,
+            c,
+            rule,
+            pending: false,
+            done: false,
+            counts: StepCounts::default(),
+        }
+    }
+
+    #[inline(always)]
+    fn step(&mut self) -> bool {
+        self.counts.cell_steps += 1;
+        self.c.step(&self.f)
+    }
+}
+
+impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, T, R> {
+    #[inline(always)]
+    fn next_visit(&mut self, src: &mut S) -> Option<Visit> {
+        if self.done {
+            return None;
+        }
+        if self.pending {
+            self.pending = false;
+            if !self.step() {
+                self.done = true;
+                return None;
+            }
+        }
+        loop {
+            let real = self.f.real(self.c.v);
+            self.counts.steps += 1;
+            let moved = match self.rule.at(&self.f, self.c.v, real, src) {
+                Action::Visit => {
+                    if let Some(vis) = self.c.visit(&self.f, real) {
+                        self.pending = true;
+                        return Some(vis);
+                    }
+                    self.step()
+                }
+                Action::Step => self.step(),
+                Action::Leap(far) => {
+                    self.counts.macro_steps += 1;
+                    self.c.leap(&self.f, far)
+                }
+            };
+            if !moved {
+                self.done = true;
+                return None;
+            }
+        }
+    }
+
+    fn counts(&self) -> StepCounts {
+        self.counts
+    }
+}
