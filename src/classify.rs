@@ -50,6 +50,16 @@ pub struct TfError {
     pub msg: String,
 }
 
+/// A transfer function field that breaks an invariant of
+/// [`TransferFunction::check`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("field `{field}`: {found}, expected {expected}")]
+pub struct TfInvalid {
+    pub field: String,
+    pub found: String,
+    pub expected: &'static str,
+}
+
 impl TransferFunction {
     /// Reads and checks a transfer function file.
     pub fn load(path: &Path) -> Result<TransferFunction, TfError> {
@@ -63,34 +73,43 @@ impl TransferFunction {
                 "expected {{\"points\": [{{\"value\", \"opacity\", \"color\"}}, ...]}}: {x}"
             ))
         })?;
-        tf.check().map_err(e)?;
+        tf.check().map_err(|x| e(x.to_string()))?;
         Ok(tf)
     }
 
     /// Checks the invariants `load` promises.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), TfInvalid> {
+        let bad = |field: String, found: String, expected: &'static str| {
+            Err(TfInvalid {
+                field,
+                found,
+                expected,
+            })
+        };
         if self.points.is_empty() {
-            return Err("field `points`: empty, expected at least one point".into());
+            return bad("points".into(), "empty".into(), "at least one point");
         }
         for (i, p) in self.points.iter().enumerate() {
             if !p.value.is_finite() {
-                return Err(format!(
-                    "field `points[{i}].value`: {}, expected a finite number",
-                    p.value
-                ));
+                return bad(
+                    format!("points[{i}].value"),
+                    p.value.to_string(),
+                    "a finite number",
+                );
             }
             if !(0.0..=1.0).contains(&p.opacity) {
-                return Err(format!(
-                    "field `points[{i}].opacity`: {}, expected 0..=1",
-                    p.opacity
-                ));
+                return bad(
+                    format!("points[{i}].opacity"),
+                    p.opacity.to_string(),
+                    "0..=1",
+                );
             }
             if i > 0 && p.value <= self.points[i - 1].value {
-                return Err(format!(
-                    "field `points[{i}].value`: {} after {}, expected strictly increasing values",
-                    p.value,
-                    self.points[i - 1].value
-                ));
+                return bad(
+                    format!("points[{i}].value"),
+                    format!("{} after {}", p.value, self.points[i - 1].value),
+                    "strictly increasing values",
+                );
             }
         }
         Ok(())

@@ -181,7 +181,10 @@ impl PackedVolume {
             path: p(),
             msg: e.to_string(),
         })?;
-        check_header(&header).map_err(|msg| FormatError::Header { path: p(), msg })?;
+        check_header(&header).map_err(|e| FormatError::Header {
+            path: p(),
+            msg: e.to_string(),
+        })?;
         if ilen != header.brick_count() * INDEX_ENTRY_LEN as u64 {
             return Err(FormatError::Header {
                 path: p(),
@@ -348,64 +351,94 @@ impl PackedVolume {
     }
 }
 
-fn check_header(h: &Header) -> Result<(), String> {
+/// A header field that breaks an invariant the reader relies on.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field} {found}, expected {expected}")]
+pub struct HeaderInvalid {
+    pub field: String,
+    pub found: String,
+    pub expected: String,
+}
+
+fn check_header(h: &Header) -> Result<(), HeaderInvalid> {
+    let bad = |field: String, found: String, expected: String| {
+        Err(HeaderInvalid {
+            field,
+            found,
+            expected,
+        })
+    };
     if h.format_version != FORMAT_VERSION {
-        return Err(format!(
-            "format_version {}, expected {FORMAT_VERSION}",
-            h.format_version
-        ));
+        return bad(
+            "format_version".into(),
+            h.format_version.to_string(),
+            FORMAT_VERSION.to_string(),
+        );
     }
     for k in 0..3 {
         if h.dims[k] < 2 {
-            return Err(format!("dims[{k}] = {}, expected >= 2", h.dims[k]));
+            return bad(format!("dims[{k}]"), h.dims[k].to_string(), ">= 2".into());
         }
         if h.axes[k].samples() as u64 != h.dims[k] {
-            return Err(format!(
-                "axis {k} has {} positions, expected {} (dims[{k}])",
-                h.axes[k].samples(),
-                h.dims[k]
-            ));
+            return bad(
+                format!("axes[{k}]"),
+                format!("{} positions", h.axes[k].samples()),
+                format!("{} (dims[{k}])", h.dims[k]),
+            );
         }
     }
     if h.brick_size < 4 || !h.brick_size.is_multiple_of(4) || h.brick_size > 1024 {
-        return Err(format!(
-            "brick_size {}, expected a multiple of 4 in 4..=1024",
-            h.brick_size
-        ));
+        return bad(
+            "brick_size".into(),
+            h.brick_size.to_string(),
+            "a multiple of 4 in 4..=1024".into(),
+        );
     }
     let want = h.cells().map(|c| c.div_ceil(h.brick_size as u64));
     if h.bricks != want {
-        return Err(format!(
-            "bricks {:?}, expected {want:?} for the dims and brick size",
-            h.bricks
-        ));
+        return bad(
+            "bricks".into(),
+            format!("{:?}", h.bricks),
+            format!("{want:?} for the dims and brick size"),
+        );
     }
     if let Some(g) = h.aniso_block {
         if g as usize != crate::dt::ANISO_BLOCK {
-            return Err(format!(
-                "aniso_block {g}, expected {}",
-                crate::dt::ANISO_BLOCK
-            ));
+            return bad(
+                "aniso_block".into(),
+                g.to_string(),
+                crate::dt::ANISO_BLOCK.to_string(),
+            );
         }
     }
     if h.max_payload_len() > super::MAX_PAYLOAD_LEN {
-        return Err(format!(
-            "brick_size {} with {} words needs {} bytes per brick, expected at most {}",
-            h.brick_size,
-            h.storage.name(),
-            h.max_payload_len(),
-            super::MAX_PAYLOAD_LEN
-        ));
+        return bad(
+            "brick_size".into(),
+            format!(
+                "{} with {} words ({} bytes per brick)",
+                h.brick_size,
+                h.storage.name(),
+                h.max_payload_len()
+            ),
+            format!("at most {} bytes per brick", super::MAX_PAYLOAD_LEN),
+        );
     }
     if let crate::classify::Classification::TransferFunction { tf } = &h.classification {
-        tf.check()
-            .map_err(|e| format!("classification transfer function: {e}"))?;
+        if let Err(e) = tf.check() {
+            return bad(
+                format!("classification.tf.{}", e.field),
+                e.found,
+                e.expected.into(),
+            );
+        }
     }
     if let crate::classify::Classification::Iso { iso } = h.classification {
         if !iso.is_finite() {
-            return Err(format!(
-                "classification iso {iso}, expected a finite number"
-            ));
+            return bad(
+                "classification.iso".into(),
+                iso.to_string(),
+                "a finite number".into(),
+            );
         }
     }
     let storage_ok = match h.codes {
@@ -413,11 +446,11 @@ fn check_header(h: &Header) -> Result<(), String> {
         super::CodeEncoding::NanPayload { .. } => h.storage.is_float(),
     };
     if !storage_ok {
-        return Err(format!(
-            "code encoding {:?} does not fit storage {}",
-            h.codes,
-            h.storage.name()
-        ));
+        return bad(
+            "codes".into(),
+            format!("{:?}", h.codes),
+            format!("an encoding that fits storage {}", h.storage.name()),
+        );
     }
     Ok(())
 }
