@@ -40,6 +40,7 @@
 //! by proptest to tests/fuzz.proptest-regressions and replayed first on
 //! every run. `tools/fuzz.sh [SECONDS]` runs these with many cases.
 
+#[path = "all/common/mod.rs"]
 mod common;
 
 use std::alloc::{GlobalAlloc, Layout, System};

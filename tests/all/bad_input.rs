@@ -1,14 +1,12 @@
 //! Every bad input is refused with a message that names the file, the
 //! field and what was expected; nothing panics and nothing partial is left.
 
-mod common;
-
 use std::path::Path;
 use std::process::Command;
 
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use common::write_stack;
+use crate::common::write_stack;
 
 fn sidecar(dir: &Path, json: &str) -> std::path::PathBuf {
     std::fs::write(dir.join("data.raw"), vec![0u8; 4 * 4 * 3 * 2]).unwrap();

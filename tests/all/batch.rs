@@ -3,8 +3,7 @@
 //! code non-zero, a re-run skips what is complete and redoes what changed,
 //! and shards split the inputs without overlap.
 
-#[path = "common/dicom_series.rs"]
-mod dicom_series;
+use crate::common::dicom_series;
 
 use std::io::Write;
 use std::path::Path;

@@ -53,7 +53,6 @@
 //!   of ~5.2e5 mm (ulp 2^-4 = 0.0625 mm above 2^19, so half an ulp is
 //!   0.03125 mm) plus slack for the f64 root (~1e-10 mm there).
 
-mod common;
 
 use std::path::Path;
 
@@ -68,7 +67,7 @@ use cdvol::render::camera::{Camera, Projection};
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::{Method, Ray, TGrid};
 use cdvol::render::{render, Frame, Mode, RenderOptions, Stats};
-use common::{chessboard_bfs, classify_iso, expected_codes, read_back, write_stack};
+use crate::common::{chessboard_bfs, classify_iso, expected_codes, read_back, write_stack};
 
 const TOL_REL: f64 = 1e-9;
 

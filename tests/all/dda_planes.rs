@@ -3,8 +3,6 @@
 //! classified cells (uniform bricks answer the chessboard lower bound),
 //! and a file prepared without them reads and renders as before.
 
-mod common;
-
 use std::path::Path;
 
 use cdvol::classify::Classification;
@@ -17,7 +15,7 @@ use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::{CodeSource, DistKind, Method, TGrid};
 use cdvol::render::{render, Mode, RenderOptions};
-use common::*;
+use crate::common::*;
 use proptest::prelude::*;
 
 const KINDS: [DistKind; 3] = [DistKind::Cityblock, DistKind::Chessboard, DistKind::Chamfer];

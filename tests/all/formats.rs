@@ -2,8 +2,6 @@
 //! and every brick's payload) as a raw sidecar of the same samples; broken
 //! headers and data get messages that name the file and the field.
 
-mod common;
-
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -12,7 +10,7 @@ use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use common::assert_same_volume;
+use crate::common::assert_same_volume;
 
 const DIMS: [usize; 3] = [37, 30, 26];
 const SPACING: [f64; 3] = [0.8, 0.9, 1.5];

@@ -5,7 +5,7 @@
 //! on nearly every pixel, and the generators that need a regular grid
 //! refuse a rectilinear one by name.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -3,15 +3,13 @@
 //! its 8 exact vertex values, and the anisotropic block codes equal a
 //! brute-force octant search.
 
-mod common;
-
 use cdvol::classify::Classification;
 use cdvol::dt::ANISO_BLOCK;
 use cdvol::format::reader::{BrickData, PackedVolume};
 use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use common::*;
+use crate::common::*;
 use proptest::prelude::*;
 
 fn prep_values(

@@ -2,9 +2,7 @@
 //! phantoms: every 1-cell keeps its 8 exact vertex values and the codes
 //! equal the breadth-first oracle; info and export describe the result.
 
-mod common;
-#[path = "common/dicom_series.rs"]
-mod dicom_series;
+use crate::common::dicom_series;
 
 use std::path::Path;
 use std::process::Command;
@@ -15,7 +13,7 @@ use cdvol::input::raw::RawSource;
 use cdvol::input::SliceSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use common::*;
+use crate::common::*;
 
 /// All raw values of a source, x fastest.
 fn all_values(src: &dyn SliceSource) -> Vec<f64> {

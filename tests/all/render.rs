@@ -2,7 +2,7 @@
 //! the analytic spheres, and the output does not depend on the cache
 //! budget, thread count or tile size.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

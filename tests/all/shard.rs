@@ -4,8 +4,6 @@
 //! render; the CLI's `--shard`, `assemble` and `--frames` agree with a
 //! plain `render`.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -2,7 +2,7 @@
 //! shape, the exactness of the CD leap, the images against the FVT/CD
 //! ray caster, the 26-connected template's skipped cells, and refusals.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

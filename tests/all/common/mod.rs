@@ -3,6 +3,8 @@
 //! into dense arrays.
 #![allow(dead_code)]
 
+pub mod dicom_series;
+
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 
