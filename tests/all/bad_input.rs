@@ -2,11 +2,10 @@
 //! field and what was expected; nothing panics and nothing partial is left.
 
 use std::path::Path;
-use std::process::Command;
 
+use crate::common::{cdvol, write_stack};
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use crate::common::write_stack;
 
 fn sidecar(dir: &Path, json: &str) -> std::path::PathBuf {
     std::fs::write(dir.join("data.raw"), vec![0u8; 4 * 4 * 3 * 2]).unwrap();
@@ -133,10 +132,6 @@ fn dims_dtype_endian_and_missing_fields() {
     assert_has(&m, &["bad.json", "not valid JSON"]);
 }
 
-fn cdvol() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_cdvol"))
-}
-
 fn leftovers(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
         .unwrap()
@@ -219,7 +214,7 @@ fn cli_fails_non_zero_and_leaves_nothing() {
 }
 
 /// A small valid packed file to damage.
-fn packed(dir: &Path) -> std::path::PathBuf {
+fn valid_file(dir: &Path) -> std::path::PathBuf {
     let dims = [20, 18, 16];
     let v: Vec<f64> = (0..20 * 18 * 16).map(|i| ((i * 31) % 97) as f64).collect();
     let side = write_stack(dir, "v", dims, "u8", &v, ["1", "1", "1"], "");
@@ -238,7 +233,7 @@ fn packed(dir: &Path) -> std::path::PathBuf {
 #[test]
 fn damaged_packed_files_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let good = packed(dir.path());
+    let good = valid_file(dir.path());
     let bytes = std::fs::read(&good).unwrap();
     let vol = PackedVolume::open(&good).unwrap();
     let payload_brick = vol.index().iter().position(|e| !e.is_uniform()).unwrap();
@@ -315,7 +310,7 @@ fn rewrite_header(bytes: &[u8], f: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
 #[test]
 fn inconsistent_headers_with_valid_checksums_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let good = packed(dir.path());
+    let good = valid_file(dir.path());
     let bytes = std::fs::read(&good).unwrap();
     // The rewrite itself keeps a good file good.
     let same = rewrite_header(&bytes, |_| {});

@@ -7,13 +7,13 @@ use crate::common::dicom_series;
 use std::path::Path;
 use std::process::Command;
 
+use crate::common::*;
 use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
 use cdvol::input::SliceSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use crate::common::*;
 
 /// All raw values of a source, x fastest.
 fn all_values(src: &dyn SliceSource) -> Vec<f64> {
@@ -98,10 +98,6 @@ fn phantoms_prepare_and_read_back() {
         assert_eq!(info.spheres.len(), 27);
         prep_and_check(&scene, &dir.path().join("scene.cdv"), info.iso, true);
     }
-}
-
-fn cdvol() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_cdvol"))
 }
 
 #[test]
