@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use crate::common::{cdvol, write_stack};
+use crate::common::{cdvol, fails, write_stack};
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
 
@@ -144,15 +144,13 @@ fn leftovers(dir: &Path) -> Vec<String> {
 fn cli_fails_non_zero_and_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let p = sidecar(dir.path(), &with("dims", "[4, 4, 9]"));
-    let out = cdvol()
-        .args(["prep", "-q", "--iso", "1"])
-        .arg(&p)
-        .arg("-o")
-        .arg(dir.path().join("o.cdv"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = fails(
+        cdvol()
+            .args(["prep", "-q", "--iso", "1"])
+            .arg(&p)
+            .arg("-o")
+            .arg(dir.path().join("o.cdv")),
+    );
     assert_has(&err, &["cdvol: error:", "data.raw", "expected at least"]);
     assert!(
         leftovers(dir.path()).is_empty(),
@@ -161,18 +159,14 @@ fn cli_fails_non_zero_and_leaves_nothing() {
     );
     // No classification given.
     let p = sidecar(dir.path(), GOOD);
-    let out = cdvol()
-        .args(["prep", "-q"])
-        .arg(&p)
-        .arg("-o")
-        .arg(dir.path().join("o.cdv"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert_has(
-        &String::from_utf8_lossy(&out.stderr),
-        &["--iso", "--classify-tf"],
+    let err = fails(
+        cdvol()
+            .args(["prep", "-q"])
+            .arg(&p)
+            .arg("-o")
+            .arg(dir.path().join("o.cdv")),
     );
+    assert_has(&err, &["--iso", "--classify-tf"]);
     // Bad transfer function.
     let tf = dir.path().join("tf.json");
     std::fs::write(
@@ -180,32 +174,24 @@ fn cli_fails_non_zero_and_leaves_nothing() {
         r#"{"points": [{"value": 5, "opacity": 0}, {"value": 1, "opacity": 1}]}"#,
     )
     .unwrap();
-    let out = cdvol()
-        .args(["prep", "-q", "--classify-tf"])
-        .arg(&tf)
-        .arg(&p)
-        .arg("-o")
-        .arg(dir.path().join("o.cdv"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert_has(
-        &String::from_utf8_lossy(&out.stderr),
-        &["tf.json", "points[1].value", "strictly increasing"],
+    let err = fails(
+        cdvol()
+            .args(["prep", "-q", "--classify-tf"])
+            .arg(&tf)
+            .arg(&p)
+            .arg("-o")
+            .arg(dir.path().join("o.cdv")),
     );
+    assert_has(&err, &["tf.json", "points[1].value", "strictly increasing"]);
     // Bad brick size.
-    let out = cdvol()
-        .args(["prep", "-q", "--iso", "1", "--brick", "6"])
-        .arg(&p)
-        .arg("-o")
-        .arg(dir.path().join("o.cdv"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert_has(
-        &String::from_utf8_lossy(&out.stderr),
-        &["--brick", "multiple of 4"],
+    let err = fails(
+        cdvol()
+            .args(["prep", "-q", "--iso", "1", "--brick", "6"])
+            .arg(&p)
+            .arg("-o")
+            .arg(dir.path().join("o.cdv")),
     );
+    assert_has(&err, &["--brick", "multiple of 4"]);
     assert!(
         leftovers(dir.path()).is_empty(),
         "{:?}",
@@ -276,9 +262,8 @@ fn damaged_packed_files_are_refused() {
     );
     // Info on a truncated file exits non-zero with the reason.
     std::fs::write(&bad, &bytes[..bytes.len() - 3]).unwrap();
-    let out = cdvol().arg("info").arg(&bad).output().unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("truncated"));
+    let err = fails(cdvol().arg("info").arg(&bad));
+    assert!(err.contains("truncated"));
 }
 
 /// Rewrites the JSON header of a packed file and fixes up the trailer

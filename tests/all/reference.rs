@@ -70,6 +70,10 @@ fn compare(name: &str, want_path: &Path, got_path: &Path) -> Option<String> {
     let (want, got) = (load(want_path), load(got_path));
     let out = root().join("target").join("reference-diff");
     let stem = name.trim_end_matches(".png");
+    // Files of an earlier failure would mislead: only this run's stay.
+    for what in ["new", "reference", "diff"] {
+        let _ = std::fs::remove_file(out.join(format!("{stem}.{what}.png")));
+    }
     let keep = |what: &str| -> PathBuf {
         std::fs::create_dir_all(&out).unwrap();
         let new = out.join(format!("{stem}.new.png"));

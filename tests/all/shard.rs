@@ -20,7 +20,7 @@ use cdvol::render::traverse::Method;
 use cdvol::render::{render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats};
 use proptest::prelude::*;
 
-use crate::common::{cdvol, ok, orbit, packed, same_frame};
+use crate::common::{cdvol, fails, ok, orbit, packed, same_frame};
 
 /// A small rectilinear sphere phantom, prepared; returns (volume, iso).
 fn phantom(dir: &Path, name: &str) -> (PackedVolume, f64) {
@@ -397,28 +397,25 @@ fn cli_shards_assemble_and_turntables() {
     assert_eq!(png("whole.png"), png("joined-blocks.png"));
 
     // A missing shard: non-zero exit, the missing shard named, no image.
-    let out = cdvol()
-        .arg("assemble")
-        .args(&parts[..3])
-        .arg("-o")
-        .arg(d.join("partial.png"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("3/4"));
+    let err = fails(
+        cdvol()
+            .arg("assemble")
+            .args(&parts[..3])
+            .arg("-o")
+            .arg(d.join("partial.png")),
+    );
+    assert!(err.contains("3/4"));
     assert!(!d.join("partial.png").exists());
 
     // --shard with an image name is refused before rendering.
-    let out = render_cli(&vp, &d.join("x.png"), &["--shard", "0/2"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains(".cdvpart"));
-    let out = render_cli(&vp, &d.join("x.cdvpart"), &["--shard", "2/2"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("0 <= K < N"));
+    let err = fails(&mut render_cli(&vp, &d.join("x.png"), &["--shard", "0/2"]));
+    assert!(err.contains(".cdvpart"));
+    let err = fails(&mut render_cli(
+        &vp,
+        &d.join("x.cdvpart"),
+        &["--shard", "2/2"],
+    ));
+    assert!(err.contains("0 <= K < N"));
 
     // A turntable of 5 frames, whole and split over 2 shards of frames;
     // frame f is the single render at azimuth 25 + f * 72.

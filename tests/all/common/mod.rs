@@ -311,6 +311,18 @@ pub fn ok(c: &mut Command) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// Runs `c`, requires it to fail (non-zero exit) and returns its standard
+/// error.
+pub fn fails(c: &mut Command) -> String {
+    let out = c.output().unwrap();
+    assert!(
+        !out.status.success(),
+        "{c:?} succeeded: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
 /// Prepares `input` (any format `cdvol::input::open` reads) with iso
 /// classification at `iso` and 16-sample bricks, `tweak` setting anything
 /// else; the error text of the step that refused.
