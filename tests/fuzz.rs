@@ -40,6 +40,7 @@
 //! by proptest to tests/fuzz.proptest-regressions and replayed first on
 //! every run. `tools/fuzz.sh [SECONDS]` runs these with many cases.
 
+#[path = "all/common/mod.rs"]
 mod common;
 
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -65,6 +66,8 @@ use cdvol::render::{render, Mode, RenderError, RenderOptions};
 use proptest::prelude::*;
 use proptest::sample::Index;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
+
+use common::mix;
 
 // ---- allocation watch ----
 
@@ -144,13 +147,6 @@ struct Base {
     bytes: Vec<u8>,
     header: Header,
     index: Vec<IndexEntry>,
-}
-
-fn mix(i: u64) -> u64 {
-    let mut z = i.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
 }
 
 fn bases() -> &'static [Base] {

@@ -3,7 +3,7 @@
 //! have the shape the paper's comparisons rest on (timings are not
 //! asserted: they live in docs/EXPERIMENTS.md).
 
-mod common;
+use crate::common;
 
 use cdvol::experiment::paper::{name, run, sweep_methods, Job, PaperOptions, Which};
 use cdvol::progress::NoProgress;

@@ -1,14 +1,11 @@
 //! Every bad input is refused with a message that names the file, the
 //! field and what was expected; nothing panics and nothing partial is left.
 
-mod common;
-
 use std::path::Path;
-use std::process::Command;
 
+use crate::common::{cdvol, fails, write_stack};
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use common::write_stack;
 
 fn sidecar(dir: &Path, json: &str) -> std::path::PathBuf {
     std::fs::write(dir.join("data.raw"), vec![0u8; 4 * 4 * 3 * 2]).unwrap();
@@ -135,10 +132,6 @@ fn dims_dtype_endian_and_missing_fields() {
     assert_has(&m, &["bad.json", "not valid JSON"]);
 }
 
-fn cdvol() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_cdvol"))
-}
-
 fn leftovers(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
         .unwrap()
@@ -151,15 +144,13 @@ fn leftovers(dir: &Path) -> Vec<String> {
 fn cli_fails_non_zero_and_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let p = sidecar(dir.path(), &with("dims", "[4, 4, 9]"));
-    let out = cdvol()
-        .args(["prep", "-q", "--iso", "1"])
-        .arg(&p)
-        .arg("-o")
-        .arg(dir.path().join("o.cdv"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = fails(
+        cdvol()
+            .args(["prep", "-q", "--iso", "1"])
+            .arg(&p)
+            .arg("-o")
+            .arg(dir.path().join("o.cdv")),
+    );
     assert_has(&err, &["cdvol: error:", "data.raw", "expected at least"]);
     assert!(
         leftovers(dir.path()).is_empty(),
@@ -168,18 +159,14 @@ fn cli_fails_non_zero_and_leaves_nothing() {
     );
     // No classification given.
     let p = sidecar(dir.path(), GOOD);
-    let out = cdvol()
-        .args(["prep", "-q"])
-        .arg(&p)
-        .arg("-o")
-        .arg(dir.path().join("o.cdv"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert_has(
-        &String::from_utf8_lossy(&out.stderr),
-        &["--iso", "--classify-tf"],
+    let err = fails(
+        cdvol()
+            .args(["prep", "-q"])
+            .arg(&p)
+            .arg("-o")
+            .arg(dir.path().join("o.cdv")),
     );
+    assert_has(&err, &["--iso", "--classify-tf"]);
     // Bad transfer function.
     let tf = dir.path().join("tf.json");
     std::fs::write(
@@ -187,32 +174,24 @@ fn cli_fails_non_zero_and_leaves_nothing() {
         r#"{"points": [{"value": 5, "opacity": 0}, {"value": 1, "opacity": 1}]}"#,
     )
     .unwrap();
-    let out = cdvol()
-        .args(["prep", "-q", "--classify-tf"])
-        .arg(&tf)
-        .arg(&p)
-        .arg("-o")
-        .arg(dir.path().join("o.cdv"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert_has(
-        &String::from_utf8_lossy(&out.stderr),
-        &["tf.json", "points[1].value", "strictly increasing"],
+    let err = fails(
+        cdvol()
+            .args(["prep", "-q", "--classify-tf"])
+            .arg(&tf)
+            .arg(&p)
+            .arg("-o")
+            .arg(dir.path().join("o.cdv")),
     );
+    assert_has(&err, &["tf.json", "points[1].value", "strictly increasing"]);
     // Bad brick size.
-    let out = cdvol()
-        .args(["prep", "-q", "--iso", "1", "--brick", "6"])
-        .arg(&p)
-        .arg("-o")
-        .arg(dir.path().join("o.cdv"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert_has(
-        &String::from_utf8_lossy(&out.stderr),
-        &["--brick", "multiple of 4"],
+    let err = fails(
+        cdvol()
+            .args(["prep", "-q", "--iso", "1", "--brick", "6"])
+            .arg(&p)
+            .arg("-o")
+            .arg(dir.path().join("o.cdv")),
     );
+    assert_has(&err, &["--brick", "multiple of 4"]);
     assert!(
         leftovers(dir.path()).is_empty(),
         "{:?}",
@@ -221,7 +200,7 @@ fn cli_fails_non_zero_and_leaves_nothing() {
 }
 
 /// A small valid packed file to damage.
-fn packed(dir: &Path) -> std::path::PathBuf {
+fn valid_file(dir: &Path) -> std::path::PathBuf {
     let dims = [20, 18, 16];
     let v: Vec<f64> = (0..20 * 18 * 16).map(|i| ((i * 31) % 97) as f64).collect();
     let side = write_stack(dir, "v", dims, "u8", &v, ["1", "1", "1"], "");
@@ -240,7 +219,7 @@ fn packed(dir: &Path) -> std::path::PathBuf {
 #[test]
 fn damaged_packed_files_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let good = packed(dir.path());
+    let good = valid_file(dir.path());
     let bytes = std::fs::read(&good).unwrap();
     let vol = PackedVolume::open(&good).unwrap();
     let payload_brick = vol.index().iter().position(|e| !e.is_uniform()).unwrap();
@@ -283,9 +262,8 @@ fn damaged_packed_files_are_refused() {
     );
     // Info on a truncated file exits non-zero with the reason.
     std::fs::write(&bad, &bytes[..bytes.len() - 3]).unwrap();
-    let out = cdvol().arg("info").arg(&bad).output().unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("truncated"));
+    let err = fails(cdvol().arg("info").arg(&bad));
+    assert!(err.contains("truncated"));
 }
 
 /// Rewrites the JSON header of a packed file and fixes up the trailer
@@ -317,7 +295,7 @@ fn rewrite_header(bytes: &[u8], f: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
 #[test]
 fn inconsistent_headers_with_valid_checksums_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let good = packed(dir.path());
+    let good = valid_file(dir.path());
     let bytes = std::fs::read(&good).unwrap();
     // The rewrite itself keeps a good file good.
     let same = rewrite_header(&bytes, |_| {});

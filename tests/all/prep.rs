@@ -3,15 +3,13 @@
 //! its 8 exact vertex values, and the anisotropic block codes equal a
 //! brute-force octant search.
 
-mod common;
-
+use crate::common::*;
 use cdvol::classify::Classification;
 use cdvol::dt::ANISO_BLOCK;
 use cdvol::format::reader::{BrickData, PackedVolume};
 use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use common::*;
 use proptest::prelude::*;
 
 fn prep_values(
@@ -246,36 +244,13 @@ fn same_bytes_whatever_the_thread_count() {
 /// opacity densely over each cell's [min, max] (NaN skipped).
 #[test]
 fn transfer_function_classification() {
-    use cdvol::classify::{TfPoint, TransferFunction};
-    let tf = TransferFunction {
-        points: vec![
-            TfPoint {
-                value: 10.0,
-                opacity: 0.0,
-                color: [1.0; 3],
-            },
-            TfPoint {
-                value: 20.0,
-                opacity: 0.5,
-                color: [1.0; 3],
-            },
-            TfPoint {
-                value: 30.0,
-                opacity: 0.0,
-                color: [1.0; 3],
-            },
-            TfPoint {
-                value: 70.0,
-                opacity: 0.0,
-                color: [1.0; 3],
-            },
-            TfPoint {
-                value: 80.0,
-                opacity: 1.0,
-                color: [1.0; 3],
-            },
-        ],
-    };
+    let tf = white_tf(&[
+        (10.0, 0.0),
+        (20.0, 0.5),
+        (30.0, 0.0),
+        (70.0, 0.0),
+        (80.0, 1.0),
+    ]);
     let dims = [17, 13, 11];
     let n = 17 * 13 * 11;
     let values: Vec<f64> = (0..n)
@@ -383,7 +358,6 @@ fn codes_saturate_inside_a_narrow_free_range() {
 /// its last point.
 #[test]
 fn all_nan_cells_are_background() {
-    use cdvol::classify::{TfPoint, TransferFunction};
     let dims = [12, 11, 10];
     let mut v: Vec<f64> = (0..12 * 11 * 10).map(|i| ((i * 37) % 50) as f64).collect();
     for z in 2..7 {
@@ -395,20 +369,7 @@ fn all_nan_cells_are_background() {
     }
     let dir = tempfile::tempdir().unwrap();
     let side = write_stack(dir.path(), "nan", dims, "f32", &v, ["1", "1", "1"], "");
-    let tf = TransferFunction {
-        points: vec![
-            TfPoint {
-                value: 40.0,
-                opacity: 0.0,
-                color: [1.0; 3],
-            },
-            TfPoint {
-                value: 45.0,
-                opacity: 1.0,
-                color: [1.0; 3],
-            },
-        ],
-    };
+    let tf = white_tf(&[(40.0, 0.0), (45.0, 1.0)]);
     for cls in [
         Classification::Iso { iso: 45.0 },
         Classification::TransferFunction { tf: tf.clone() },

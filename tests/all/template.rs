@@ -2,17 +2,14 @@
 //! shape, the exactness of the CD leap, the images against the FVT/CD
 //! ray caster, the 26-connected template's skipped cells, and refusals.
 
-mod common;
+use crate::common::{self, orbit, packed};
 
 use std::path::Path;
 
-use cdvol::classify::Classification;
 use cdvol::corpus::MemVolume;
 use cdvol::format::reader::PackedVolume;
 use cdvol::grid::Axis;
-use cdvol::input::raw::RawSource;
 use cdvol::phantom;
-use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::{Camera, Projection};
 use cdvol::render::shade::HitMethod;
@@ -290,14 +287,6 @@ fn template_skips_some_cells_fvt_visits() {
 // Images against the ray caster
 // ---------------------------------------------------------------------------
 
-fn packed(sidecar: &Path, out: &Path, iso: f64) -> PackedVolume {
-    let src = RawSource::open(sidecar).unwrap();
-    let mut o = PrepOptions::new(Classification::Iso { iso });
-    o.brick_size = 16;
-    prep(&src, out, &o, &NoProgress).unwrap();
-    PackedVolume::open(out).unwrap()
-}
-
 fn spheres(dir: &Path, name: &str, size: usize, spacing: &str) -> PackedVolume {
     let side = dir.join(format!("{name}.json"));
     let info = phantom::spheres(
@@ -316,11 +305,6 @@ fn spheres(dir: &Path, name: &str, size: usize, spacing: &str) -> PackedVolume {
 
 fn opts(mode: Mode, method: Method) -> RenderOptions {
     common::test_opts(mode, method)
-}
-
-fn ortho(vol: &PackedVolume, view: [f64; 2], size: u32) -> Camera {
-    let g = TGrid::<f64>::new(&vol.header().axes);
-    Camera::orbit(g.bounds(), view[0], view[1], None, None, size, size).unwrap()
 }
 
 /// Depth comparison of two depth frames.
@@ -378,7 +362,7 @@ fn depth_against_fvt_on_spheres() {
     {
         let vol = spheres(dir.path(), name, 48, spacing);
         for view in [[0.0, 0.0], [33.0, 21.0], [45.0, 35.264], [-130.0, -60.0]] {
-            let c = ortho(&vol, view, 96);
+            let c = orbit(&vol, view, None, 96, 96);
             let mode = Mode::Depth {
                 hit: HitMethod::Newton,
             };
@@ -462,7 +446,7 @@ fn depth_against_fvt_on_spheres() {
 fn surface_and_cost_render() {
     let dir = tempfile::tempdir().unwrap();
     let vol = spheres(dir.path(), "s", 40, "1");
-    let c = ortho(&vol, [20.0, 30.0], 64);
+    let c = orbit(&vol, [20.0, 30.0], None, 64, 64);
     let surf = Mode::Surface {
         hit: HitMethod::Int,
         shadows: false,
@@ -517,8 +501,7 @@ fn refusals() {
         hit: HitMethod::Int,
     };
     let cd = Method::Cd { min_leap: 1 };
-    let g = TGrid::<f64>::new(&vol.header().axes);
-    let persp = Camera::orbit(g.bounds(), 10.0, 10.0, Some(35.0), None, 16, 16).unwrap();
+    let persp = orbit(&vol, [10.0, 10.0], Some(35.0), 16, 16);
     let msg = |r: Result<(Frame, Stats), RenderError>| match r {
         Err(e) => e.to_string(),
         Ok(_) => panic!("rendered"),
@@ -530,7 +513,7 @@ fn refusals() {
         &NoProgress,
     ));
     assert!(e.contains("perspective"), "{e}");
-    let c = ortho(&vol, [10.0, 10.0], 16);
+    let c = orbit(&vol, [10.0, 10.0], None, 16, 16);
     for mode in [
         Mode::Mip,
         Mode::Surface {
@@ -567,7 +550,7 @@ fn refusals() {
     assert!(e.contains("not in front"), "{e}");
     // A rectilinear z axis is named.
     let rect = spheres(dir.path(), "r", 24, "1,1,0.5:2");
-    let c = ortho(&rect, [10.0, 10.0], 16);
+    let c = orbit(&rect, [10.0, 10.0], None, 16, 16);
     let e = msg(render_template(&rect, &c, &opts(depth, cd), &NoProgress));
     assert!(e.contains("axis z is rectilinear"), "{e}");
 }

@@ -3,22 +3,15 @@
 //! code non-zero, a re-run skips what is complete and redoes what changed,
 //! and shards split the inputs without overlap.
 
-#[path = "common/dicom_series.rs"]
-mod dicom_series;
+use crate::common::dicom_series;
+use crate::common::gz;
 
-use std::io::Write;
 use std::path::Path;
 use std::process::{Command, Output};
 
 use cdvol::format::reader::PackedVolume;
 use cdvol::phantom;
 use cdvol::progress::NoProgress;
-
-fn gz(b: &[u8]) -> Vec<u8> {
-    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-    e.write_all(b).unwrap();
-    e.finish().unwrap()
-}
 
 /// IN/ with a raw sidecar, a gzip NRRD, a DICOM series, a broken sidecar
 /// and JSON that is not a volume.

@@ -1,12 +1,23 @@
 //! Shared helpers of the integration tests: writing raw stacks, oracles
-//! that do not share code with the library, and reading packed files back
-//! into dense arrays.
+//! that do not share code with the library, reading packed files back into
+//! dense arrays, preparing and rendering with the tests' settings, and
+//! running the `cdvol` binary. Each helper is written once here.
 #![allow(dead_code)]
 
-use std::collections::VecDeque;
-use std::path::{Path, PathBuf};
+pub mod dicom_series;
 
+use std::collections::VecDeque;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::format::reader::{BrickData, CellClass, PackedVolume, Sample};
+use cdvol::prep::{prep, PrepOptions};
+use cdvol::progress::NoProgress;
+use cdvol::render::camera::Camera;
+use cdvol::render::traverse::TGrid;
+use cdvol::render::Frame;
 
 /// Writes `values` (x fastest) as a raw stack of `dtype` plus a sidecar
 /// with the given axis JSON snippets; returns the sidecar path.
@@ -282,4 +293,111 @@ pub fn test_opts(
         cd_lazy_min: 4,
         ..cdvol::render::RenderOptions::new(mode, method)
     }
+}
+
+/// The `cdvol` binary under test.
+pub fn cdvol() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_cdvol"))
+}
+
+/// Runs `c`, requires it to succeed and returns its standard output.
+pub fn ok(c: &mut Command) -> String {
+    let out = c.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{c:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Runs `c`, requires it to fail (non-zero exit) and returns its standard
+/// error.
+pub fn fails(c: &mut Command) -> String {
+    let out = c.output().unwrap();
+    assert!(
+        !out.status.success(),
+        "{c:?} succeeded: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Prepares `input` (any format `cdvol::input::open` reads) with iso
+/// classification at `iso` and 16-sample bricks, `tweak` setting anything
+/// else; the error text of the step that refused.
+pub fn try_packed(
+    input: &Path,
+    out: &Path,
+    iso: f64,
+    tweak: impl FnOnce(&mut PrepOptions),
+) -> Result<PackedVolume, String> {
+    let src = cdvol::input::open(input).map_err(|e| e.to_string())?;
+    let mut o = PrepOptions::new(Classification::Iso { iso });
+    o.brick_size = 16;
+    tweak(&mut o);
+    prep(src.as_ref(), out, &o, &NoProgress).map_err(|e| e.to_string())?;
+    Ok(PackedVolume::open(out).unwrap())
+}
+
+/// [`try_packed`] that must succeed.
+pub fn packed_with(
+    input: &Path,
+    out: &Path,
+    iso: f64,
+    tweak: impl FnOnce(&mut PrepOptions),
+) -> PackedVolume {
+    try_packed(input, out, iso, tweak).unwrap_or_else(|e| panic!("{}: {e}", input.display()))
+}
+
+/// `input` prepared at `iso` with 16-sample bricks and nothing else.
+pub fn packed(input: &Path, out: &Path, iso: f64) -> PackedVolume {
+    packed_with(input, out, iso, |_| {})
+}
+
+/// An orbit camera around the whole volume: `view` is (azimuth,
+/// elevation) in degrees, `fov` a perspective field of view in degrees
+/// (`None`: orthographic).
+pub fn orbit(vol: &PackedVolume, view: [f64; 2], fov: Option<f64>, w: u32, h: u32) -> Camera {
+    let g = TGrid::<f64>::new(&vol.header().axes);
+    Camera::orbit(g.bounds(), view[0], view[1], fov, None, w, h).unwrap()
+}
+
+/// Two frames are the same image: size, colour bytes and depth bits.
+pub fn same_frame(a: &Frame, b: &Frame) -> bool {
+    let bits = |f: &Frame| {
+        f.depth
+            .as_ref()
+            .map(|d| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+    };
+    a.width == b.width && a.height == b.height && a.rgb == b.rgb && bits(a) == bits(b)
+}
+
+/// A white transfer function through (value, opacity) points.
+pub fn white_tf(points: &[(f64, f64)]) -> TransferFunction {
+    TransferFunction {
+        points: points
+            .iter()
+            .map(|&(value, opacity)| TfPoint {
+                value,
+                opacity,
+                color: [1.0; 3],
+            })
+            .collect(),
+    }
+}
+
+/// splitmix64: a deterministic stream of test values.
+pub fn mix(i: u64) -> u64 {
+    let mut z = i.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// `b` gzip-compressed.
+pub fn gz(b: &[u8]) -> Vec<u8> {
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(b).unwrap();
+    e.finish().unwrap()
 }

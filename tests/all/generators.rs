@@ -5,31 +5,16 @@
 //! on nearly every pixel, and the generators that need a regular grid
 //! refuse a rectilinear one by name.
 
-mod common;
+use crate::common::{self, orbit, packed_with};
 
-use std::path::Path;
-
-use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
-use cdvol::input::raw::RawSource;
 use cdvol::phantom;
-use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::template::render_template;
-use cdvol::render::traverse::{DistKind, Method, TGrid};
+use cdvol::render::traverse::{DistKind, Method};
 use cdvol::render::{render, Frame, Mode, RenderError, RenderOptions};
-
-fn packed(sidecar: &Path, out: &Path, iso: f64) -> PackedVolume {
-    let src = RawSource::open(sidecar).unwrap();
-    let mut o = PrepOptions::new(Classification::Iso { iso });
-    o.aniso = true;
-    o.dda = true;
-    o.brick_size = 16;
-    prep(&src, out, &o, &NoProgress).unwrap();
-    PackedVolume::open(out).unwrap()
-}
 
 fn opts(mode: Mode, method: Method) -> RenderOptions {
     common::test_opts(mode, method)
@@ -129,17 +114,19 @@ fn check_all(vol: &PackedVolume, cams: &[Camera], what: &str) {
 }
 
 fn views(vol: &PackedVolume, size: u32) -> Vec<Camera> {
-    let b = TGrid::<f64>::new(&vol.header().axes).bounds();
     [[0.0, 0.0], [35.0, 15.0], [200.0, -50.0]]
-        .iter()
-        .map(|v| Camera::orbit(b, v[0], v[1], None, None, size, size).unwrap())
+        .into_iter()
+        .map(|v| orbit(vol, v, None, size, size))
         .collect()
 }
 
 #[test]
 fn every_generator_renders_the_real_ct() {
     let dir = tempfile::tempdir().unwrap();
-    let vol = packed(&common::real_ct(), &dir.path().join("ct.cdv"), 300.0);
+    let vol = packed_with(&common::real_ct(), &dir.path().join("ct.cdv"), 300.0, |o| {
+        o.aniso = true;
+        o.dda = true;
+    });
     check_all(&vol, &views(&vol, 96), "real CT");
 }
 
@@ -155,7 +142,10 @@ fn every_generator_renders_the_sphere_phantom() {
         spacing: phantom::parse_spacing3("0.8,1,1.5").unwrap(),
     };
     let info = phantom::spheres(&side, &so, &NoProgress).unwrap();
-    let vol = packed(&side, &dir.path().join("s.cdv"), info.iso);
+    let vol = packed_with(&side, &dir.path().join("s.cdv"), info.iso, |o| {
+        o.aniso = true;
+        o.dda = true;
+    });
     check_all(&vol, &views(&vol, 80), "spheres");
 }
 
@@ -170,7 +160,10 @@ fn regular_grid_generators_refuse_rectilinear_grids() {
         spacing: phantom::parse_spacing3("1,1,0.5:2").unwrap(),
     };
     let info = phantom::spheres(&side, &so, &NoProgress).unwrap();
-    let vol = packed(&side, &dir.path().join("r.cdv"), info.iso);
+    let vol = packed_with(&side, &dir.path().join("r.cdv"), info.iso, |o| {
+        o.aniso = true;
+        o.dda = true;
+    });
     let c = &views(&vol, 16)[1];
     for kind in [DistKind::Cityblock, DistKind::Chessboard, DistKind::Chamfer] {
         let e = render(&vol, c, &opts(depth(), dda(kind, true)), &NoProgress).unwrap_err();

@@ -2,20 +2,18 @@
 //! phantoms: every 1-cell keeps its 8 exact vertex values and the codes
 //! equal the breadth-first oracle; info and export describe the result.
 
-mod common;
-#[path = "common/dicom_series.rs"]
-mod dicom_series;
+use crate::common::dicom_series;
 
 use std::path::Path;
 use std::process::Command;
 
+use crate::common::*;
 use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
 use cdvol::input::SliceSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use common::*;
 
 /// All raw values of a source, x fastest.
 fn all_values(src: &dyn SliceSource) -> Vec<f64> {
@@ -100,10 +98,6 @@ fn phantoms_prepare_and_read_back() {
         assert_eq!(info.spheres.len(), 27);
         prep_and_check(&scene, &dir.path().join("scene.cdv"), info.iso, true);
     }
-}
-
-fn cdvol() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_cdvol"))
 }
 
 #[test]

@@ -12,10 +12,8 @@ use cdvol::input::SliceSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 
-mod common;
-#[path = "common/dicom_series.rs"]
-mod dicom_series;
-use common::assert_same_volume;
+use crate::common::assert_same_volume;
+use crate::common::dicom_series;
 use dicom_series::*;
 
 /// The same samples as a raw stack with listed z positions.

@@ -23,8 +23,6 @@
 //! it differs from f64 is counted and printed (and measured in
 //! docs/TRADEOFFS.md).
 
-mod common;
-
 use cdvol::corpus::{self, MemVolume, Walked};
 use cdvol::grid::{Axis, MAX_SAMPLES_PER_AXIS};
 use cdvol::render::traverse::{trace, Flow, Method, Ray, RayError, TGrid};

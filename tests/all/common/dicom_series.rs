@@ -1,5 +1,5 @@
-//! A CT-like DICOM series written with dicom-rs, for tests/dicom.rs and
-//! tests/batch.rs.
+//! A CT-like DICOM series written with dicom-rs, for the dicom, batch and
+//! real_data tests.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};

@@ -3,8 +3,7 @@
 //! exact enumeration of the 1-cells the ray passes with positive length:
 //! every 1-cell intersected by slab tests in f64, sorted by entry.
 
-mod common;
-
+use crate::common::*;
 use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
@@ -13,7 +12,6 @@ use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::cache::{Accessor, BrickCache};
 use cdvol::render::traverse::{trace, DistKind, Flow, Method, Ray, StepCounts, TGrid, Visit};
-use common::*;
 use proptest::prelude::*;
 
 struct Scene {

@@ -4,8 +4,6 @@
 //! render; the CLI's `--shard`, `assemble` and `--frames` agree with a
 //! plain `render`.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -18,9 +16,11 @@ use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::shard::{assemble, Part};
-use cdvol::render::traverse::{Method, TGrid};
+use cdvol::render::traverse::Method;
 use cdvol::render::{render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats};
 use proptest::prelude::*;
+
+use crate::common::{cdvol, fails, ok, orbit, packed, same_frame};
 
 /// A small rectilinear sphere phantom, prepared; returns (volume, iso).
 fn phantom(dir: &Path, name: &str) -> (PackedVolume, f64) {
@@ -36,26 +36,8 @@ fn phantom(dir: &Path, name: &str) -> (PackedVolume, f64) {
         &NoProgress,
     )
     .unwrap();
-    let src = RawSource::open(&side).unwrap();
-    let mut o = PrepOptions::new(Classification::Iso { iso: info.iso });
-    o.brick_size = 16;
     let out = dir.join(format!("{name}.cdv"));
-    prep(&src, &out, &o, &NoProgress).unwrap();
-    (PackedVolume::open(&out).unwrap(), info.iso)
-}
-
-fn camera(vol: &PackedVolume, view: [f64; 2], persp: bool, w: u32, h: u32) -> Camera {
-    let g = TGrid::<f64>::new(&vol.header().axes);
-    Camera::orbit(
-        g.bounds(),
-        view[0],
-        view[1],
-        persp.then_some(40.0),
-        None,
-        w,
-        h,
-    )
-    .unwrap()
+    (packed(&side, &out, info.iso), info.iso)
 }
 
 fn options(mode: Mode, tile: u32) -> RenderOptions {
@@ -108,15 +90,6 @@ fn sh(k: u32, n: u32) -> Shard {
     }
 }
 
-fn same(a: &Frame, b: &Frame) -> bool {
-    let bits = |f: &Frame| {
-        f.depth
-            .as_ref()
-            .map(|d| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
-    };
-    a.width == b.width && a.height == b.height && a.rgb == b.rgb && bits(a) == bits(b)
-}
-
 /// Renders `n` parts through files, in scrambled order, and assembles.
 fn sharded(
     vol: &PackedVolume,
@@ -156,7 +129,7 @@ fn assembled_parts_equal_the_single_render_in_every_mode() {
     let (vol, iso) = phantom(dir.path(), "s");
     for (view, persp) in [([30.0, 20.0], false), ([-100.0, -35.0], true)] {
         // 50x37 with 16-pixel tiles: ragged edge tiles on both axes.
-        let cam = camera(&vol, view, persp, 50, 37);
+        let cam = orbit(&vol, view, persp.then_some(40.0), 50, 37);
         for mode in modes(iso) {
             let opts = options(mode.clone(), 16);
             let (want, ws) = render(&vol, &cam, &opts, &NoProgress).unwrap();
@@ -165,7 +138,7 @@ fn assembled_parts_equal_the_single_render_in_every_mode() {
                 for layout in [ShardLayout::Interleaved, ShardLayout::Blocks] {
                     let (got, gs) = sharded(&vol, &cam, &opts, n, layout, dir.path()).unwrap();
                     assert!(
-                        same(&got, &want),
+                        same_frame(&got, &want),
                         "{mode:?} view {view:?}: N = {n} {layout:?} differs"
                     );
                     assert_counters_equal(&gs, &ws);
@@ -186,11 +159,11 @@ proptest! {
         let layout = if blocks { ShardLayout::Blocks } else { ShardLayout::Interleaved };
         let dir = tempfile::tempdir().unwrap();
         let (vol, _) = phantom(dir.path(), "s");
-        let cam = camera(&vol, [az, el], false, w, h);
+        let cam = orbit(&vol, [az, el], None, w, h);
         let opts = options(Mode::Cost, tile);
         let (want, ws) = render(&vol, &cam, &opts, &NoProgress).unwrap();
         let (got, gs) = sharded(&vol, &cam, &opts, n, layout, dir.path()).unwrap();
-        prop_assert!(same(&got, &want));
+        prop_assert!(same_frame(&got, &want));
         prop_assert_eq!(gs.steps, ws.steps);
         prop_assert_eq!(gs.rays, ws.rays);
     }
@@ -233,7 +206,7 @@ fn assembly_refuses_parts_that_do_not_make_one_render() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (vol, _) = phantom(d, "s");
-    let cam = camera(&vol, [10.0, 10.0], false, 40, 40);
+    let cam = orbit(&vol, [10.0, 10.0], None, 40, 40);
     let surface = Mode::Surface {
         hit: HitMethod::Int,
         shadows: false,
@@ -257,7 +230,7 @@ fn assembly_refuses_parts_that_do_not_make_one_render() {
                 .unwrap();
             vec![p[0].clone(), p[1].clone(), q]
         };
-    let cam2 = camera(&vol, [11.0, 10.0], false, 40, 40);
+    let cam2 = orbit(&vol, [11.0, 10.0], None, 40, 40);
     refused(
         assemble_files(&other("c.cdvpart", &cam2, &opts, sh(2, 3), &vol)),
         &["part0.cdvpart", "c.cdvpart", "different renders", "camera"],
@@ -341,7 +314,7 @@ fn assembly_refuses_parts_that_do_not_make_one_render() {
 fn render_refuses_a_shard_outside_its_count() {
     let dir = tempfile::tempdir().unwrap();
     let (vol, _) = phantom(dir.path(), "s");
-    let cam = camera(&vol, [0.0, 0.0], false, 8, 8);
+    let cam = orbit(&vol, [0.0, 0.0], None, 8, 8);
     for s in [sh(3, 3), sh(0, 0)] {
         let e = render_part(&vol, &cam, &options(Mode::Mip, 4), s, &NoProgress).unwrap_err();
         assert!(e.to_string().contains("--shard"), "{e}");
@@ -350,20 +323,6 @@ fn render_refuses_a_shard_outside_its_count() {
         assert!(Shard::parse(s).is_err(), "{s}");
     }
     assert_eq!(Shard::parse("2/5"), Ok(sh(2, 5)));
-}
-
-fn cdvol() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_cdvol"))
-}
-
-fn ok(c: &mut Command) -> String {
-    let out = c.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{c:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 fn render_cli(vol: &Path, out: &Path, extra: &[&str]) -> Command {
@@ -438,28 +397,25 @@ fn cli_shards_assemble_and_turntables() {
     assert_eq!(png("whole.png"), png("joined-blocks.png"));
 
     // A missing shard: non-zero exit, the missing shard named, no image.
-    let out = cdvol()
-        .arg("assemble")
-        .args(&parts[..3])
-        .arg("-o")
-        .arg(d.join("partial.png"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("3/4"));
+    let err = fails(
+        cdvol()
+            .arg("assemble")
+            .args(&parts[..3])
+            .arg("-o")
+            .arg(d.join("partial.png")),
+    );
+    assert!(err.contains("3/4"));
     assert!(!d.join("partial.png").exists());
 
     // --shard with an image name is refused before rendering.
-    let out = render_cli(&vp, &d.join("x.png"), &["--shard", "0/2"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains(".cdvpart"));
-    let out = render_cli(&vp, &d.join("x.cdvpart"), &["--shard", "2/2"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("0 <= K < N"));
+    let err = fails(&mut render_cli(&vp, &d.join("x.png"), &["--shard", "0/2"]));
+    assert!(err.contains(".cdvpart"));
+    let err = fails(&mut render_cli(
+        &vp,
+        &d.join("x.cdvpart"),
+        &["--shard", "2/2"],
+    ));
+    assert!(err.contains("0 <= K < N"));
 
     // A turntable of 5 frames, whole and split over 2 shards of frames;
     // frame f is the single render at azimuth 25 + f * 72.

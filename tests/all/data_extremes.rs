@@ -53,10 +53,9 @@
 //!   of ~5.2e5 mm (ulp 2^-4 = 0.0625 mm above 2^19, so half an ulp is
 //!   0.03125 mm) plus slack for the f64 root (~1e-10 mm there).
 
-mod common;
-
 use std::path::Path;
 
+use crate::common::{chessboard_bfs, classify_iso, expected_codes, mix, read_back, write_stack};
 use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::grid::MAX_SAMPLES_PER_AXIS;
@@ -68,7 +67,6 @@ use cdvol::render::camera::{Camera, Projection};
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::{Method, Ray, TGrid};
 use cdvol::render::{render, Frame, Mode, RenderOptions, Stats};
-use common::{chessboard_bfs, classify_iso, expected_codes, read_back, write_stack};
 
 const TOL_REL: f64 = 1e-9;
 
@@ -84,14 +82,6 @@ enum Expect {
     /// must hit at the entry of every ray that enters the box; otherwise
     /// only MIP (which reports any visited 1-cell) must.
     Full { every_sample: bool },
-}
-
-/// splitmix64: a deterministic stream of test values.
-fn mix(i: u64) -> u64 {
-    let mut z = i.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
 }
 
 /// A smooth blob (distance from an off-centre point, 0 at the far corner,

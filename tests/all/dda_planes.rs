@@ -3,21 +3,18 @@
 //! classified cells (uniform bricks answer the chessboard lower bound),
 //! and a file prepared without them reads and renders as before.
 
-mod common;
-
 use std::path::Path;
 
+use crate::common::*;
 use cdvol::classify::Classification;
 use cdvol::format::reader::{BrickData, PackedVolume};
 use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::cache::{Accessor, BrickCache};
-use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
-use cdvol::render::traverse::{CodeSource, DistKind, Method, TGrid};
+use cdvol::render::traverse::{CodeSource, DistKind, Method};
 use cdvol::render::{render, Mode, RenderOptions};
-use common::*;
 use proptest::prelude::*;
 
 const KINDS: [DistKind; 3] = [DistKind::Cityblock, DistKind::Chessboard, DistKind::Chamfer];
@@ -229,18 +226,8 @@ fn planes_through_the_cache_with_uniform_bricks() {
         );
     }
     // Same images from both files.
-    let g = TGrid::<f64>::new(&dda.header().axes);
     for (view, persp) in [([0.0, 0.0], false), ([37.0, 23.0], true)] {
-        let cam = Camera::orbit(
-            g.bounds(),
-            view[0],
-            view[1],
-            persp.then_some(35.0),
-            None,
-            40,
-            40,
-        )
-        .unwrap();
+        let cam = orbit(&dda, view, persp.then_some(35.0), 40, 40);
         for method in [Method::Fvt, Method::Cd { min_leap: 1 }] {
             for mode in [
                 Mode::Mip,

@@ -2,9 +2,7 @@
 //! the analytic spheres, and the output does not depend on the cache
 //! budget, thread count or tile size.
 
-mod common;
-
-use std::path::Path;
+use crate::common::{self, orbit, packed, packed_with, same_frame, white_tf};
 
 use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::format::reader::PackedVolume;
@@ -14,44 +12,12 @@ use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
-use cdvol::render::traverse::{Method, TGrid};
+use cdvol::render::traverse::Method;
 use cdvol::render::{render, render_in, Frame, Mode, RenderOptions, Stats};
-
-fn packed(sidecar: &Path, out: &Path, iso: f64, aniso: bool) -> PackedVolume {
-    let src = RawSource::open(sidecar).unwrap();
-    let mut o = PrepOptions::new(Classification::Iso { iso });
-    o.aniso = aniso;
-    o.brick_size = 16;
-    prep(&src, out, &o, &NoProgress).unwrap();
-    PackedVolume::open(out).unwrap()
-}
-
-fn cam(vol: &PackedVolume, view: [f64; 2], persp: bool, size: u32) -> Camera {
-    let g = TGrid::<f64>::new(&vol.header().axes);
-    Camera::orbit(
-        g.bounds(),
-        view[0],
-        view[1],
-        persp.then_some(35.0),
-        None,
-        size,
-        size,
-    )
-    .unwrap()
-}
 
 fn run(vol: &PackedVolume, c: &Camera, mode: &Mode, method: Method) -> (Frame, Stats) {
     let o = common::test_opts(mode.clone(), method);
     render(vol, c, &o, &NoProgress).unwrap()
-}
-
-fn same(a: &Frame, b: &Frame) -> bool {
-    let depth_bits = |f: &Frame| {
-        f.depth
-            .as_ref()
-            .map(|d| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
-    };
-    a.rgb == b.rgb && depth_bits(a) == depth_bits(b)
 }
 
 /// Renders every mode from several views with FVT and each CD variant
@@ -103,13 +69,13 @@ fn all_identical(vol: &PackedVolume, aniso: bool) -> (u64, u64) {
         ([37.0, 23.0], false),
         ([-120.0, -40.0], true),
     ] {
-        let c = cam(vol, view, persp, 48);
+        let c = orbit(vol, view, persp.then_some(35.0), 48, 48);
         for mode in &modes {
             let (want, ws) = run(vol, &c, mode, Method::Fvt);
             for &m in &methods {
                 let (got, gs) = run(vol, &c, mode, m);
                 assert!(
-                    same(&got, &want),
+                    same_frame(&got, &want),
                     "{m:?} differs from fvt: {mode:?} view {view:?} persp {persp}"
                 );
                 assert_eq!(gs.hits, ws.hits);
@@ -146,7 +112,12 @@ fn traversals_identical_on_sphere_phantoms() {
             &NoProgress,
         )
         .unwrap();
-        let vol = packed(&side, &dir.path().join(format!("s{n}.cdv")), info.iso, true);
+        let vol = packed_with(
+            &side,
+            &dir.path().join(format!("s{n}.cdv")),
+            info.iso,
+            |o| o.aniso = true,
+        );
         let (fvt, cd) = all_identical(&vol, true);
         assert!(cd < fvt, "N = {n}: CD took {cd} steps, FVT {fvt}");
     }
@@ -167,10 +138,12 @@ fn traversals_identical_on_ct_phantom_and_real_ct() {
         &NoProgress,
     )
     .unwrap();
-    let vol = packed(&side, &dir.path().join("head.cdv"), 300.0, true);
+    let vol = packed_with(&side, &dir.path().join("head.cdv"), 300.0, |o| {
+        o.aniso = true
+    });
     all_identical(&vol, true);
     let ct = common::real_ct();
-    let vol = packed(&ct, &dir.path().join("ct.cdv"), -300.0, false);
+    let vol = packed(&ct, &dir.path().join("ct.cdv"), -300.0);
     let (fvt, cd) = all_identical(&vol, false);
     assert!(cd * 2 < fvt, "real CT: CD took {cd} steps, FVT {fvt}");
 }
@@ -191,7 +164,7 @@ fn depth_matches_analytic_spheres() {
         &NoProgress,
     )
     .unwrap();
-    let vol = packed(&side, &dir.path().join("s.cdv"), info.iso, false);
+    let vol = packed(&side, &dir.path().join("s.cdv"), info.iso);
     // Tolerances in mm (grid spacing 1 x 1 x 1.5 mm). Measured: mean
     // 0.027-0.029 mm, max 0.090-0.103 mm for all three methods: the error is
     // that of the phantom's trilinear iso-surface against the true sphere
@@ -203,7 +176,7 @@ fn depth_matches_analytic_spheres() {
         (HitMethod::Newton, 0.04, 0.15),
     ] {
         for view in [[0.0, 0.0], [33.0, 21.0]] {
-            let c = cam(&vol, view, false, 96);
+            let c = orbit(&vol, view, None, 96, 96);
             let (f, _) = run(&vol, &c, &Mode::Depth { hit }, Method::Cd { min_leap: 1 });
             let d = f.depth.unwrap();
             let (mut n, mut sum, mut max, mut missed) = (0usize, 0.0f64, 0.0f64, 0usize);
@@ -259,8 +232,8 @@ fn depth_matches_analytic_spheres() {
 fn same_image_whatever_cache_threads_and_tiles() {
     let dir = tempfile::tempdir().unwrap();
     let ct = common::real_ct();
-    let vol = packed(&ct, &dir.path().join("ct.cdv"), 300.0, false);
-    let c = cam(&vol, [30.0, 20.0], false, 96);
+    let vol = packed(&ct, &dir.path().join("ct.cdv"), 300.0);
+    let c = orbit(&vol, [30.0, 20.0], None, 96, 96);
     let mode = Mode::Surface {
         hit: HitMethod::Int,
         shadows: true,
@@ -289,7 +262,7 @@ fn same_image_whatever_cache_threads_and_tiles() {
         .install(|| render(&vol, &c, &small, &NoProgress))
         .unwrap();
     assert!(
-        same(&got, &want),
+        same_frame(&got, &want),
         "image depends on cache budget, tile size or threads"
     );
     assert!(
@@ -312,7 +285,7 @@ fn same_image_whatever_cache_threads_and_tiles() {
         let shared = cdvol::render::policy::cache_for(&vol, o);
         let (f1, s1) = render_in(&vol, &shared, &c, o, &NoProgress).unwrap();
         let (f2, s2) = render_in(&vol, &shared, &c, o, &NoProgress).unwrap();
-        assert!(same(&f1, &want) && same(&f2, &want));
+        assert!(same_frame(&f1, &want) && same_frame(&f2, &want));
         assert!(s1.bricks_read > 0);
         if o.cache_bytes == big.cache_bytes {
             assert_eq!(s2.bricks_read, 0);
@@ -327,7 +300,7 @@ fn corrupt_brick_is_an_error_not_pixels() {
     let dir = tempfile::tempdir().unwrap();
     let ct = common::real_ct();
     let path = dir.path().join("ct.cdv");
-    let vol = packed(&ct, &path, 300.0, false);
+    let vol = packed(&ct, &path, 300.0);
     // Damage the payload of every non-uniform brick in the middle.
     let mut bytes = std::fs::read(&path).unwrap();
     for e in vol.index().iter().filter(|e| !e.is_uniform()) {
@@ -336,7 +309,7 @@ fn corrupt_brick_is_an_error_not_pixels() {
     drop(vol);
     std::fs::write(&path, &bytes).unwrap();
     let vol = PackedVolume::open(&path).unwrap();
-    let c = cam(&vol, [0.0, 0.0], false, 32);
+    let c = orbit(&vol, [0.0, 0.0], None, 32, 32);
     let o = RenderOptions {
         mode: Mode::Mip,
         method: Method::Cd { min_leap: 1 },
@@ -357,22 +330,9 @@ fn corrupt_brick_is_an_error_not_pixels() {
 fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
     let dir = tempfile::tempdir().unwrap();
     let ct = common::real_ct();
-    let vol = packed(&ct, &dir.path().join("ct.cdv"), 300.0, false);
-    let tf = TransferFunction {
-        points: vec![
-            TfPoint {
-                value: -200.0,
-                opacity: 0.0,
-                color: [1.0; 3],
-            },
-            TfPoint {
-                value: 0.0,
-                opacity: 0.1,
-                color: [1.0; 3],
-            },
-        ],
-    };
-    let c = cam(&vol, [0.0, 0.0], false, 16);
+    let vol = packed(&ct, &dir.path().join("ct.cdv"), 300.0);
+    let tf = white_tf(&[(-200.0, 0.0), (0.0, 0.1)]);
+    let c = orbit(&vol, [0.0, 0.0], None, 16, 16);
     let o = RenderOptions {
         mode: Mode::Composite { tf, step_mm: 1.0 },
         method: Method::Fvt,
@@ -402,27 +362,14 @@ fn nan_samples_render() {
         }
     }
     let side = common::write_stack(dir.path(), "nan", dims, "f32", &v, ["1", "1", "1"], "");
-    let tf = TransferFunction {
-        points: vec![
-            TfPoint {
-                value: 30.0,
-                opacity: 0.0,
-                color: [1.0; 3],
-            },
-            TfPoint {
-                value: 45.0,
-                opacity: 0.5,
-                color: [1.0; 3],
-            },
-        ],
-    };
+    let tf = white_tf(&[(30.0, 0.0), (45.0, 0.5)]);
     let src = RawSource::open(&side).unwrap();
     let out = dir.path().join("nan.cdv");
     let mut o = PrepOptions::new(Classification::TransferFunction { tf: tf.clone() });
     o.brick_size = 8;
     prep(&src, &out, &o, &NoProgress).unwrap();
     let vol = PackedVolume::open(&out).unwrap();
-    let c = cam(&vol, [20.0, 10.0], false, 32);
+    let c = orbit(&vol, [20.0, 10.0], None, 32, 32);
     let (f, s) = run(
         &vol,
         &c,
@@ -430,7 +377,7 @@ fn nan_samples_render() {
         Method::Cd { min_leap: 1 },
     );
     assert!(s.hits > 0 && f.rgb.iter().any(|&x| x > 0));
-    let vol = packed(&side, &dir.path().join("iso.cdv"), 45.0, false);
+    let vol = packed(&side, &dir.path().join("iso.cdv"), 45.0);
     let (f, s) = run(
         &vol,
         &c,

@@ -1,0 +1,32 @@
+//! The integration tests, one module per subject, in one test binary so
+//! the library is linked once (issue 14). `cargo test --test all NAME`
+//! runs a subset, e.g. `cargo test --test all traverse::`.
+//!
+//! `common` holds the helpers every module shares. The fuzz targets stay a
+//! binary of their own (tests/fuzz.rs): they watch the largest allocation
+//! with a counting global allocator, which only means something in a
+//! process where no other test allocates at the same time.
+//!
+//! Proptest persists failures of a module `tests/all/X.rs` to
+//! `tests/proptest-regressions/X.txt` (its default `SourceParallel`
+//! persistence: the sibling of the folder holding `main.rs`) and replays
+//! them first on every run.
+
+mod common;
+
+mod bad_input;
+mod batch;
+mod data_extremes;
+mod dda_planes;
+mod dicom;
+mod experiments;
+mod extremes;
+mod formats;
+mod generators;
+mod prep;
+mod real_data;
+mod reference;
+mod render;
+mod shard;
+mod template;
+mod traverse;
