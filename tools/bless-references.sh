@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Renders the reference images of tests/reference/ with the CLI: the real
 # head CT and a small CT-like phantom, each as a shaded surface, a MIP and
-# a skin-and-bone composite (tests/reference/skin-bone-tf.json).
+# a skin-and-bone composite (tests/reference/skin-bone-tf.json), plus the
+# cost maps of CD and the octree.
 #
 #   CDVOL=path/to/cdvol tools/bless-references.sh [OUT_DIR]
 #
@@ -45,4 +46,10 @@ for name in ct phantom; do
         --mode mip "${common[@]}"
     "$cdvol" render "$work/$name-tf.cdv" -o "$out/$name-composite.png" \
         --mode composite --tf "$tf" "${common[@]}"
+    # Traversal cost maps (paper Fig. 17): steps per pixel of CD and of
+    # the octree, so a change in any walker's steps shows as a picture.
+    "$cdvol" render "$work/$name-iso.cdv" -o "$out/$name-cost-cd.png" \
+        --mode cost --traversal cd "${common[@]}"
+    "$cdvol" render "$work/$name-iso.cdv" -o "$out/$name-cost-octree.png" \
+        --mode cost --traversal octree "${common[@]}"
 done

@@ -1,5 +1,6 @@
 //! Reference images: the real head CT and a CT-like phantom, each as a
-//! shaded surface, a MIP and a skin-and-bone composite, rendered by the
+//! shaded surface, a MIP, a skin-and-bone composite and the cost maps of
+//! CD and the octree (steps per pixel, paper Fig. 17), rendered by the
 //! CLI of the binary under test and compared with the PNGs in
 //! tests/reference/ (see its README.md). A change in shading, sampling,
 //! traversal or framing shows up here as a picture a person can look at,
