@@ -23,6 +23,7 @@ mod experiments;
 mod extremes;
 mod formats;
 mod generators;
+mod layout;
 mod prep;
 mod real_data;
 mod reference;

@@ -1,0 +1,167 @@
+//! The map of docs/DESIGN.md ("Rooms: what each owns and may import"),
+//! checked against the source: each room's `use` and path lines may name
+//! only the rooms upstream of it. A new import across the pipeline's
+//! direction fails here, with the file and line, before it becomes a
+//! habit.
+
+use std::path::{Path, PathBuf};
+
+/// Every `.rs` file under `dir`, sorted.
+fn rust_files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap_or_else(|e| panic!("{}: {e}", d.display())) {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The code lines of `file` (comments and doc comments dropped) with
+/// their line numbers.
+fn code_lines(file: &Path) -> Vec<(usize, String)> {
+    let text = std::fs::read_to_string(file).unwrap();
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim().to_string()))
+        .filter(|(_, l)| !l.starts_with("//"))
+        .collect()
+}
+
+/// `(room, forbidden)`: files whose path under `src/` starts with `room`
+/// may not contain any of `forbidden` on a code line.
+const RULES: &[(&str, &[&str])] = &[
+    (
+        "input/",
+        &[
+            "crate::classify",
+            "crate::dt",
+            "crate::prep",
+            "crate::format",
+            "crate::render",
+            "crate::batch",
+            "crate::info",
+            "crate::export",
+        ],
+    ),
+    ("grid.rs", &["crate::"]),
+    (
+        "classify.rs",
+        &[
+            "crate::dt",
+            "crate::prep",
+            "crate::format",
+            "crate::render",
+            "crate::batch",
+        ],
+    ),
+    (
+        "dt/",
+        &[
+            "crate::prep",
+            "crate::format",
+            "crate::render",
+            "crate::batch",
+        ],
+    ),
+    (
+        "format/",
+        &[
+            "crate::prep",
+            "crate::render",
+            "crate::batch",
+            "crate::info",
+        ],
+    ),
+    ("render/", &["crate::prep", "crate::batch", "crate::export"]),
+    // The walkers know the grid and nothing of bricks, caches or pixels.
+    (
+        "render/traverse/",
+        &[
+            "crate::format",
+            "crate::render::cache",
+            "super::cache",
+            "super::super",
+            "integrate",
+            "crate::classify",
+        ],
+    ),
+    // The cache serves a plain policy, never the traversal method.
+    (
+        "render/cache.rs",
+        &["Method", "RenderOptions", "integrate", "tiles"],
+    ),
+];
+
+/// Files of the library proper (not tools/, not the binary).
+fn is_library(rel: &str) -> bool {
+    !(rel.starts_with("tools/") || matches!(rel, "main.rs" | "cli.rs" | "demo.rs"))
+}
+
+#[test]
+fn rooms_import_only_upstream() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut bad = Vec::new();
+    for file in rust_files(&src) {
+        let rel = file
+            .strip_prefix(&src)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        for (n, line) in code_lines(&file) {
+            for (room, forbidden) in RULES {
+                if !rel.starts_with(room) {
+                    continue;
+                }
+                for f in forbidden.iter().filter(|f| line.contains(*f)) {
+                    bad.push(format!("src/{rel}:{n}: {room} may not use {f}: {line}"));
+                }
+            }
+            if is_library(&rel) {
+                // Nothing in the library uses the tooling, anyhow or
+                // plotters, or returns bare strings as errors.
+                for f in ["crate::tools", "anyhow", "plotters"] {
+                    if line.contains(f) {
+                        bad.push(format!(
+                            "src/{rel}:{n}: the library may not use {f}: {line}"
+                        ));
+                    }
+                }
+                if line.contains(", String>") && line.contains("Result<") {
+                    bad.push(format!(
+                        "src/{rel}:{n}: a typed error, not Result<_, String>: {line}"
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "imports against docs/DESIGN.md's map:\n{}",
+        bad.join("\n")
+    );
+}
+
+/// The rule checker itself: a forbidden import on a code line is found,
+/// the same text in a comment is not.
+#[test]
+fn rule_check_sees_code_not_comments() {
+    let dir = std::env::temp_dir().join(format!("cdvol-layout-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let f = dir.join("x.rs");
+    std::fs::write(
+        &f,
+        "//! uses crate::render in prose\nuse crate::render::cache;\n",
+    )
+    .unwrap();
+    let lines = code_lines(&f);
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(lines, vec![(2, "use crate::render::cache;".to_string())]);
+}
