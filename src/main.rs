@@ -16,7 +16,7 @@ use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::export::{export, ExportWhat};
 use cdvol::format::reader::PackedVolume;
 use cdvol::info::Info;
-use cdvol::phantom;
+use cdvol::tools::phantom;
 use cdvol::prep::{prep, PrepOptions, PrepReport};
 use cdvol::progress::{NoProgress, Progress};
 use cdvol::render::camera::{Camera, Projection};
@@ -208,7 +208,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             tradeoffs_cmd(&a, progress)?;
         }
         Command::Experiment(e) => {
-            let path = cdvol::experiment::paper::run(&paper_job(&e)?, progress)?;
+            let path = cdvol::tools::experiment::paper::run(&paper_job(&e)?, progress)?;
             println!("wrote {}", path.display());
         }
     }
@@ -216,8 +216,8 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
 }
 
 /// The paper experiment `e` names, with its options.
-fn paper_job(e: &cli::ExperimentCmd) -> Result<cdvol::experiment::paper::Job> {
-    use cdvol::experiment::paper::Which;
+fn paper_job(e: &cli::ExperimentCmd) -> Result<cdvol::tools::experiment::paper::Job> {
+    use cdvol::tools::experiment::paper::Which;
     let (which, a) = match e {
         cli::ExperimentCmd::Fig16(a) => (Which::Fig16, a),
         cli::ExperimentCmd::Fig17(a) => (Which::Fig17, a),
@@ -229,10 +229,10 @@ fn paper_job(e: &cli::ExperimentCmd) -> Result<cdvol::experiment::paper::Job> {
         cli::ExperimentCmd::All(a) => (Which::All, a),
         cli::ExperimentCmd::Tradeoffs(_) => bail!("tradeoffs is not a paper experiment"),
     };
-    Ok(cdvol::experiment::paper::Job {
+    Ok(cdvol::tools::experiment::paper::Job {
         which,
         out: a.out.clone(),
-        opts: cdvol::experiment::paper::PaperOptions {
+        opts: cdvol::tools::experiment::paper::PaperOptions {
             dir: a.out.parent().unwrap_or(Path::new(".")).join("experiments"),
             ns: a.ns.clone(),
             size: a.size,
@@ -244,13 +244,13 @@ fn paper_job(e: &cli::ExperimentCmd) -> Result<cdvol::experiment::paper::Job> {
 }
 
 fn tradeoffs_cmd(a: &cli::TradeoffsArgs, progress: &dyn Progress) -> Result<()> {
-    let o = cdvol::experiment::TradeoffOptions {
+    let o = cdvol::tools::experiment::TradeoffOptions {
         out: a.out.clone(),
         ct: a.ct.clone(),
         size: a.size,
         runs: a.runs,
     };
-    let rows = cdvol::experiment::tradeoffs(&o, progress)?;
+    let rows = cdvol::tools::experiment::tradeoffs(&o, progress)?;
     println!(
         "{} settings measured; wrote {}",
         rows.len(),

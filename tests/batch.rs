@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use cdvol::format::reader::PackedVolume;
-use cdvol::phantom;
+use cdvol::tools::phantom;
 use cdvol::progress::NoProgress;
 
 fn gz(b: &[u8]) -> Vec<u8> {

@@ -5,7 +5,7 @@
 
 mod common;
 
-use cdvol::experiment::paper::{name, run, sweep_methods, Job, PaperOptions, Which};
+use cdvol::tools::experiment::paper::{name, run, sweep_methods, Job, PaperOptions, Which};
 use cdvol::progress::NoProgress;
 
 #[test]

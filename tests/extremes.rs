@@ -25,7 +25,7 @@
 
 mod common;
 
-use cdvol::corpus::{self, MemVolume, Walked};
+use cdvol::tools::corpus::{self, MemVolume, Walked};
 use cdvol::grid::{Axis, MAX_SAMPLES_PER_AXIS};
 use cdvol::render::traverse::{trace, Flow, Method, Ray, RayError, TGrid};
 use num_bigint::BigInt;

@@ -48,7 +48,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
 use cdvol::classify::{Classification, TfPoint, TransferFunction};
-use cdvol::corpus::{self, MemVolume};
+use cdvol::tools::corpus::{self, MemVolume};
 use cdvol::export::{export, ExportWhat};
 use cdvol::format::reader::{BrickData, PackedVolume};
 use cdvol::format::word::Word;

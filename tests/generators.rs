@@ -12,7 +12,7 @@ use std::path::Path;
 use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use cdvol::phantom;
+use cdvol::tools::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;

@@ -7,11 +7,11 @@ mod common;
 use std::path::Path;
 
 use cdvol::classify::Classification;
-use cdvol::corpus::MemVolume;
+use cdvol::tools::corpus::MemVolume;
 use cdvol::format::reader::PackedVolume;
 use cdvol::grid::Axis;
 use cdvol::input::raw::RawSource;
-use cdvol::phantom;
+use cdvol::tools::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::{Camera, Projection};

@@ -18,7 +18,7 @@ use crate::classify::Classification;
 use crate::format::reader::PackedVolume;
 use crate::input::raw::RawSource;
 use crate::input::SliceSource;
-use crate::phantom;
+use crate::tools::phantom;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::{NoProgress, Progress};
 use crate::render::cache::{Accessor, BrickCache, LAZY_MIN_CODE_CD, OBJECT};

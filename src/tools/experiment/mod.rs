@@ -15,10 +15,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::classify::{Classification, TfPoint, TransferFunction};
-use crate::corpus::{self, MemVolume};
+use crate::tools::corpus::{self, MemVolume};
 use crate::format::reader::PackedVolume;
 use crate::input::raw::RawSource;
-use crate::phantom;
+use crate::tools::phantom;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::{NoProgress, Progress};
 use crate::render::camera::Camera;
