@@ -11,8 +11,8 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use cdvol::format::reader::PackedVolume;
-use cdvol::tools::phantom;
 use cdvol::progress::NoProgress;
+use cdvol::tools::phantom;
 
 fn gz(b: &[u8]) -> Vec<u8> {
     let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());

@@ -12,7 +12,6 @@ use std::path::Path;
 use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use cdvol::tools::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
@@ -20,6 +19,7 @@ use cdvol::render::shade::HitMethod;
 use cdvol::render::template::render_template;
 use cdvol::render::traverse::{DistKind, Method, TGrid};
 use cdvol::render::{render, Frame, Mode, RenderError, RenderOptions};
+use cdvol::tools::phantom;
 
 fn packed(sidecar: &Path, out: &Path, iso: f64) -> PackedVolume {
     let src = RawSource::open(sidecar).unwrap();

@@ -252,6 +252,6 @@ fn real_ct_as_dicom_nrrd_and_nifti() {
         }
     };
     refused("dup", &["the same position as", "ImagePositionPatient"]);
-    refused("mixed", &["2 series", "--series"]);
+    refused("mixed", &["2 series", "SeriesInstanceUID"]);
     refused("truncated", &["not a readable DICOM file"]);
 }

@@ -9,13 +9,13 @@ use std::path::Path;
 use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use cdvol::tools::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::{Method, TGrid};
 use cdvol::render::{render, render_in, Frame, Mode, RenderOptions, Stats};
+use cdvol::tools::phantom;
 
 fn packed(sidecar: &Path, out: &Path, iso: f64, aniso: bool) -> PackedVolume {
     let src = RawSource::open(sidecar).unwrap();

@@ -12,7 +12,6 @@ use std::process::Command;
 use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use cdvol::tools::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
@@ -20,6 +19,7 @@ use cdvol::render::shade::HitMethod;
 use cdvol::render::shard::{assemble, Part};
 use cdvol::render::traverse::{Method, TGrid};
 use cdvol::render::{render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats};
+use cdvol::tools::phantom;
 use proptest::prelude::*;
 
 /// A small rectilinear sphere phantom, prepared; returns (volume, iso).

@@ -7,11 +7,9 @@ mod common;
 use std::path::Path;
 
 use cdvol::classify::Classification;
-use cdvol::tools::corpus::MemVolume;
 use cdvol::format::reader::PackedVolume;
 use cdvol::grid::Axis;
 use cdvol::input::raw::RawSource;
-use cdvol::tools::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::{Camera, Projection};
@@ -21,6 +19,8 @@ use cdvol::render::template::{
 };
 use cdvol::render::traverse::{trace, Flow, Method, Ray, TGrid};
 use cdvol::render::{render, Frame, Mode, RenderError, RenderOptions, Stats};
+use cdvol::tools::corpus::MemVolume;
+use cdvol::tools::phantom;
 use proptest::prelude::*;
 use proptest::strategy::ValueTree;
 
