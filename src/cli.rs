@@ -276,6 +276,17 @@ pub fn prep_error(e: cdvol::prep::PrepError) -> anyhow::Error {
     }
 }
 
+/// A phantom error naming the flag of the option at fault (the library
+/// names the field: `z_scale` is set by `--z-scale`).
+pub fn phantom_error(e: cdvol::tools::phantom::PhantomError) -> anyhow::Error {
+    match &e {
+        cdvol::tools::phantom::PhantomError::Option { option, .. } => {
+            anyhow::anyhow!("--{}: {e}", option.replace('_', "-"))
+        }
+        _ => e.into(),
+    }
+}
+
 /// An input error, with the flag that picks a DICOM series where the
 /// choice is the problem.
 pub fn input_error(e: cdvol::input::InputError) -> anyhow::Error {

@@ -128,7 +128,8 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             println!("wrote {} and {}", a.output.display(), raw.display());
         }
         Command::Phantom(PhantomCmd::Spheres(a)) => {
-            let info = phantom::spheres(&a.output, &a.to_options()?, progress)?;
+            let info = phantom::spheres(&a.output, &a.to_options()?, progress)
+                .map_err(cli::phantom_error)?;
             println!(
                 "wrote {} ({} spheres, iso {}), {} and {}",
                 a.output.display(),
@@ -139,7 +140,8 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             );
         }
         Command::Phantom(PhantomCmd::Ct(a)) => {
-            let info = phantom::ct(&a.output, &(&a).into(), progress)?;
+            let info =
+                phantom::ct(&a.output, &(&a).into(), progress).map_err(cli::phantom_error)?;
             println!(
                 "wrote {} and {} ({:.1} MiB)",
                 a.output.display(),

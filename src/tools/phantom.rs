@@ -1515,7 +1515,7 @@ mod tests {
                 ..CtOptions::default()
             };
             let e = ct(&side, &opts, &NoProgress).unwrap_err().to_string();
-            assert!(e.contains("option z-scale"), "{z_scale}: {e}");
+            assert!(e.contains("option z_scale"), "{z_scale}: {e}");
         }
         // The scale multiplies the written positions.
         let scaled_dir = tempfile::tempdir().unwrap();
