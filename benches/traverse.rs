@@ -24,12 +24,12 @@ use criterion::{
 use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use cdvol::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::cache::{Accessor, BrickCache};
 use cdvol::render::camera::Camera;
 use cdvol::render::traverse::{trace, DistKind, Flow, Method, Ray, Real, TGrid};
+use cdvol::tools::phantom;
 
 fn scene(dir: &std::path::Path, n: usize) -> PackedVolume {
     let side = dir.join(format!("n{n}.json"));

@@ -7,7 +7,6 @@
 use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use cdvol::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
@@ -15,6 +14,7 @@ use cdvol::render::shade::HitMethod;
 use cdvol::render::template::render_template;
 use cdvol::render::traverse::{Method, TGrid};
 use cdvol::render::{render, Frame, Mode, RenderOptions, Stats};
+use cdvol::tools::phantom;
 
 fn main() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);

@@ -26,6 +26,17 @@ use crate::input::InputError;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::NoProgress;
 
+/// Errors that stop a whole batch (a failing input only fails its row).
+#[derive(Debug, thiserror::Error)]
+pub enum BatchError {
+    /// The output directory cannot be created.
+    #[error("{}: cannot create the output directory: {source}", path.display())]
+    OutputDir {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
 /// One input of a batch.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BatchInput {
@@ -239,9 +250,11 @@ pub fn run(
     jobs: usize,
     shard: (u32, u32),
     done: &(dyn Fn(&BatchRow) + Sync),
-) -> Result<Vec<BatchRow>, String> {
-    std::fs::create_dir_all(out_dir)
-        .map_err(|e| format!("{}: cannot create: {e}", out_dir.display()))?;
+) -> Result<Vec<BatchRow>, BatchError> {
+    std::fs::create_dir_all(out_dir).map_err(|source| BatchError::OutputDir {
+        path: out_dir.to_path_buf(),
+        source,
+    })?;
     let outs = output_names(out_dir, inputs);
     let mine: Vec<(&BatchInput, &PathBuf)> = inputs
         .iter()

@@ -72,6 +72,53 @@ pub enum ExperimentCmd {
     All(PaperArgs),
 }
 
+impl ExperimentCmd {
+    /// The paper experiment this command names, with its options. Refuses
+    /// `tradeoffs` (not one of the paper's) and, naming `--ct`, the
+    /// experiments that render the real CT when it is not given.
+    pub fn paper_job(&self) -> anyhow::Result<cdvol::tools::experiment::paper::Job> {
+        use cdvol::tools::experiment::paper::{Job, PaperOptions, Which};
+        let (which, a) = match self {
+            ExperimentCmd::Fig16(a) => (Which::Fig16, a),
+            ExperimentCmd::Fig17(a) => (Which::Fig17, a),
+            ExperimentCmd::Fig18(a) => (Which::Fig18, a),
+            ExperimentCmd::Fig20(a) => (Which::Fig20, a),
+            ExperimentCmd::Fig22(a) => (Which::Fig22, a),
+            ExperimentCmd::Table1(a) => (Which::Table1, a),
+            ExperimentCmd::Table2(a) => (Which::Table2, a),
+            ExperimentCmd::All(a) => (Which::All, a),
+            ExperimentCmd::Tradeoffs(_) => anyhow::bail!("tradeoffs is not a paper experiment"),
+        };
+        if a.ct.is_none() && matches!(which, Which::Fig17 | Which::Table1) {
+            anyhow::bail!(
+                "{} renders the real CT: give --ct DIR/cranium.json (tools/fetch-ct.sh DIR)",
+                if which == Which::Fig17 {
+                    "fig17"
+                } else {
+                    "table1"
+                }
+            );
+        }
+        Ok(Job {
+            which,
+            out: a.out.clone(),
+            opts: PaperOptions {
+                // CSV, SVG and PNG files go to `experiments/` beside the report.
+                dir: a
+                    .out
+                    .parent()
+                    .unwrap_or(std::path::Path::new("."))
+                    .join("experiments"),
+                ns: a.ns.clone(),
+                size: a.size,
+                rays: a.rays,
+                runs: a.runs,
+                ct: a.ct.clone(),
+            },
+        })
+    }
+}
+
 #[derive(Args, Debug, Clone)]
 pub struct PaperArgs {
     /// The Markdown report; CSV, SVG and PNG files go to `experiments/`
@@ -110,6 +157,24 @@ pub struct TradeoffsArgs {
     /// Runs per setting; the median is reported.
     #[arg(long, default_value_t = 5)]
     pub runs: usize,
+}
+
+impl TradeoffsArgs {
+    /// The experiment's options; out-of-range values are named by flag.
+    pub fn to_options(&self) -> anyhow::Result<cdvol::tools::experiment::TradeoffOptions> {
+        if self.runs == 0 {
+            anyhow::bail!("option --runs: 0, expected at least 1");
+        }
+        if !(16..=4096).contains(&self.size) {
+            anyhow::bail!("option --size: {}, expected 16..=4096 pixels", self.size);
+        }
+        Ok(cdvol::tools::experiment::TradeoffOptions {
+            out: self.out.clone(),
+            ct: self.ct.clone(),
+            size: self.size,
+            runs: self.runs,
+        })
+    }
 }
 
 #[derive(Args, Debug)]
@@ -162,6 +227,79 @@ pub struct PrepSettings {
     pub temp_dir: Option<PathBuf>,
 }
 
+impl PrepSettings {
+    /// The checked prep options; errors name the flags.
+    pub fn to_options(&self) -> anyhow::Result<cdvol::prep::PrepOptions> {
+        use cdvol::classify::{Classification, TransferFunction};
+        let classification = match (self.iso, &self.classify_tf) {
+            (Some(iso), None) => {
+                if !iso.is_finite() {
+                    anyhow::bail!("option --iso: {iso}, expected a finite number");
+                }
+                Classification::Iso { iso }
+            }
+            (None, Some(tf)) => Classification::TransferFunction {
+                tf: TransferFunction::load(tf)?,
+            },
+            _ => anyhow::bail!(
+                "prep needs --iso T or --classify-tf FILE to decide which cells are objects"
+            ),
+        };
+        let opts = cdvol::prep::PrepOptions {
+            classification,
+            brick_size: self.brick,
+            zstd_level: self.zstd_level,
+            aniso: self.aniso,
+            dda: self.dda,
+            temp_dir: self.temp_dir.clone(),
+        };
+        opts.check().map_err(prep_error)?;
+        Ok(opts)
+    }
+}
+
+/// A prep error as the user of the command line needs it: the library
+/// names the `PrepOptions` field, this adds the flag that sets it.
+pub fn prep_error(e: cdvol::prep::PrepError) -> anyhow::Error {
+    use cdvol::prep::PrepError;
+    if let PrepError::Option { field, .. } = &e {
+        let flag = match *field {
+            "brick_size" => "--brick",
+            "zstd_level" => "--zstd-level",
+            other => other,
+        };
+        return anyhow::anyhow!("option {flag}: {e}");
+    }
+    match e {
+        PrepError::Input(i) => input_error(i),
+        e => e.into(),
+    }
+}
+
+/// A phantom error naming the flag of the option at fault (the library
+/// names the field: `z_scale` is set by `--z-scale`).
+pub fn phantom_error(e: cdvol::tools::phantom::PhantomError) -> anyhow::Error {
+    match &e {
+        cdvol::tools::phantom::PhantomError::Option { option, .. } => {
+            anyhow::anyhow!("--{}: {e}", option.replace('_', "-"))
+        }
+        _ => e.into(),
+    }
+}
+
+/// An input error, with the flag that picks a DICOM series where the
+/// choice is the problem.
+pub fn input_error(e: cdvol::input::InputError) -> anyhow::Error {
+    use cdvol::input::InputError;
+    match &e {
+        InputError::SeveralSeries { .. } => anyhow::anyhow!("{e}: pick one with --series UID"),
+        InputError::NoSuchSeries { uid, .. } => {
+            anyhow::anyhow!("option --series {uid}: {e}")
+        }
+        _ => e.into(),
+    }
+}
+
 #[derive(Args, Debug)]
 pub struct PrepBatchArgs {
     /// Directory searched (recursively) for inputs.
@@ -179,6 +317,21 @@ pub struct PrepBatchArgs {
     pub settings: PrepSettings,
 }
 
+impl PrepBatchArgs {
+    /// `(K, N)` of `--shard K/N`; `(0, 1)` without it.
+    pub fn shard(&self) -> (u32, u32) {
+        self.shard.map(|s| (s.k, s.n)).unwrap_or((0, 1))
+    }
+
+    /// The summary JSON: `batch.json`, or `batch.KofN.json` for a shard.
+    pub fn summary_path(&self) -> PathBuf {
+        self.output.join(match self.shard {
+            Some(s) => format!("batch.{}of{}.json", s.k, s.n),
+            None => "batch.json".into(),
+        })
+    }
+}
+
 #[derive(Args, Debug)]
 pub struct InfoArgs {
     pub file: PathBuf,
@@ -192,6 +345,16 @@ pub enum What {
     Values,
     Codes,
     Classes,
+}
+
+impl From<What> for cdvol::export::ExportWhat {
+    fn from(w: What) -> Self {
+        match w {
+            What::Values => cdvol::export::ExportWhat::Values,
+            What::Codes => cdvol::export::ExportWhat::Codes,
+            What::Classes => cdvol::export::ExportWhat::Classes,
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -231,10 +394,44 @@ pub struct SpheresArgs {
     pub spacing: String,
 }
 
+impl SpheresArgs {
+    /// The generator's options; a bad `--spacing` is named by its flag.
+    pub fn to_options(&self) -> anyhow::Result<cdvol::tools::phantom::SpheresOptions> {
+        let spacing = cdvol::tools::phantom::parse_spacing3(&self.spacing)
+            .map_err(|e| anyhow::anyhow!("option --spacing: {e}"))?;
+        Ok(cdvol::tools::phantom::SpheresOptions {
+            size: self.size,
+            per_axis: self.per_axis,
+            seed: self.seed,
+            spacing,
+        })
+    }
+}
+
 #[derive(ValueEnum, Clone, Copy, Debug)]
 pub enum CtType {
     I16,
     U16,
+}
+
+impl From<CtType> for cdvol::tools::phantom::CtDtype {
+    fn from(t: CtType) -> Self {
+        match t {
+            CtType::I16 => cdvol::tools::phantom::CtDtype::I16,
+            CtType::U16 => cdvol::tools::phantom::CtDtype::U16,
+        }
+    }
+}
+
+impl From<&CtArgs> for cdvol::tools::phantom::CtOptions {
+    fn from(a: &CtArgs) -> Self {
+        cdvol::tools::phantom::CtOptions {
+            dims: a.dims,
+            dtype: a.dtype.into(),
+            seed: a.seed,
+            z_scale: a.z_scale,
+        }
+    }
 }
 
 #[derive(Args, Debug)]

@@ -20,39 +20,28 @@ pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 20;
 /// reports stays a finite, normal f64, and positions stay finite in f32.
 pub const MAX_COORD_MM: f64 = 1e15;
 
-/// Why a list of coordinates is not a valid axis.
-#[derive(Debug, Clone, PartialEq)]
-pub enum AxisProblem {
+/// Why a list of sample positions is not a valid axis. Each variant names
+/// the position's index and value where one is at fault.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AxisError {
+    /// Fewer than 2 samples: no cell.
+    #[error("{len} samples, expected at least 2")]
     TooShort { len: usize },
+    /// More than [`MAX_SAMPLES_PER_AXIS`] samples.
+    #[error("{len} samples, expected at most {MAX_SAMPLES_PER_AXIS}")]
     TooLong { len: usize },
+    /// A position is NaN or infinite.
+    #[error("coordinate {index} is {value}, expected a finite number")]
     NotFinite { index: usize, value: f64 },
+    /// A position is farther than [`MAX_COORD_MM`] from 0.
+    #[error("coordinate {index} is {value:e} mm, expected at most {MAX_COORD_MM:e} mm from 0")]
     TooFar { index: usize, value: f64 },
+    /// A position is not larger than the one before it.
+    #[error(
+        "coordinate {index} is {value} mm after {prev} mm, \
+         expected strictly increasing positions (gap > 0)"
+    )]
     NotIncreasing { index: usize, prev: f64, value: f64 },
-}
-
-impl std::fmt::Display for AxisProblem {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            AxisProblem::TooShort { len } => {
-                write!(f, "{len} samples, expected at least 2")
-            }
-            AxisProblem::TooLong { len } => {
-                write!(f, "{len} samples, expected at most {MAX_SAMPLES_PER_AXIS}")
-            }
-            AxisProblem::NotFinite { index, value } => {
-                write!(f, "coordinate {index} is {value}, expected a finite number")
-            }
-            AxisProblem::TooFar { index, value } => write!(
-                f,
-                "coordinate {index} is {value:e} mm, expected at most {MAX_COORD_MM:e} mm from 0"
-            ),
-            AxisProblem::NotIncreasing { index, prev, value } => write!(
-                f,
-                "coordinate {index} is {value} mm after {prev} mm, \
-                 expected strictly increasing positions (gap > 0)"
-            ),
-        }
-    }
 }
 
 /// One axis of a rectilinear grid: the positions `S[0..n]` of its samples.
@@ -64,9 +53,9 @@ pub struct Axis {
 }
 
 impl TryFrom<Vec<f64>> for Axis {
-    type Error = String;
-    fn try_from(coords: Vec<f64>) -> Result<Self, String> {
-        Axis::from_coords(coords).map_err(|p| p.to_string())
+    type Error = AxisError;
+    fn try_from(coords: Vec<f64>) -> Result<Self, AxisError> {
+        Axis::from_coords(coords)
     }
 }
 
@@ -78,23 +67,23 @@ impl From<Axis> for Vec<f64> {
 
 impl Axis {
     /// Checks and wraps sample positions in mm.
-    pub fn from_coords(coords: Vec<f64>) -> Result<Axis, AxisProblem> {
+    pub fn from_coords(coords: Vec<f64>) -> Result<Axis, AxisError> {
         if coords.len() < 2 {
-            return Err(AxisProblem::TooShort { len: coords.len() });
+            return Err(AxisError::TooShort { len: coords.len() });
         }
         if coords.len() > MAX_SAMPLES_PER_AXIS {
-            return Err(AxisProblem::TooLong { len: coords.len() });
+            return Err(AxisError::TooLong { len: coords.len() });
         }
         for (index, &value) in coords.iter().enumerate() {
             if !value.is_finite() {
-                return Err(AxisProblem::NotFinite { index, value });
+                return Err(AxisError::NotFinite { index, value });
             }
             if value.abs() > MAX_COORD_MM {
-                return Err(AxisProblem::TooFar { index, value });
+                return Err(AxisError::TooFar { index, value });
             }
             if index > 0 && value <= coords[index - 1] {
                 let prev = coords[index - 1];
-                return Err(AxisProblem::NotIncreasing { index, prev, value });
+                return Err(AxisError::NotIncreasing { index, prev, value });
             }
         }
         let uniform = is_uniform(&coords);
@@ -102,7 +91,7 @@ impl Axis {
     }
 
     /// A uniform axis of `n` samples (paper eq. 6).
-    pub fn uniform(origin_mm: f64, spacing_mm: f64, n: usize) -> Result<Axis, AxisProblem> {
+    pub fn uniform(origin_mm: f64, spacing_mm: f64, n: usize) -> Result<Axis, AxisError> {
         Axis::from_coords((0..n).map(|i| origin_mm + spacing_mm * i as f64).collect())
     }
 
@@ -175,7 +164,7 @@ mod tests {
     fn refuses_bad_axes_with_the_index() {
         assert_eq!(
             Axis::from_coords(vec![0.0]),
-            Err(AxisProblem::TooShort { len: 1 })
+            Err(AxisError::TooShort { len: 1 })
         );
         let e = Axis::from_coords(vec![0.0, 1.0, 1.0]).unwrap_err();
         assert!(e.to_string().contains("coordinate 2"), "{e}");

@@ -16,8 +16,10 @@
 //!   -> format::reader  header, index, checked brick payloads on demand
 //!   -> info, export    summaries and full-resolution arrays back out
 //! ```
-//! [`phantom`] generates test scenes (the paper's sphere scenes of section
-//! 5.1 and a CT-like head with variable slice thickness), streaming.
+//! With the cargo feature `tools` (default), [`tools`] adds what is built
+//! on the library rather than part of it: test scenes (`tools::phantom`,
+//! the paper's sphere scenes of section 5.1 and a CT-like head with
+//! variable slice thickness), the traversal corpus and the experiments.
 //!
 //! Samples sit on grid points and a cell spans 2x2x2 samples, so n samples
 //! give n-1 cells per axis ([`grid`]). Codes live on the cells.
@@ -33,16 +35,15 @@ compile_error!(
 
 pub mod batch;
 pub mod classify;
-pub mod corpus;
 pub mod dt;
-pub mod experiment;
 pub mod export;
 pub mod format;
 pub mod grid;
 pub mod info;
 pub mod input;
 pub mod memory;
-pub mod phantom;
 pub mod prep;
 pub mod progress;
 pub mod render;
+#[cfg(feature = "tools")]
+pub mod tools;

@@ -2,6 +2,7 @@
 //! exit codes. Progress bars live here (indicatif on stderr).
 
 mod cli;
+mod demo;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -12,17 +13,17 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use cdvol::classify::{Classification, TfPoint, TransferFunction};
-use cdvol::export::{export, ExportWhat};
+use cdvol::classify::TransferFunction;
+use cdvol::export::export;
 use cdvol::format::reader::PackedVolume;
 use cdvol::info::Info;
-use cdvol::phantom;
-use cdvol::prep::{prep, PrepOptions, PrepReport};
+use cdvol::prep::{prep, PrepReport};
 use cdvol::progress::{NoProgress, Progress};
 use cdvol::render::camera::{Camera, Projection};
 use cdvol::render::shade::{HitMethod, HitParams};
 use cdvol::render::traverse::{DistKind, Method, TGrid};
 use cdvol::render::{render, render_part, Mode, Precision, RenderOptions, Stats};
+use cdvol::tools::phantom;
 use cli::{Cli, Command, PhantomCmd};
 
 /// indicatif bars on stderr; hidden when stderr is not a terminal.
@@ -100,12 +101,13 @@ fn main() -> ExitCode {
 fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
     match cmd {
         Command::Prep(a) => {
-            let opts = prep_options(a.settings)?;
-            let src = cdvol::input::open_with(&a.input, a.series.as_deref())?;
+            let opts = a.settings.to_options()?;
+            let src =
+                cdvol::input::open_with(&a.input, a.series.as_deref()).map_err(cli::input_error)?;
             for line in src.report() {
                 println!("{line}");
             }
-            let report = prep(src.as_ref(), &a.output, &opts, progress)?;
+            let report = prep(src.as_ref(), &a.output, &opts, progress).map_err(cli::prep_error)?;
             print_prep(&a.output, &report)?;
         }
         Command::PrepBatch(a) => prep_batch(a, progress)?,
@@ -122,24 +124,12 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
         }
         Command::Export(a) => {
             let vol = PackedVolume::open(&a.file)?;
-            let what = match a.what {
-                cli::What::Values => ExportWhat::Values,
-                cli::What::Codes => ExportWhat::Codes,
-                cli::What::Classes => ExportWhat::Classes,
-            };
-            let raw = export(&vol, what, &a.output, progress)?;
+            let raw = export(&vol, a.what.into(), &a.output, progress)?;
             println!("wrote {} and {}", a.output.display(), raw.display());
         }
         Command::Phantom(PhantomCmd::Spheres(a)) => {
-            let spacing = phantom::parse_spacing3(&a.spacing)
-                .map_err(|e| anyhow::anyhow!("option --spacing: {e}"))?;
-            let opts = phantom::SpheresOptions {
-                size: a.size,
-                per_axis: a.per_axis,
-                seed: a.seed,
-                spacing,
-            };
-            let info = phantom::spheres(&a.output, &opts, progress)?;
+            let info = phantom::spheres(&a.output, &a.to_options()?, progress)
+                .map_err(cli::phantom_error)?;
             println!(
                 "wrote {} ({} spheres, iso {}), {} and {}",
                 a.output.display(),
@@ -150,16 +140,8 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             );
         }
         Command::Phantom(PhantomCmd::Ct(a)) => {
-            let opts = phantom::CtOptions {
-                dims: a.dims,
-                dtype: match a.dtype {
-                    cli::CtType::I16 => phantom::CtDtype::I16,
-                    cli::CtType::U16 => phantom::CtDtype::U16,
-                },
-                seed: a.seed,
-                z_scale: a.z_scale,
-            };
-            let info = phantom::ct(&a.output, &opts, progress)?;
+            let info =
+                phantom::ct(&a.output, &(&a).into(), progress).map_err(cli::phantom_error)?;
             println!(
                 "wrote {} and {} ({:.1} MiB)",
                 a.output.display(),
@@ -186,7 +168,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 stats.seconds_total
             );
         }
-        Command::Demo(a) => demo(&a.dir, progress)?,
+        Command::Demo(a) => demo::run(&a.dir, progress)?,
         Command::Assemble(a) => {
             let parts = a
                 .parts
@@ -205,57 +187,18 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             }
         }
         Command::Experiment(cli::ExperimentCmd::Tradeoffs(a)) => {
-            tradeoffs_cmd(&a, progress)?;
+            let rows = cdvol::tools::experiment::tradeoffs(&a.to_options()?, progress)?;
+            println!(
+                "{} settings measured; wrote {}",
+                rows.len(),
+                a.out.display()
+            );
         }
         Command::Experiment(e) => {
-            let path = cdvol::experiment::paper::run(&paper_job(&e)?, progress)?;
+            let path = cdvol::tools::experiment::paper::run(&e.paper_job()?, progress)?;
             println!("wrote {}", path.display());
         }
     }
-    Ok(())
-}
-
-/// The paper experiment `e` names, with its options.
-fn paper_job(e: &cli::ExperimentCmd) -> Result<cdvol::experiment::paper::Job> {
-    use cdvol::experiment::paper::Which;
-    let (which, a) = match e {
-        cli::ExperimentCmd::Fig16(a) => (Which::Fig16, a),
-        cli::ExperimentCmd::Fig17(a) => (Which::Fig17, a),
-        cli::ExperimentCmd::Fig18(a) => (Which::Fig18, a),
-        cli::ExperimentCmd::Fig20(a) => (Which::Fig20, a),
-        cli::ExperimentCmd::Fig22(a) => (Which::Fig22, a),
-        cli::ExperimentCmd::Table1(a) => (Which::Table1, a),
-        cli::ExperimentCmd::Table2(a) => (Which::Table2, a),
-        cli::ExperimentCmd::All(a) => (Which::All, a),
-        cli::ExperimentCmd::Tradeoffs(_) => bail!("tradeoffs is not a paper experiment"),
-    };
-    Ok(cdvol::experiment::paper::Job {
-        which,
-        out: a.out.clone(),
-        opts: cdvol::experiment::paper::PaperOptions {
-            dir: a.out.parent().unwrap_or(Path::new(".")).join("experiments"),
-            ns: a.ns.clone(),
-            size: a.size,
-            rays: a.rays,
-            runs: a.runs,
-            ct: a.ct.clone(),
-        },
-    })
-}
-
-fn tradeoffs_cmd(a: &cli::TradeoffsArgs, progress: &dyn Progress) -> Result<()> {
-    let o = cdvol::experiment::TradeoffOptions {
-        out: a.out.clone(),
-        ct: a.ct.clone(),
-        size: a.size,
-        runs: a.runs,
-    };
-    let rows = cdvol::experiment::tradeoffs(&o, progress)?;
-    println!(
-        "{} settings measured; wrote {}",
-        rows.len(),
-        a.out.display()
-    );
     Ok(())
 }
 
@@ -464,32 +407,10 @@ fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<()> {
     cdvol::render::write_atomic(p, &bytes).map_err(anyhow::Error::msg)
 }
 
-/// Prep options from the command line.
-fn prep_options(a: cli::PrepSettings) -> Result<PrepOptions> {
-    let classification = match (a.iso, &a.classify_tf) {
-        (Some(iso), None) => {
-            if !iso.is_finite() {
-                bail!("option --iso: {iso}, expected a finite number");
-            }
-            Classification::Iso { iso }
-        }
-        (None, Some(tf)) => Classification::TransferFunction {
-            tf: TransferFunction::load(tf)?,
-        },
-        _ => bail!("prep needs --iso T or --classify-tf FILE to decide which cells are objects"),
-    };
-    Ok(PrepOptions {
-        classification,
-        brick_size: a.brick,
-        zstd_level: a.zstd_level,
-        aniso: a.aniso,
-        dda: a.dda,
-        temp_dir: a.temp_dir,
-    })
-}
-
+/// `cdvol prep-batch`: prepares every input, prints a table, writes the
+/// summary JSON; fails when any input failed.
 fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
-    let opts = prep_options(a.settings)?;
+    let opts = a.settings.to_options()?;
     let inputs = cdvol::batch::find_inputs(&a.input)?;
     if inputs.is_empty() {
         bail!(
@@ -497,7 +418,7 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
             a.input.display()
         );
     }
-    let shard = a.shard.map(|s| (s.k, s.n)).unwrap_or((0, 1));
+    let shard = a.shard();
     let total = inputs
         .iter()
         .enumerate()
@@ -519,8 +440,7 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
                 .unwrap_or_default()
         ));
         progress.advance(1);
-    })
-    .map_err(anyhow::Error::msg)?;
+    })?;
     progress.end();
     println!("| input | dims | slices | rectilinear | seconds | output MiB | status |");
     println!("|---|---|---|---|---|---|---|");
@@ -545,10 +465,7 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
             r.status
         );
     }
-    let summary = a.output.join(match a.shard {
-        Some(s) => format!("batch.{}of{}.json", s.k, s.n),
-        None => "batch.json".into(),
-    });
+    let summary = a.summary_path();
     write_json(&summary, &rows)?;
     println!("wrote {}", summary.display());
     let failed = rows.iter().filter(|r| r.status == "failed").count();
@@ -562,17 +479,8 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
     Ok(())
 }
 
-fn prep_file(
-    input: &Path,
-    output: &Path,
-    opts: &PrepOptions,
-    progress: &dyn Progress,
-) -> Result<PrepReport> {
-    let src = cdvol::input::open(input)?;
-    Ok(prep(src.as_ref(), output, opts, progress)?)
-}
-
-fn print_prep(output: &Path, r: &PrepReport) -> Result<()> {
+/// Prints what prep wrote and how long each stage took.
+pub(crate) fn print_prep(output: &Path, r: &PrepReport) -> Result<()> {
     let s = &r.header.summary;
     let mb = s.input_bytes as f64 / 1048576.0;
     println!(
@@ -595,157 +503,6 @@ fn print_prep(output: &Path, r: &PrepReport) -> Result<()> {
         "stages (s): read {:.2}, classify+forward DT {:.2}, backward DT {:.2}, \
          re-read+embed {:.2}, bricks+zstd {:.2}, write {:.2}",
         t.read1, t.classify_forward, t.backward, t.embed, t.compress, t.write
-    );
-    Ok(())
-}
-
-fn demo(dir: &Path, progress: &dyn Progress) -> Result<()> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("{}: cannot create demo directory", dir.display()))?;
-    // The CT-like head: variable slice thickness, bone at 300 HU.
-    let head = dir.join("head.json");
-    let ct = phantom::ct(
-        &head,
-        &phantom::CtOptions {
-            dims: [256, 256, 160],
-            dtype: phantom::CtDtype::I16,
-            seed: 1,
-            ..Default::default()
-        },
-        progress,
-    )?;
-    println!(
-        "phantom   {} ({:.1} MiB)",
-        ct.raw_path.display(),
-        ct.bytes as f64 / 1048576.0
-    );
-    let head_packed = dir.join("head.cdv");
-    let r = prep_file(
-        &head,
-        &head_packed,
-        &PrepOptions::new(Classification::Iso { iso: 300.0 }),
-        progress,
-    )?;
-    print_prep(&head_packed, &r)?;
-    // A sphere scene of the paper's section 5.1 (N = 5).
-    let scene = dir.join("spheres.json");
-    let sp = phantom::spheres(
-        &scene,
-        &phantom::SpheresOptions {
-            size: 128,
-            per_axis: 5,
-            seed: 1,
-            spacing: phantom::parse_spacing3("1").map_err(anyhow::Error::msg)?,
-        },
-        progress,
-    )?;
-    let scene_packed = dir.join("spheres.cdv");
-    let r = prep_file(
-        &scene,
-        &scene_packed,
-        &PrepOptions::new(Classification::Iso { iso: sp.iso }),
-        progress,
-    )?;
-    print_prep(&scene_packed, &r)?;
-    println!();
-    let vol = PackedVolume::open(&head_packed)?;
-    print!("{}", Info::of(&vol).to_text());
-    println!();
-
-    // Renders of the head: shaded bone with shadows, the traversal cost
-    // map, and a composite of skin and bone from a transfer-function prep.
-    let grid = TGrid::<f64>::new(&vol.header().axes);
-    let camera = Camera::orbit(grid.bounds(), 35.0, 15.0, None, None, 768, 768)
-        .map_err(anyhow::Error::msg)?;
-    let mut outputs = Vec::new();
-    let mut show = |name: &str, vol: &PackedVolume, mode: Mode| -> Result<()> {
-        let opts = RenderOptions {
-            mode,
-            method: Method::Cd { min_leap: 1 },
-            tile: 32,
-            cache_bytes: 512 << 20,
-            cd_lazy_min: cdvol::render::cache::LAZY_MIN_CODE_CD,
-            precision: Precision::F64,
-            hit_params: HitParams::default(),
-        };
-        let (frame, stats) = render(vol, &camera, &opts, progress)?;
-        let path = dir.join(format!("{name}.png"));
-        cdvol::render::save(&frame, &path).map_err(anyhow::Error::msg)?;
-        println!(
-            "render    {} ({} rays, {:.1} steps per ray, {} of {} bricks read, {:.2} s)",
-            path.display(),
-            stats.rays,
-            stats.steps as f64 / stats.rays.max(1) as f64,
-            stats.bricks_distinct,
-            stats.bricks_total,
-            stats.seconds_total
-        );
-        outputs.push(path);
-        Ok(())
-    };
-    show(
-        "head-surface",
-        &vol,
-        Mode::Surface {
-            hit: HitMethod::Newton,
-            shadows: true,
-        },
-    )?;
-    show("head-cost", &vol, Mode::Cost)?;
-    let tf = TransferFunction {
-        points: vec![
-            TfPoint {
-                value: -300.0,
-                opacity: 0.0,
-                color: [0.9, 0.6, 0.5],
-            },
-            TfPoint {
-                value: -100.0,
-                opacity: 0.02,
-                color: [0.9, 0.6, 0.5],
-            },
-            TfPoint {
-                value: 100.0,
-                opacity: 0.02,
-                color: [0.9, 0.7, 0.6],
-            },
-            TfPoint {
-                value: 300.0,
-                opacity: 0.0,
-                color: [1.0, 1.0, 0.9],
-            },
-            TfPoint {
-                value: 600.0,
-                opacity: 0.08,
-                color: [1.0, 1.0, 0.95],
-            },
-        ],
-    };
-    let tf_path = dir.join("head-tf.json");
-    std::fs::write(&tf_path, serde_json::to_vec_pretty(&tf)?)
-        .with_context(|| format!("{}: cannot write", tf_path.display()))?;
-    let tf_packed = dir.join("head-tf.cdv");
-    let opts = PrepOptions::new(Classification::TransferFunction { tf: tf.clone() });
-    let r = prep_file(&head, &tf_packed, &opts, progress)?;
-    print_prep(&tf_packed, &r)?;
-    let tf_vol = PackedVolume::open(&tf_packed)?;
-    show(
-        "head-composite",
-        &tf_vol,
-        Mode::Composite { tf, step_mm: 0.5 },
-    )?;
-    println!();
-    println!(
-        "Images: {}",
-        outputs
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    println!(
-        "Try: cdvol render {} -o view.png --view 120,30 --shadows",
-        head_packed.display()
     );
     Ok(())
 }

@@ -50,6 +50,27 @@ impl PrepOptions {
             temp_dir: None,
         }
     }
+
+    /// Checks the ranges [`prep`] needs before it reads anything:
+    /// `brick_size` a multiple of 4 in 4..=1024, `zstd_level` in -7..=22.
+    pub fn check(&self) -> Result<(), PrepError> {
+        let b = self.brick_size;
+        if !(4..=1024).contains(&b) || !b.is_multiple_of(ANISO_BLOCK) {
+            return Err(PrepError::Option {
+                field: "brick_size",
+                value: b.to_string(),
+                msg: format!("expected a multiple of {ANISO_BLOCK} in 4..=1024"),
+            });
+        }
+        if !(-7..=22).contains(&self.zstd_level) {
+            return Err(PrepError::Option {
+                field: "zstd_level",
+                value: self.zstd_level.to_string(),
+                msg: "expected -7..=22".into(),
+            });
+        }
+        Ok(())
+    }
 }
 
 /// What prep did.
@@ -94,8 +115,14 @@ pub enum PrepError {
         what: &'static str,
         source: std::io::Error,
     },
-    #[error("option {option}: {msg}")]
-    Option { option: &'static str, msg: String },
+    /// A [`PrepOptions`] field is out of range: the field, its value, and
+    /// what was expected.
+    #[error("{field} {value}: {msg}")]
+    Option {
+        field: &'static str,
+        value: String,
+        msg: String,
+    },
 }
 
 /// Prepares `src` into the packed file `out`.
@@ -106,19 +133,8 @@ pub fn prep(
     progress: &dyn Progress,
 ) -> Result<PrepReport, PrepError> {
     let t0 = Instant::now();
+    opts.check()?;
     let b = opts.brick_size;
-    if !(4..=1024).contains(&b) || !b.is_multiple_of(ANISO_BLOCK) {
-        return Err(PrepError::Option {
-            option: "--brick",
-            msg: format!("{b}, expected a multiple of {ANISO_BLOCK} in 4..=1024"),
-        });
-    }
-    if !(-7..=22).contains(&opts.zstd_level) {
-        return Err(PrepError::Option {
-            option: "--zstd-level",
-            msg: format!("{}, expected -7..=22", opts.zstd_level),
-        });
-    }
     let meta = src.meta().clone();
     let [nx, ny, nz] = meta.dims();
     let [ncx, ncy, ncz] = meta.grid.cells();
@@ -240,9 +256,11 @@ pub fn prep(
     };
     if header.max_payload_len() > crate::format::MAX_PAYLOAD_LEN {
         return Err(PrepError::Option {
-            option: "--brick",
+            field: "brick_size",
+            value: b.to_string(),
             msg: format!(
-                "{b} gives bricks of {} bytes of {} words, expected at most {}; use a smaller brick",
+                "gives bricks of {} bytes of {} words, expected at most {}; \
+                 use a smaller brick_size",
                 header.max_payload_len(),
                 storage.name(),
                 crate::format::MAX_PAYLOAD_LEN

@@ -49,7 +49,6 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
 use cdvol::classify::{Classification, TfPoint, TransferFunction};
-use cdvol::corpus::{self, MemVolume};
 use cdvol::export::{export, ExportWhat};
 use cdvol::format::reader::{BrickData, PackedVolume};
 use cdvol::format::word::Word;
@@ -63,6 +62,7 @@ use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::{Method, Ray, TGrid, Visit};
 use cdvol::render::{render, Mode, RenderError, RenderOptions};
+use cdvol::tools::corpus::{self, MemVolume};
 use proptest::prelude::*;
 use proptest::sample::Index;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};

@@ -10,7 +10,7 @@
 //! slice at a time, when prep asks for it.
 //!
 //! Refused, naming the file and the tag: files that start like DICOM but
-//! do not parse; several series without `--series`; slices that disagree
+//! do not parse; several series and none chosen; slices that disagree
 //! with the first on Rows, Columns, PixelSpacing, ImageOrientationPatient,
 //! BitsAllocated, PixelRepresentation or the rescale; a stack whose slices
 //! are displaced off their normal (gantry tilt: it would need resampling);
@@ -235,31 +235,22 @@ pub fn open_files(
             "directory",
             "no DICOM image slices found (files with the DICM magic and an ImagePositionPatient)",
         )),
-        (_, Some(uid)) => by_series.remove(uid).ok_or_else(|| {
-            err(
-                dir,
-                "SeriesInstanceUID",
-                format!(
-                    "--series {uid} is not here; the series are: {}",
-                    by_series.keys().cloned().collect::<Vec<_>>().join(", ")
-                ),
-            )
-        })?,
+        (_, Some(uid)) => by_series
+            .remove(uid)
+            .ok_or_else(|| InputError::NoSuchSeries {
+                path: dir.to_path_buf(),
+                uid: uid.to_string(),
+                available: by_series.keys().cloned().collect(),
+            })?,
         (1, None) => by_series.into_values().next().expect("one"),
         (_, None) => {
-            let list: Vec<String> = by_series
-                .iter()
-                .map(|(k, v)| format!("{k} ({} slices)", v.len()))
-                .collect();
-            return Err(err(
-                dir,
-                "SeriesInstanceUID",
-                format!(
-                    "{} series in one directory: {}; pick one with --series UID",
-                    list.len(),
-                    list.join(", ")
-                ),
-            ));
+            return Err(InputError::SeveralSeries {
+                path: dir.to_path_buf(),
+                series: by_series
+                    .iter()
+                    .map(|(k, v)| format!("{k} ({} slices)", v.len()))
+                    .collect(),
+            });
         }
     };
     let first = slices[0].clone();

@@ -244,6 +244,30 @@ pub enum InputError {
         what: &'static str,
         source: std::io::Error,
     },
+    /// The DICOM series asked for (by SeriesInstanceUID) is not in the
+    /// directory.
+    #[error(
+        "{}: SeriesInstanceUID {uid} is not here; the series are: {}",
+        path.display(),
+        available.join(", ")
+    )]
+    NoSuchSeries {
+        path: PathBuf,
+        uid: String,
+        available: Vec<String>,
+    },
+    /// A directory holds several DICOM series and none was chosen.
+    #[error(
+        "{}: {} series in one directory: {}; choose one by its SeriesInstanceUID",
+        path.display(),
+        series.len(),
+        series.join(", ")
+    )]
+    SeveralSeries {
+        path: PathBuf,
+        /// `UID (N slices)` for each series.
+        series: Vec<String>,
+    },
 }
 
 impl InputError {

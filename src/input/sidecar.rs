@@ -314,7 +314,7 @@ fn parse_axis(
             .collect()
     };
     let axis_err =
-        |field: &str, p: crate::grid::AxisProblem| InputError::field(path, field, p.to_string());
+        |field: &str, p: crate::grid::AxisError| InputError::field(path, field, p.to_string());
     match v {
         Value::Number(_) => {
             let s = v.as_f64().unwrap_or(f64::NAN);

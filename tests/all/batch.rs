@@ -10,8 +10,8 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use cdvol::format::reader::PackedVolume;
-use cdvol::phantom;
 use cdvol::progress::NoProgress;
+use cdvol::tools::phantom;
 
 /// IN/ with a raw sidecar, a gzip NRRD, a DICOM series, a broken sidecar
 /// and JSON that is not a volume.

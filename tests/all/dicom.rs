@@ -119,7 +119,7 @@ fn broken_series_are_refused_by_file_and_tag() {
             &one(k, other, NY, [10.0, -5.0, z_positions()[k]], EXPLICIT_LE),
         );
     }
-    refused(&p, None, &["2 series", SERIES, other, "--series"]);
+    refused(&p, None, &["2 series", SERIES, other, "SeriesInstanceUID"]);
     assert_eq!(
         open_dir(&p, Some(SERIES)).unwrap().meta().grid.dims(),
         [NX, NY, 20]
@@ -128,7 +128,7 @@ fn broken_series_are_refused_by_file_and_tag() {
         open_dir(&p, Some(other)).unwrap().meta().grid.dims(),
         [NX, NY, 3]
     );
-    refused(&p, Some("9.9.9"), &["--series 9.9.9", SERIES]);
+    refused(&p, Some("9.9.9"), &["SeriesInstanceUID 9.9.9", SERIES]);
 
     // A truncated file.
     let (p, files) = fresh("cut");

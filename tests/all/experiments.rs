@@ -5,8 +5,8 @@
 
 use crate::common;
 
-use cdvol::experiment::paper::{name, run, sweep_methods, Job, PaperOptions, Which};
 use cdvol::progress::NoProgress;
+use cdvol::tools::experiment::paper::{name, run, sweep_methods, Job, PaperOptions, Which};
 
 #[test]
 fn all_experiments_write_their_sections_and_files() {

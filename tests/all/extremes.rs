@@ -23,9 +23,9 @@
 //! it differs from f64 is counted and printed (and measured in
 //! docs/TRADEOFFS.md).
 
-use cdvol::corpus::{self, MemVolume, Walked};
 use cdvol::grid::{Axis, MAX_SAMPLES_PER_AXIS};
 use cdvol::render::traverse::{trace, Flow, Method, Ray, RayError, TGrid};
+use cdvol::tools::corpus::{self, MemVolume, Walked};
 use num_bigint::BigInt;
 use num_rational::BigRational;
 use num_traits::{Signed, ToPrimitive, Zero};

@@ -8,13 +8,13 @@
 use crate::common::{self, orbit, packed_with};
 
 use cdvol::format::reader::PackedVolume;
-use cdvol::phantom;
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::template::render_template;
 use cdvol::render::traverse::{DistKind, Method};
 use cdvol::render::{render, Frame, Mode, RenderError, RenderOptions};
+use cdvol::tools::phantom;
 
 fn opts(mode: Mode, method: Method) -> RenderOptions {
     common::test_opts(mode, method)

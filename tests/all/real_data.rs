@@ -73,13 +73,13 @@ fn real_ct_bone_and_skin() {
 fn phantoms_prepare_and_read_back() {
     let dir = tempfile::tempdir().unwrap();
     let head = dir.path().join("head.json");
-    let opts = cdvol::phantom::CtOptions {
+    let opts = cdvol::tools::phantom::CtOptions {
         dims: [96, 88, 60],
-        dtype: cdvol::phantom::CtDtype::U16,
+        dtype: cdvol::tools::phantom::CtDtype::U16,
         seed: 3,
         ..Default::default()
     };
-    cdvol::phantom::ct(&head, &opts, &NoProgress).unwrap();
+    cdvol::tools::phantom::ct(&head, &opts, &NoProgress).unwrap();
     let vol = prep_and_check(&head, &dir.path().join("head.cdv"), 300.0, false);
     assert!(
         !vol.header().axes[2].is_uniform(),
@@ -88,13 +88,13 @@ fn phantoms_prepare_and_read_back() {
 
     for spacing in ["1", "0.8,1,0.5:2"] {
         let scene = dir.path().join("scene.json");
-        let sopts = cdvol::phantom::SpheresOptions {
+        let sopts = cdvol::tools::phantom::SpheresOptions {
             size: 48,
             per_axis: 3,
             seed: 7,
-            spacing: cdvol::phantom::parse_spacing3(spacing).unwrap(),
+            spacing: cdvol::tools::phantom::parse_spacing3(spacing).unwrap(),
         };
-        let info = cdvol::phantom::spheres(&scene, &sopts, &NoProgress).unwrap();
+        let info = cdvol::tools::phantom::spheres(&scene, &sopts, &NoProgress).unwrap();
         assert_eq!(info.spheres.len(), 27);
         prep_and_check(&scene, &dir.path().join("scene.cdv"), info.iso, true);
     }
@@ -246,6 +246,6 @@ fn real_ct_as_dicom_nrrd_and_nifti() {
         }
     };
     refused("dup", &["the same position as", "ImagePositionPatient"]);
-    refused("mixed", &["2 series", "--series"]);
+    refused("mixed", &["2 series", "SeriesInstanceUID"]);
     refused("truncated", &["not a readable DICOM file"]);
 }

@@ -7,13 +7,13 @@ use crate::common::{self, orbit, packed, packed_with, same_frame, white_tf};
 use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use cdvol::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::Method;
 use cdvol::render::{render, render_in, Frame, Mode, RenderOptions, Stats};
+use cdvol::tools::phantom;
 
 fn run(vol: &PackedVolume, c: &Camera, mode: &Mode, method: Method) -> (Frame, Stats) {
     let o = common::test_opts(mode.clone(), method);

@@ -10,7 +10,6 @@ use std::process::Command;
 use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
-use cdvol::phantom;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
@@ -18,6 +17,7 @@ use cdvol::render::shade::HitMethod;
 use cdvol::render::shard::{assemble, Part};
 use cdvol::render::traverse::Method;
 use cdvol::render::{render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats};
+use cdvol::tools::phantom;
 use proptest::prelude::*;
 
 use crate::common::{cdvol, fails, ok, orbit, packed, same_frame};

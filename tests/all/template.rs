@@ -6,10 +6,8 @@ use crate::common::{self, orbit, packed};
 
 use std::path::Path;
 
-use cdvol::corpus::MemVolume;
 use cdvol::format::reader::PackedVolume;
 use cdvol::grid::Axis;
-use cdvol::phantom;
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::{Camera, Projection};
 use cdvol::render::shade::HitMethod;
@@ -18,6 +16,8 @@ use cdvol::render::template::{
 };
 use cdvol::render::traverse::{trace, Flow, Method, Ray, TGrid};
 use cdvol::render::{render, Frame, Mode, RenderError, RenderOptions, Stats};
+use cdvol::tools::corpus::MemVolume;
+use cdvol::tools::phantom;
 use proptest::prelude::*;
 use proptest::strategy::ValueTree;
 

@@ -184,32 +184,58 @@ pub fn walk_from<T: Real>(
     }
 }
 
+/// Which invariant of [`check_walk`] a walk broke, with the visit at fault.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WalkError {
+    /// More steps than [`MemVolume::step_bound`].
+    #[error("{steps} steps > bound {bound}")]
+    TooManySteps { steps: u64, bound: u64 },
+    /// A visit of a cell that is not a 1-cell.
+    #[error("visited a 0-cell {cell:?}")]
+    ZeroCell { cell: [u32; 3] },
+    /// `t_enter` or `t_exit` is NaN or infinite.
+    #[error("non-finite t in {visit:?}")]
+    NonFinite { visit: Visit },
+    /// `t_enter >= t_exit`.
+    #[error("empty visit {visit:?}")]
+    Empty { visit: Visit },
+    /// The visit starts before the previous one ended.
+    #[error("t went back at {visit:?} (after {prev})")]
+    WentBack { visit: Visit, prev: f64 },
+    /// The visit starts before `t_min`.
+    #[error("{visit:?} before t_min {t_min}")]
+    BeforeTMin { visit: Visit, t_min: f64 },
+}
+
 /// The invariants every walk keeps, in any arithmetic: at most
 /// [`MemVolume::step_bound`] steps; every visit a 1-cell with finite
 /// `t_enter < t_exit`; visits never going back in `t`; and, where given,
 /// none before `t_min` (f32 walks round `t_min`, so tests pass `None`).
-pub fn check_walk(vol: &MemVolume, w: &Walked, t_min: Option<f64>) -> Result<(), String> {
+pub fn check_walk(vol: &MemVolume, w: &Walked, t_min: Option<f64>) -> Result<(), WalkError> {
     if w.steps > vol.step_bound() {
-        return Err(format!("{} steps > bound {}", w.steps, vol.step_bound()));
+        return Err(WalkError::TooManySteps {
+            steps: w.steps,
+            bound: vol.step_bound(),
+        });
     }
     let mut prev = f64::NEG_INFINITY;
-    for v in &w.visits {
-        if !vol.is_object(v.cell) {
-            return Err(format!("visited a 0-cell {:?}", v.cell));
+    for &visit in &w.visits {
+        if !vol.is_object(visit.cell) {
+            return Err(WalkError::ZeroCell { cell: visit.cell });
         }
-        if !(v.t_enter.is_finite() && v.t_exit.is_finite()) {
-            return Err(format!("non-finite t in {v:?}"));
+        if !(visit.t_enter.is_finite() && visit.t_exit.is_finite()) {
+            return Err(WalkError::NonFinite { visit });
         }
-        if !(v.t_enter < v.t_exit) {
-            return Err(format!("empty visit {v:?}"));
+        if !(visit.t_enter < visit.t_exit) {
+            return Err(WalkError::Empty { visit });
         }
-        if v.t_enter < prev {
-            return Err(format!("t went back at {v:?} (after {prev})"));
+        if visit.t_enter < prev {
+            return Err(WalkError::WentBack { visit, prev });
         }
-        if t_min.is_some_and(|t| v.t_enter < t) {
-            return Err(format!("{v:?} before t_min {t_min:?}"));
+        if let Some(t_min) = t_min.filter(|&t| visit.t_enter < t) {
+            return Err(WalkError::BeforeTMin { visit, t_min });
         }
-        prev = v.t_exit;
+        prev = visit.t_exit;
     }
     Ok(())
 }

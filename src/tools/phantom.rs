@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use tempfile::NamedTempFile;
 
-use crate::grid::{Axis, MAX_SAMPLES_PER_AXIS};
+use crate::grid::{Axis, AxisError, MAX_SAMPLES_PER_AXIS};
 use crate::input::sidecar::{AxisSpec, SidecarOut};
 use crate::input::{Endian, Rescale};
 use crate::progress::Progress;
@@ -86,6 +86,26 @@ impl PhantomError {
     }
 }
 
+/// Why a spacing spec (`"0.5"`, `"0.5:2"`, `"1,1,0.5:2"`) is refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SpacingError {
+    /// A part is not a positive number of mm.
+    #[error(
+        "{spec:?}: {part:?} is not a spacing; expected a number of mm > 0, \
+         or A:B for a gap varying linearly from A to B"
+    )]
+    NotASpacing { spec: String, part: String },
+    /// Neither one spec nor three.
+    #[error("{spec:?}: {count} specs, expected one for all axes or three (X,Y,Z)")]
+    Count { spec: String, count: usize },
+    /// A gap of a [`SpacingSpec`] built in code is not finite and > 0.
+    #[error("{spec:?}, expected finite gaps > 0 mm")]
+    BadGap { spec: SpacingSpec },
+    /// The positions the spec gives are not a valid axis.
+    #[error(transparent)]
+    Axis(#[from] AxisError),
+}
+
 // ---------------------------------------------------------------------------
 // Sphere scenes (paper section 5.1)
 // ---------------------------------------------------------------------------
@@ -103,15 +123,15 @@ pub enum SpacingSpec {
 
 impl SpacingSpec {
     /// Parses `"0.5"` (uniform) or `"0.5:2"` (linear from 0.5 to 2 mm).
-    pub fn parse(s: &str) -> Result<SpacingSpec, String> {
-        let num = |p: &str| -> Result<f64, String> {
+    pub fn parse(s: &str) -> Result<SpacingSpec, SpacingError> {
+        let num = |p: &str| -> Result<f64, SpacingError> {
             let p = p.trim();
             match p.parse::<f64>() {
                 Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-                _ => Err(format!(
-                    "{s:?}: {p:?} is not a spacing; expected a number of mm > 0, \
-                     or A:B for a gap varying linearly from A to B"
-                )),
+                _ => Err(SpacingError::NotASpacing {
+                    spec: s.to_string(),
+                    part: p.to_string(),
+                }),
             }
         };
         match s.split_once(':') {
@@ -129,20 +149,20 @@ impl SpacingSpec {
         }
     }
 
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpacingError> {
         let ok = |v: f64| v.is_finite() && v > 0.0;
         match *self {
             SpacingSpec::Uniform(s) if ok(s) => Ok(()),
             SpacingSpec::Linear(a, b) if ok(a) && ok(b) => Ok(()),
-            other => Err(format!("{other:?}, expected finite gaps > 0 mm")),
+            spec => Err(SpacingError::BadGap { spec }),
         }
     }
 
     /// The axis of `n` samples starting at 0 mm, and how a sidecar writes it.
-    fn axis(&self, n: usize) -> Result<(Axis, AxisSpec), String> {
+    fn axis(&self, n: usize) -> Result<(Axis, AxisSpec), SpacingError> {
         match *self {
             SpacingSpec::Uniform(s) => {
-                let axis = Axis::uniform(0.0, s, n).map_err(|p| p.to_string())?;
+                let axis = Axis::uniform(0.0, s, n)?;
                 Ok((axis, AxisSpec::Uniform(s)))
             }
             SpacingSpec::Linear(..) => {
@@ -153,7 +173,7 @@ impl SpacingSpec {
                     c += self.gap(i, n);
                     coords.push(c);
                 }
-                let axis = Axis::from_coords(coords.clone()).map_err(|p| p.to_string())?;
+                let axis = Axis::from_coords(coords.clone())?;
                 Ok((axis, AxisSpec::Positions { positions: coords }))
             }
         }
@@ -162,7 +182,7 @@ impl SpacingSpec {
 
 /// Parses `"1"` (one spec for all three axes) or `"1,1,0.5:2"` (x, y, z);
 /// each spec as in [`SpacingSpec::parse`].
-pub fn parse_spacing3(s: &str) -> Result<[SpacingSpec; 3], String> {
+pub fn parse_spacing3(s: &str) -> Result<[SpacingSpec; 3], SpacingError> {
     let parts: Vec<&str> = s.split(',').collect();
     match parts.as_slice() {
         [one] => Ok([SpacingSpec::parse(one)?; 3]),
@@ -171,10 +191,10 @@ pub fn parse_spacing3(s: &str) -> Result<[SpacingSpec; 3], String> {
             SpacingSpec::parse(y)?,
             SpacingSpec::parse(z)?,
         ]),
-        _ => Err(format!(
-            "{s:?}: {} specs, expected one for all axes or three (X,Y,Z)",
-            parts.len()
-        )),
+        _ => Err(SpacingError::Count {
+            spec: s.to_string(),
+            count: parts.len(),
+        }),
     }
 }
 
@@ -742,7 +762,7 @@ pub fn ct(
     check_slice_size("dims", dims, sample_bytes)?;
     if !(opts.z_scale.is_finite() && opts.z_scale > 0.0) {
         return Err(PhantomError::option(
-            "z-scale",
+            "z_scale",
             format!("{}, expected a positive finite factor", opts.z_scale),
         ));
     }
@@ -1338,7 +1358,8 @@ mod tests {
         );
         assert_eq!(parse_spacing3("2"), Ok([SpacingSpec::Uniform(2.0); 3]));
         let e = parse_spacing3("1,2").unwrap_err();
-        assert!(e.contains("three"), "{e}");
+        assert!(matches!(e, SpacingError::Count { count: 2, .. }), "{e}");
+        assert!(e.to_string().contains("three"), "{e}");
     }
 
     #[test]
@@ -1494,7 +1515,7 @@ mod tests {
                 ..CtOptions::default()
             };
             let e = ct(&side, &opts, &NoProgress).unwrap_err().to_string();
-            assert!(e.contains("option z-scale"), "{z_scale}: {e}");
+            assert!(e.contains("option z_scale"), "{z_scale}: {e}");
         }
         // The scale multiplies the written positions.
         let scaled_dir = tempfile::tempdir().unwrap();

@@ -15,16 +15,16 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::classify::{Classification, TfPoint, TransferFunction};
-use crate::corpus::{self, MemVolume};
 use crate::format::reader::PackedVolume;
 use crate::input::raw::RawSource;
-use crate::phantom;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::{NoProgress, Progress};
 use crate::render::camera::Camera;
 use crate::render::shade::{HitMethod, HitParams};
 use crate::render::traverse::{Method, Ray, TGrid};
 use crate::render::{render, Frame, Mode, Precision, RenderOptions};
+use crate::tools::corpus::{self, MemVolume};
+use crate::tools::phantom;
 
 /// Options of [`tradeoffs`].
 #[derive(Debug, Clone)]
@@ -108,10 +108,10 @@ struct Dataset {
 
 /// Runs the experiment and writes the report; returns the rows.
 pub fn tradeoffs(o: &TradeoffOptions, progress: &dyn Progress) -> anyhow::Result<Vec<Row>> {
-    anyhow::ensure!(o.runs >= 1, "--runs: 0, expected at least 1");
+    anyhow::ensure!(o.runs >= 1, "runs 0: expected at least 1");
     anyhow::ensure!(
         (16..=4096).contains(&o.size),
-        "--size: {}, expected 16..=4096 pixels",
+        "size {}: expected 16..=4096 pixels",
         o.size
     );
     let work = tempfile::tempdir()?;
@@ -126,7 +126,7 @@ pub fn tradeoffs(o: &TradeoffOptions, progress: &dyn Progress) -> anyhow::Result
             size: 128,
             per_axis: 5,
             seed: 7,
-            spacing: phantom::parse_spacing3("1,1,0.8:2").map_err(anyhow::Error::msg)?,
+            spacing: phantom::parse_spacing3("1,1,0.8:2")?,
         },
         &NoProgress,
     )?;

@@ -18,7 +18,6 @@ use crate::classify::Classification;
 use crate::format::reader::PackedVolume;
 use crate::input::raw::RawSource;
 use crate::input::SliceSource;
-use crate::phantom;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::{NoProgress, Progress};
 use crate::render::cache::{Accessor, BrickCache, LAZY_MIN_CODE_CD, OBJECT};
@@ -27,6 +26,7 @@ use crate::render::policy::brick_policy;
 use crate::render::shade::{at, CellEval, HitMethod, HitParams};
 use crate::render::traverse::{trace, CodeSource, DistKind, Flow, Method, Ray, StepCounts, TGrid};
 use crate::render::{render, Mode, RenderOptions};
+use crate::tools::phantom;
 
 /// Options shared by the paper experiments.
 #[derive(Debug, Clone)]
@@ -87,7 +87,7 @@ fn scenes(o: &PaperOptions, tmp: &Path, pr: &dyn Progress) -> anyhow::Result<Vec
             size: o.size,
             per_axis: n,
             seed: 1,
-            spacing: phantom::parse_spacing3("1").map_err(anyhow::Error::msg)?,
+            spacing: phantom::parse_spacing3("1")?,
         };
         let info = phantom::spheres(&side, &so, &NoProgress)?;
         let src = RawSource::open(&side)?;
@@ -1361,7 +1361,8 @@ pub fn run(job: &Job, pr: &dyn Progress) -> anyhow::Result<PathBuf> {
     let need_ct = |what: &str| -> anyhow::Result<&Path> {
         o.ct.as_deref().ok_or_else(|| {
             anyhow::anyhow!(
-                "{what} renders the real CT: give --ct DIR/cranium.json (tools/fetch-ct.sh DIR)"
+                "{what} renders the real CT: ct is not set; expected its sidecar \
+                 (tools/fetch-ct.sh DIR writes DIR/cranium.json)"
             )
         })
     };
