@@ -457,14 +457,14 @@ where
     if ray.check().is_err() || !t_min.is_finite() {
         return counts;
     }
-    let m = ray.dir.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+    let m = ray.dir.to_array().iter().fold(0.0f64, |m, d| m.max(d.abs()));
     let p = if T::of(m).is_normal() && T::of(1.0 / m).is_normal() {
         1.0
     } else {
         pow2_scale(m)
     };
     // Mirror axes with negative components (-0.0 is not negative).
-    let mirror = ray.dir.map(|d| d < 0.0);
+    let mirror = ray.dir.to_array().map(|d| d < 0.0);
     let d: [T; 3] = std::array::from_fn(|k| T::of(ray.dir[k].abs() / p));
     let inv_d = d.map(|x| T::one() / x);
     let div = std::array::from_fn(|k| d[k] != T::zero() && !inv_d[k].is_finite());
