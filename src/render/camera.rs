@@ -213,7 +213,10 @@ mod tests {
         assert!(matches!(e, CameraError::TooFar { .. }), "{e}");
         assert!(e.to_string().contains("too far"), "{e}");
         let e = Camera::look_at([1e15, 0.0, 0.0], [0.0; 3], up, ortho(1.0), 8, 8).unwrap_err();
-        assert!(matches!(e, CameraError::FarPoint { what: "eye", .. }), "{e}");
+        assert!(
+            matches!(e, CameraError::FarPoint { what: "eye", .. }),
+            "{e}"
+        );
         // At the limits, every pixel's ray passes Ray::check.
         let c = Camera::look_at([4e14, 0.0, 0.0], [0.0; 3], up, ortho(1e14), 64, 48).unwrap();
         for (x, y) in [(0, 0), (63, 47), (31, 20)] {

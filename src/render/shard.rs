@@ -355,14 +355,13 @@ impl Part {
         }
         let jl = u64::from_le_bytes(body[8..16].try_into().expect("8 bytes"));
         let available = body.len() - 16;
-        let jl = usize::try_from(jl)
-            .ok()
-            .filter(|&l| l <= available)
-            .ok_or(PartError::HeaderLength {
+        let jl = usize::try_from(jl).ok().filter(|&l| l <= available).ok_or(
+            PartError::HeaderLength {
                 path: p(),
                 length: jl,
                 available,
-            })?;
+            },
+        )?;
         let h: PartHeader = serde_json::from_slice(&body[16..16 + jl])
             .map_err(|source| PartError::Header { path: p(), source })?;
         let mut rest = &body[16 + jl..];

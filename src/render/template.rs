@@ -155,11 +155,11 @@ use rayon::prelude::*;
 
 use super::cache::{self, Accessor, BrickCache, CacheCounters, OBJECT};
 use super::camera::{Camera, Projection};
-use super::shade::{self, at, find_hit_with, CellEval, HitMethod};
 use super::error::RenderError;
 use super::integrate::Px;
 use super::options::{check_mode, check_tol_and_size, Mode, RenderOptions, MAX_PIXELS};
 use super::output::{colour, Colouring, Frame};
+use super::shade::{self, at, find_hit_with, CellEval, HitMethod};
 use super::stats::Stats;
 use super::traverse::{trace, CodeSource, Flow, Method, Ray, StepCounts, TGrid, Visit};
 use crate::classify::Classification;

@@ -281,7 +281,6 @@ fn morton(x: u32, y: u32) -> u64 {
     spread(x) | (spread(y) << 1)
 }
 
-
 /// One tile's pixels and counters, as a rayon task returns them.
 struct TileOut {
     x0: u32,
@@ -324,4 +323,3 @@ fn render_tile<T: Real>(ctx: &Ctx<T>, cache: &BrickCache, x0: u32, y0: u32, ts: 
         error: acc.error.take(),
     }
 }
-

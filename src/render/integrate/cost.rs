@@ -9,7 +9,12 @@ use crate::render::shade::HitMethod;
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
 
 /// The steps of `ray`; `px.hit` says whether it found the surface.
-pub(super) fn cost<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor, px: &mut Px) -> StepCounts {
+pub(super) fn cost<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    acc: &mut Accessor,
+    px: &mut Px,
+) -> StepCounts {
     if ctx.iso.is_nan() {
         trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |_, _| Flow::Stop)
     } else {

@@ -457,7 +457,11 @@ where
     if ray.check().is_err() || !t_min.is_finite() {
         return counts;
     }
-    let m = ray.dir.to_array().iter().fold(0.0f64, |m, d| m.max(d.abs()));
+    let m = ray
+        .dir
+        .to_array()
+        .iter()
+        .fold(0.0f64, |m, d| m.max(d.abs()));
     let p = if T::of(m).is_normal() && T::of(1.0 / m).is_normal() {
         1.0
     } else {
