@@ -32,7 +32,11 @@ pub struct Stats {
     pub peak_cache_bytes: u64,
     pub bricks_total: u64,
     pub seconds_total: f64,
+    /// The traversal's stable name ([`Method::name`](super::traverse::Method::name):
+    /// `cd`, `cd min_leap=3`, `fvt`, `dda-chamfer no_switch`, ...; the
+    /// template renderer prefixes `template `).
     pub traversal: String,
+    /// [`Mode::name`](super::Mode::name).
     pub mode: String,
     pub width: u32,
     pub height: u32,
