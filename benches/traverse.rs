@@ -241,7 +241,7 @@ fn init(c: &mut Criterion) {
                 t_in = t_in.max(a.min(b));
                 t_out = t_out.min(a.max(b));
             }
-            let m = r.dir.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+            let m = r.dir.to_array().iter().fold(0.0f64, |m, d| m.max(d.abs()));
             let eps = 1e-3 / m;
             (t_out - t_in > 2.0 * eps).then_some((r, t_out - eps))
         })

@@ -5,6 +5,13 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use cdvol::classify::TransferFunction;
+use cdvol::render::camera::CameraError;
+use cdvol::render::job::{CameraSpec, JobError, RenderJob, View};
+use cdvol::render::shade::{HitMethod, HitParams};
+use cdvol::render::traverse::{DistKind, Method};
+use cdvol::render::{Mode, Precision, RenderError, RenderOptions, Shard, ShardLayout};
+
 #[derive(Parser, Debug)]
 #[command(
     name = "cdvol",
@@ -625,6 +632,165 @@ pub struct RenderArgs {
 pub enum ShardLayoutArg {
     Interleaved,
     Blocks,
+}
+
+impl From<HitArg> for HitMethod {
+    fn from(h: HitArg) -> HitMethod {
+        match h {
+            HitArg::Int => HitMethod::Int,
+            HitArg::Bisect => HitMethod::Bisect,
+            HitArg::Newton => HitMethod::Newton,
+            HitArg::Exact => HitMethod::Exact,
+        }
+    }
+}
+
+impl From<PrecisionArg> for Precision {
+    fn from(p: PrecisionArg) -> Precision {
+        match p {
+            PrecisionArg::F32 => Precision::F32,
+            PrecisionArg::F64 => Precision::F64,
+        }
+    }
+}
+
+impl From<ShardLayoutArg> for ShardLayout {
+    fn from(l: ShardLayoutArg) -> ShardLayout {
+        match l {
+            ShardLayoutArg::Interleaved => ShardLayout::Interleaved,
+            ShardLayoutArg::Blocks => ShardLayout::Blocks,
+        }
+    }
+}
+
+impl RenderArgs {
+    /// The mode, with the hit method, shadows and transfer function it
+    /// takes (the composite mode loads `--tf`).
+    pub fn mode(&self) -> anyhow::Result<Mode> {
+        let hit = self.hit.into();
+        Ok(match self.mode {
+            ModeArg::Surface => Mode::Surface {
+                hit,
+                shadows: self.shadows,
+            },
+            ModeArg::Mip => Mode::Mip,
+            ModeArg::Cost => Mode::Cost,
+            ModeArg::Depth => Mode::Depth { hit },
+            ModeArg::Composite => {
+                let tf = self
+                    .tf
+                    .as_ref()
+                    .ok_or_else(|| anyhow::anyhow!("--mode composite needs --tf FILE"))?;
+                Mode::Composite {
+                    tf: TransferFunction::load(tf)?,
+                    step_mm: self.step,
+                }
+            }
+        })
+    }
+
+    /// The traversal; `template` leaps like `cd` (its renderer is chosen
+    /// by [`RenderJob::template`]).
+    pub fn method(&self) -> Method {
+        let min_leap = self
+            .switch_fvt_at
+            .map_or(self.min_leap, |d| d.saturating_add(1));
+        let dda = |kind| Method::Dda {
+            kind,
+            switch_fvt: !self.no_switch_fvt,
+        };
+        match self.traversal {
+            TraversalArg::Fvt => Method::Fvt,
+            TraversalArg::Cd | TraversalArg::Template => Method::Cd { min_leap },
+            TraversalArg::CdAniso => Method::CdAniso { min_leap },
+            TraversalArg::Octree => Method::Octree,
+            TraversalArg::DdaCityblock => dda(DistKind::Cityblock),
+            TraversalArg::DdaChessboard => dda(DistKind::Chessboard),
+            TraversalArg::DdaChamfer => dda(DistKind::Chamfer),
+        }
+    }
+
+    /// The library's render job for these arguments.
+    pub fn job(&self) -> anyhow::Result<RenderJob> {
+        let view = match (self.eye, self.target, self.up) {
+            (Some(eye), Some(target), Some(up)) => View::LookAt { eye, target, up },
+            (None, None, None) => {
+                let [az_deg, el_deg] = self.view.unwrap_or([0.0, 0.0]);
+                View::Orbit { az_deg, el_deg }
+            }
+            _ => anyhow::bail!("--eye, --target and --up go together: give all three or none"),
+        };
+        Ok(RenderJob {
+            camera: CameraSpec {
+                view,
+                persp_fov_deg: self.persp.then_some(self.fov),
+                frame_mm: self.frame,
+                width: self.width,
+                height: self.height,
+            },
+            options: RenderOptions {
+                mode: self.mode()?,
+                method: self.method(),
+                tile: self.tile,
+                cache_bytes: self.cache_mb.saturating_mul(1 << 20),
+                cd_lazy_min: self.cd_lazy_min,
+                hit_params: HitParams {
+                    bisect_iters: self.bisect_iters,
+                    newton_iters: self.newton_iters,
+                    newton_tol: self.newton_tol,
+                },
+                precision: self.precision.into(),
+            },
+            template: self.traversal == TraversalArg::Template,
+            output: self.output.clone(),
+            stats: self.stats.clone(),
+            frames: self.frames,
+            orbit_deg: self.orbit,
+            shard: self.shard.map(|s| Shard {
+                layout: self.shard_layout.into(),
+                ..s
+            }),
+            threads: self.threads,
+        })
+    }
+}
+
+/// The `cdvol render` flag of a library field name, for error messages.
+fn render_flag(field: &str) -> Option<&'static str> {
+    Some(match field {
+        "tile" => "--tile",
+        "step_mm" => "--step",
+        "newton_tol" => "--newton-tol",
+        "width x height" => "--width/--height",
+        "shard" => "--shard",
+        _ => return None,
+    })
+}
+
+/// A render job's error as the CLI reports it: with the flag that set
+/// the bad value.
+pub fn render_error(e: JobError) -> anyhow::Error {
+    let flag = match &e {
+        JobError::Render(RenderError::Option { field, .. }) => render_flag(field),
+        JobError::NoFrames | JobError::TurntableLookAt { .. } => Some("--frames"),
+        JobError::TemplateShard => Some("--traversal template"),
+        JobError::PartName { .. } => Some("--shard"),
+        JobError::Camera(c) => Some(match c {
+            CameraError::FarPoint { what: "eye", .. } => "--eye",
+            CameraError::FarPoint { .. } => "--target",
+            CameraError::SamePoint { .. } => "--eye/--target/--view",
+            CameraError::UpParallel { .. } => "--up",
+            CameraError::EmptyImage { .. } => "--width/--height",
+            CameraError::Frame { .. } => "--frame",
+            CameraError::Fov { .. } => "--fov",
+            CameraError::TooFar { .. } => "--frame/--eye",
+        }),
+        _ => None,
+    };
+    match flag {
+        Some(f) => anyhow::Error::new(e).context(format!("option {f}")),
+        None => e.into(),
+    }
 }
 
 #[derive(Args, Debug)]

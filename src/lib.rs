@@ -38,6 +38,7 @@ pub mod classify;
 pub mod dt;
 pub mod export;
 pub mod format;
+pub mod fsutil;
 pub mod grid;
 pub mod info;
 pub mod input;

@@ -5,24 +5,19 @@ mod cli;
 mod demo;
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::ExitCode;
 use std::sync::Mutex;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use cdvol::classify::TransferFunction;
 use cdvol::export::export;
 use cdvol::format::reader::PackedVolume;
 use cdvol::info::Info;
 use cdvol::prep::{prep, PrepReport};
 use cdvol::progress::{NoProgress, Progress};
-use cdvol::render::camera::{Camera, Projection};
-use cdvol::render::shade::{HitMethod, HitParams};
-use cdvol::render::traverse::{DistKind, Method, TGrid};
-use cdvol::render::{render, render_part, Mode, Precision, RenderOptions, Stats};
 use cdvol::tools::phantom;
 use cli::{Cli, Command, PhantomCmd};
 
@@ -150,7 +145,10 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             );
         }
         Command::Render(a) => {
-            let (files, stats) = render_cmd(&a, progress)?;
+            let vol = PackedVolume::open(&a.file)?;
+            let job = a.job()?;
+            let (files, stats) =
+                cdvol::render::job::run(&vol, &job, progress).map_err(cli::render_error)?;
             for f in files {
                 println!("wrote {}", f.display());
             }
@@ -174,11 +172,9 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 .parts
                 .iter()
                 .map(|p| cdvol::render::shard::Part::read(p))
-                .collect::<Result<Vec<_>, _>>()
-                .map_err(anyhow::Error::msg)?;
-            let (frame, stats) =
-                cdvol::render::shard::assemble(&parts, &a.parts).map_err(anyhow::Error::msg)?;
-            for f in cdvol::render::save(&frame, &a.output).map_err(anyhow::Error::msg)? {
+                .collect::<Result<Vec<_>, _>>()?;
+            let (frame, stats) = cdvol::render::shard::assemble(&parts, &a.parts)?;
+            for f in cdvol::render::save(&frame, &a.output)? {
                 println!("wrote {}", f.display());
             }
             if let Some(p) = &a.stats {
@@ -202,209 +198,10 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
     Ok(())
 }
 
-fn render_cmd(
-    a: &cli::RenderArgs,
-    progress: &dyn Progress,
-) -> Result<(Vec<std::path::PathBuf>, Stats)> {
-    let vol = PackedVolume::open(&a.file)?;
-    let grid = TGrid::<f64>::new(&vol.header().axes);
-    let projection = if a.persp {
-        Projection::Persp { fov_deg: a.fov }
-    } else {
-        Projection::Ortho { frame_mm: 1.0 }
-    };
-    // The camera, turned by `az_turn` degrees of azimuth (turntables).
-    let camera_at = |az_turn: f64| -> Result<Camera> {
-        match (a.eye, a.target, a.up) {
-            (Some(eye), Some(target), Some(up)) => {
-                if a.frames > 1 {
-                    bail!("--frames orbits the volume: give --view AZ,EL, not --eye/--target/--up");
-                }
-                let projection = match projection {
-                    Projection::Ortho { .. } => {
-                        let (lo, hi) = grid.bounds();
-                        let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
-                        Projection::Ortho {
-                            frame_mm: a.frame.unwrap_or(diag * 1.02),
-                        }
-                    }
-                    p => p,
-                };
-                Camera::look_at(eye, target, up, projection, a.width, a.height)
-            }
-            (None, None, None) => {
-                let [az, el] = a.view.unwrap_or([0.0, 0.0]);
-                Camera::orbit(
-                    grid.bounds(),
-                    az + az_turn,
-                    el,
-                    a.persp.then_some(a.fov),
-                    a.frame,
-                    a.width,
-                    a.height,
-                )
-            }
-            _ => bail!("--eye, --target and --up go together: give all three or none"),
-        }
-        .map_err(|e| anyhow::anyhow!("camera: {e}"))
-    };
-    let camera = camera_at(0.0)?;
-    let hit = match a.hit {
-        cli::HitArg::Int => HitMethod::Int,
-        cli::HitArg::Bisect => HitMethod::Bisect,
-        cli::HitArg::Newton => HitMethod::Newton,
-        cli::HitArg::Exact => HitMethod::Exact,
-    };
-    let mode = match a.mode {
-        cli::ModeArg::Surface => Mode::Surface {
-            hit,
-            shadows: a.shadows,
-        },
-        cli::ModeArg::Mip => Mode::Mip,
-        cli::ModeArg::Cost => Mode::Cost,
-        cli::ModeArg::Depth => Mode::Depth { hit },
-        cli::ModeArg::Composite => {
-            let tf =
-                a.tf.as_ref()
-                    .ok_or_else(|| anyhow::anyhow!("--mode composite needs --tf FILE"))?;
-            Mode::Composite {
-                tf: TransferFunction::load(tf)?,
-                step_mm: a.step,
-            }
-        }
-    };
-    let min_leap = a.switch_fvt_at.map_or(a.min_leap, |d| d.saturating_add(1));
-    let dda = |kind| Method::Dda {
-        kind,
-        switch_fvt: !a.no_switch_fvt,
-    };
-    let method = match a.traversal {
-        cli::TraversalArg::Fvt => Method::Fvt,
-        cli::TraversalArg::Cd => Method::Cd { min_leap },
-        cli::TraversalArg::CdAniso => Method::CdAniso { min_leap },
-        cli::TraversalArg::Octree => Method::Octree,
-        cli::TraversalArg::DdaCityblock => dda(DistKind::Cityblock),
-        cli::TraversalArg::DdaChessboard => dda(DistKind::Chessboard),
-        cli::TraversalArg::DdaChamfer => dda(DistKind::Chamfer),
-        // Template-based CD (section 4.2.2): its own renderer, leaping
-        // like cd.
-        cli::TraversalArg::Template => Method::Cd { min_leap },
-    };
-    let template = a.traversal == cli::TraversalArg::Template;
-    if template && a.shard.is_some() {
-        bail!("--traversal template renders whole images: drop --shard");
-    }
-    let render = |vol: &PackedVolume, cam: &Camera, opts: &RenderOptions, pr: &dyn Progress| {
-        if template {
-            cdvol::render::template::render_template(vol, cam, opts, pr)
-        } else {
-            render(vol, cam, opts, pr)
-        }
-    };
-    let opts = RenderOptions {
-        mode,
-        method,
-        tile: a.tile,
-        cache_bytes: a.cache_mb.saturating_mul(1 << 20),
-        cd_lazy_min: a.cd_lazy_min,
-        hit_params: HitParams {
-            bisect_iters: a.bisect_iters,
-            newton_iters: a.newton_iters,
-            newton_tol: a.newton_tol,
-        },
-        precision: match a.precision {
-            cli::PrecisionArg::F32 => Precision::F32,
-            cli::PrecisionArg::F64 => Precision::F64,
-        },
-    };
-    if a.frames == 0 {
-        bail!("--frames 0, expected at least 1");
-    }
-    let work = || -> Result<(Vec<PathBuf>, Stats)> {
-        if a.frames > 1 {
-            // A turntable; --shard splits the frames.
-            let (mut files, mut total, mut per_frame) = (Vec::new(), Stats::default(), Vec::new());
-            // One cache for every frame: later frames reuse decoded bricks.
-            let cache = cdvol::render::policy::cache_for(&vol, &opts);
-            for f in 0..a.frames {
-                if a.shard.is_some_and(|s| f % s.n != s.k) {
-                    continue;
-                }
-                let cam = camera_at(a.orbit * f as f64 / a.frames as f64)?;
-                let (frame, stats) = if template {
-                    render(&vol, &cam, &opts, progress)?
-                } else {
-                    cdvol::render::render_in(&vol, &cache, &cam, &opts, progress)?
-                };
-                let path = numbered(&a.output, f);
-                files.extend(cdvol::render::save(&frame, &path).map_err(anyhow::Error::msg)?);
-                total.merge(&stats);
-                per_frame.push(stats);
-            }
-            // The frames shared one cache: its own count is exact.
-            if !template {
-                total.bricks_distinct = cache.distinct_read();
-            }
-            total.bricks_total = vol.header().brick_count();
-            if let Some(p) = &a.stats {
-                write_json(p, &per_frame)?;
-                files.push(p.clone());
-            }
-            return Ok((files, total));
-        }
-        if let Some(mut shard) = a.shard {
-            shard.layout = match a.shard_layout {
-                cli::ShardLayoutArg::Interleaved => cdvol::render::ShardLayout::Interleaved,
-                cli::ShardLayoutArg::Blocks => cdvol::render::ShardLayout::Blocks,
-            };
-            if a.output.extension().is_none_or(|e| e != "cdvpart") {
-                bail!(
-                    "{}: with --shard the output is a part file for `cdvol assemble`; \
-                     name it NAME.cdvpart",
-                    a.output.display()
-                );
-            }
-            let part = render_part(&vol, &camera, &opts, shard, progress)?;
-            part.write(&a.output).map_err(anyhow::Error::msg)?;
-            let mut files = vec![a.output.clone()];
-            if let Some(p) = &a.stats {
-                write_json(p, &part.stats)?;
-                files.push(p.clone());
-            }
-            return Ok((files, part.stats));
-        }
-        let (frame, stats) = render(&vol, &camera, &opts, progress)?;
-        let mut files = cdvol::render::save(&frame, &a.output).map_err(anyhow::Error::msg)?;
-        if let Some(p) = &a.stats {
-            write_json(p, &stats)?;
-            files.push(p.clone());
-        }
-        Ok((files, stats))
-    };
-    match a.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .context("cannot start the thread pool")?
-            .install(work),
-        None => work(),
-    }
-}
-
-/// `out.png` -> `out.0007.png`.
-fn numbered(path: &Path, f: u32) -> PathBuf {
-    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "png".into());
-    path.with_file_name(format!("{stem}.{f:04}.{ext}"))
-}
-
 /// Writes `value` as pretty JSON to `p` (temporary file, renamed).
 fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<()> {
     let bytes = serde_json::to_vec_pretty(value)?;
-    cdvol::render::write_atomic(p, &bytes).map_err(anyhow::Error::msg)
+    Ok(cdvol::fsutil::write_atomic(p, &bytes)?)
 }
 
 /// `cdvol prep-batch`: prepares every input, prints a table, writes the

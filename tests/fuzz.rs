@@ -1203,7 +1203,10 @@ fn check_trace_case(c: &TraceCase) -> Result<(), TestCaseError> {
     let g64 = TGrid::<f64>::new(&vol.axes);
     let g32 = TGrid::<f32>::new(&vol.axes);
     for &(origin, dir, t_min) in &c.rays {
-        let ray = Ray { origin, dir };
+        let ray = Ray {
+            origin: origin.into(),
+            dir: dir.into(),
+        };
         let valid = ray.check().is_ok() && t_min.is_finite();
         let what = format!("ray {ray:?} t_min {t_min}");
         let mut first: [Option<Vec<Visit>>; 2] = [None, None];

@@ -2,8 +2,37 @@
 //! placed by an orbit around the volume centre or exactly by eye, target
 //! and up, all in mm, so rectilinear volumes look undistorted.
 
-use super::shade::{cross, dot, normalize};
-use super::traverse::Ray;
+use glam::DVec3;
+
+use super::traverse::{Ray, RayError};
+
+/// Why a camera cannot be placed. Fields are named as in [`Camera::look_at`]
+/// and [`Camera::orbit`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CameraError {
+    /// The eye or the target is not finite or too far from the origin.
+    #[error("{what} {value:?}, expected finite mm within {limit:e} of 0")]
+    FarPoint {
+        what: &'static str,
+        value: [f64; 3],
+        limit: f64,
+    },
+    /// Eye and target coincide (or their difference overflows).
+    #[error("eye {eye:?} and target {target:?} (or the orbit) must differ and be finite")]
+    SamePoint { eye: [f64; 3], target: [f64; 3] },
+    /// `up` is zero or parallel to the viewing direction.
+    #[error("up {up:?} is parallel to the view direction or zero")]
+    UpParallel { up: [f64; 3] },
+    #[error("width x height {width} x {height}, expected at least 1 each")]
+    EmptyImage { width: u32, height: u32 },
+    #[error("frame_mm {frame_mm} mm, expected > 0")]
+    Frame { frame_mm: f64 },
+    #[error("fov_deg {fov_deg} degrees, expected 0 < fov < 180")]
+    Fov { fov_deg: f64 },
+    /// A corner pixel's ray fails [`Ray::check`].
+    #[error("the view reaches too far (frame or eye): {source}")]
+    TooFar { source: RayError },
+}
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Projection {
@@ -15,11 +44,11 @@ pub enum Projection {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Camera {
-    pub eye: [f64; 3],
+    pub eye: DVec3,
     /// Unit viewing direction, right and up vectors.
-    pub forward: [f64; 3],
-    pub right: [f64; 3],
-    pub up: [f64; 3],
+    pub forward: DVec3,
+    pub right: DVec3,
+    pub up: DVec3,
     pub projection: Projection,
     pub width: u32,
     pub height: u32,
@@ -34,49 +63,47 @@ impl Camera {
         projection: Projection,
         width: u32,
         height: u32,
-    ) -> Result<Camera, String> {
+    ) -> Result<Camera, CameraError> {
         // Every pixel's ray must pass `Ray::check` (a refused ray would
         // leave a silently empty pixel): eye and target within half of
         // MAX_COORD_MM, and the corner rays checked below.
         let lim = 0.5 * crate::grid::MAX_COORD_MM;
-        for (name, p) in [("--eye", eye), ("--target", target)] {
+        for (what, p) in [("eye", eye), ("target", target)] {
             if p.iter().any(|x| !(x.abs() <= lim)) {
-                return Err(format!(
-                    "{name} {p:?}, expected finite mm within {lim:e} of 0"
-                ));
+                return Err(CameraError::FarPoint {
+                    what,
+                    value: p,
+                    limit: lim,
+                });
             }
         }
-        let f = std::array::from_fn(|k| target[k] - eye[k]);
-        if !(dot(f, f) > 0.0) || f.iter().any(|x| !x.is_finite()) {
-            return Err(format!(
-                "--eye {eye:?} and --target {target:?} (or the orbit) must differ and be finite"
-            ));
+        let f = DVec3::from_array(target) - DVec3::from_array(eye);
+        if !(f.dot(f) > 0.0) || !f.is_finite() {
+            return Err(CameraError::SamePoint { eye, target });
         }
-        let forward = normalize(f);
-        let r = cross(forward, up);
-        if !(dot(r, r) > 1e-20) {
-            return Err(format!(
-                "--up {up:?} is parallel to the view direction or zero"
-            ));
+        // `v / |v|`, not `normalize` (a multiplication by the reciprocal):
+        // the same bits as ever.
+        let forward = f / f.length();
+        let r = forward.cross(DVec3::from_array(up));
+        if !(r.dot(r) > 1e-20) {
+            return Err(CameraError::UpParallel { up });
         }
-        let right = normalize(r);
-        let up = cross(right, forward);
+        let right = r / r.length();
+        let up = right.cross(forward);
         if width == 0 || height == 0 {
-            return Err(format!(
-                "--width {width} --height {height}, expected at least 1 each"
-            ));
+            return Err(CameraError::EmptyImage { width, height });
         }
         match projection {
             Projection::Ortho { frame_mm } if !(frame_mm > 0.0 && frame_mm.is_finite()) => {
-                return Err(format!("--frame {frame_mm} mm, expected > 0"))
+                return Err(CameraError::Frame { frame_mm })
             }
             Projection::Persp { fov_deg } if !(fov_deg > 0.0 && fov_deg < 180.0) => {
-                return Err(format!("--fov {fov_deg} degrees, expected 0 < fov < 180"))
+                return Err(CameraError::Fov { fov_deg })
             }
             _ => {}
         }
         let cam = Camera {
-            eye,
+            eye: DVec3::from_array(eye),
             forward,
             right,
             up,
@@ -92,8 +119,8 @@ impl Camera {
             (0, height - 1),
             (width - 1, height - 1),
         ] {
-            if let Err(e) = cam.ray(px, py).check() {
-                return Err(format!("the view reaches too far (--frame or --eye): {e}"));
+            if let Err(source) = cam.ray(px, py).check() {
+                return Err(CameraError::TooFar { source });
             }
         }
         Ok(cam)
@@ -111,7 +138,7 @@ impl Camera {
         frame_mm: Option<f64>,
         width: u32,
         height: u32,
-    ) -> Result<Camera, String> {
+    ) -> Result<Camera, CameraError> {
         let (lo, hi) = bounds;
         let centre: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
         let radius = 0.5 * (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
@@ -152,21 +179,17 @@ impl Camera {
                 let half_h = 0.5 * frame_mm;
                 let half_w = half_h * w / h;
                 Ray {
-                    origin: std::array::from_fn(|k| {
-                        self.eye[k] + sx * half_w * self.right[k] + sy * half_h * self.up[k]
-                    }),
+                    origin: self.eye + sx * half_w * self.right + sy * half_h * self.up,
                     dir: self.forward,
                 }
             }
             Projection::Persp { fov_deg } => {
                 let half_h = (0.5 * fov_deg).to_radians().tan();
                 let half_w = half_h * w / h;
-                let d = std::array::from_fn(|k| {
-                    self.forward[k] + sx * half_w * self.right[k] + sy * half_h * self.up[k]
-                });
+                let d = self.forward + sx * half_w * self.right + sy * half_h * self.up;
                 Ray {
                     origin: self.eye,
-                    dir: normalize(d),
+                    dir: d / d.length(),
                 }
             }
         }
@@ -183,12 +206,17 @@ mod tests {
         let up = [0.0, 0.0, 1.0];
         // A frame so wide that the corner rays start beyond 1e15 mm.
         let e = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], up, ortho(1e16), 8, 8).unwrap_err();
-        assert!(e.contains("too far"), "{e}");
+        assert!(matches!(e, CameraError::TooFar { .. }), "{e}");
+        assert!(e.to_string().contains("too far"), "{e}");
         // A wide image stretches the frame sideways: 4e14 * 16 / 2 > 1e15.
         let e = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], up, ortho(4e14), 16, 1).unwrap_err();
-        assert!(e.contains("too far"), "{e}");
+        assert!(matches!(e, CameraError::TooFar { .. }), "{e}");
+        assert!(e.to_string().contains("too far"), "{e}");
         let e = Camera::look_at([1e15, 0.0, 0.0], [0.0; 3], up, ortho(1.0), 8, 8).unwrap_err();
-        assert!(e.contains("--eye"), "{e}");
+        assert!(
+            matches!(e, CameraError::FarPoint { what: "eye", .. }),
+            "{e}"
+        );
         // At the limits, every pixel's ray passes Ray::check.
         let c = Camera::look_at([4e14, 0.0, 0.0], [0.0; 3], up, ortho(1e14), 64, 48).unwrap();
         for (x, y) in [(0, 0), (63, 47), (31, 20)] {

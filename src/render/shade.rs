@@ -6,6 +6,8 @@
 //! own derivative, never central differences, which would read samples
 //! whose words carry distance codes.
 
+use glam::DVec3;
+
 use super::traverse::{Ray, Visit};
 
 /// How the ray/iso-surface intersection inside a 1-cell is found (paper
@@ -32,6 +34,18 @@ pub enum HitMethod {
     /// face-sample methods, this finds hits where both face samples are
     /// below iso but the interpolant rises above it in between.
     Exact,
+}
+
+impl HitMethod {
+    /// The stable name: `int`, `bisect`, `newton` or `exact`.
+    pub fn name(self) -> &'static str {
+        match self {
+            HitMethod::Int => "int",
+            HitMethod::Bisect => "bisect",
+            HitMethod::Newton => "newton",
+            HitMethod::Exact => "exact",
+        }
+    }
 }
 
 /// Iterations of bisection (relative bracket 2^-30) and at most Newton.
@@ -95,7 +109,7 @@ impl CellEval {
 
     /// Local coordinates in [0, 1]^3 of point `p` (clamped).
     #[inline]
-    fn local(&self, p: [f64; 3]) -> [f64; 3] {
+    fn local(&self, p: DVec3) -> [f64; 3] {
         std::array::from_fn(|k| ((p[k] - self.lo[k]) / self.size[k]).clamp(0.0, 1.0))
     }
 
@@ -114,12 +128,12 @@ impl CellEval {
 
     /// Trilinear value at point `p` (mm).
     #[inline]
-    pub fn value(&self, p: [f64; 3]) -> f64 {
+    pub fn value(&self, p: DVec3) -> f64 {
         self.value_local(self.local(p))
     }
 
     /// Gradient of the trilinear interpolant at `p`, per mm.
-    pub fn gradient(&self, p: [f64; 3]) -> [f64; 3] {
+    pub fn gradient(&self, p: DVec3) -> DVec3 {
         let u = self.local(p);
         let f = &self.f;
         let lerp = |a: f64, b: f64, t: f64| a + t * (b - a);
@@ -139,7 +153,7 @@ impl CellEval {
             lerp(f[6] - f[2], f[7] - f[3], u[0]),
             u[1],
         );
-        [dx / self.size[0], dy / self.size[1], dz / self.size[2]]
+        DVec3::new(dx / self.size[0], dy / self.size[1], dz / self.size[2])
     }
 }
 
@@ -202,8 +216,8 @@ impl AlongRay {
 }
 
 #[inline]
-pub fn at(ray: &Ray, t: f64) -> [f64; 3] {
-    std::array::from_fn(|k| ray.origin[k] + t * ray.dir[k])
+pub fn at(ray: &Ray, t: f64) -> DVec3 {
+    ray.origin + t * ray.dir
 }
 
 /// [`find_hit_with`] with [`HitParams::default`].
@@ -284,7 +298,7 @@ pub fn find_hit_with(
                     a = t;
                 }
                 let gr = c.gradient(at(ray, t));
-                let nt = t - gt / dot(gr, ray.dir);
+                let nt = t - gt / gr.dot(ray.dir);
                 t = if nt >= a && nt <= b {
                     nt
                 } else {
@@ -404,7 +418,7 @@ fn refine(p: impl Fn(f64) -> (f64, f64), mut a: f64, mut b: f64) -> f64 {
 
 /// Lambert + Phong shading of a hit with the interpolant's gradient.
 /// `to_light` and `to_eye` are unit vectors; returns grey in [0, 1].
-pub fn shade(normal_grad: [f64; 3], to_light: [f64; 3], to_eye: [f64; 3], lit: bool) -> f64 {
+pub fn shade(normal_grad: DVec3, to_light: DVec3, to_eye: DVec3, lit: bool) -> f64 {
     let len = (normal_grad[0].powi(2) + normal_grad[1].powi(2) + normal_grad[2].powi(2)).sqrt();
     const AMBIENT: f64 = 0.12;
     if !(len > 0.0) {
@@ -412,51 +426,46 @@ pub fn shade(normal_grad: [f64; 3], to_light: [f64; 3], to_eye: [f64; 3], lit: b
     }
     // Outward normal: values rise into the object, so it is -grad; face it
     // towards the eye.
-    let mut n = normal_grad.map(|g| -g / len);
-    if dot(n, to_eye) < 0.0 {
-        n = n.map(|x| -x);
+    let mut n = -normal_grad / len;
+    if n.dot(to_eye) < 0.0 {
+        n = -n;
     }
     if !lit {
         return AMBIENT;
     }
-    let ndl = dot(n, to_light).max(0.0);
-    let r = std::array::from_fn::<f64, 3, _>(|k| 2.0 * ndl * n[k] - to_light[k]);
+    let ndl = n.dot(to_light).max(0.0);
+    let r = 2.0 * ndl * n - to_light;
     let spec = if ndl > 0.0 {
-        dot(r, to_eye).max(0.0).powi(32)
+        r.dot(to_eye).max(0.0).powi(32)
     } else {
         0.0
     };
     (AMBIENT + 0.75 * ndl + 0.25 * spec).min(1.0)
 }
 
-#[inline]
-pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-pub fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let l = dot(a, a).sqrt();
-    a.map(|x| x / l)
-}
-
-pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+        DVec3::from_array(a).dot(DVec3::from_array(b))
+    }
+
+    fn normalize(a: [f64; 3]) -> DVec3 {
+        let v = DVec3::from_array(a);
+        v / v.length()
+    }
+
+    fn v3(a: [f64; 3]) -> DVec3 {
+        DVec3::from_array(a)
+    }
 
     /// A ray along +x through the unit cell at y = z = 0.5, entering at
     /// t = 1 and leaving at t = 2.
     fn along_x() -> (Ray, Visit) {
         let ray = Ray {
-            origin: [-1.0, 0.5, 0.5],
-            dir: [1.0, 0.0, 0.0],
+            origin: v3([-1.0, 0.5, 0.5]),
+            dir: v3([1.0, 0.0, 0.0]),
         };
         let v = Visit {
             cell: [0; 3],
@@ -476,8 +485,8 @@ mod tests {
         }
         let c = CellEval::new([&coords[0], &coords[1], &coords[2]], [0, 0, 0], f);
         for p in [[0.5, 1.2, 0.0], [1.9, 1.01, -2.5], [0.0, 1.0, -3.0]] {
-            assert!((c.value(p) - lin(p)).abs() < 1e-5);
-            let g = c.gradient(p);
+            assert!((c.value(v3(p)) - lin(p)).abs() < 1e-5);
+            let g = c.gradient(v3(p));
             assert!(
                 (g[0] - 2.0).abs() < 1e-5 && (g[1] + 3.0).abs() < 1e-5 && (g[2] - 0.5).abs() < 1e-5,
                 "{g:?}"
@@ -515,7 +524,7 @@ mod tests {
         }
         let c = CellEval::new([&coords[0], &coords[1], &coords[2]], [0, 0, 0], f);
         let ray = Ray {
-            origin: [-1.0, 0.3, 0.4],
+            origin: v3([-1.0, 0.3, 0.4]),
             dir: normalize([1.0, 0.1, 0.2]),
         };
         let v = Visit {
@@ -592,8 +601,8 @@ mod tests {
         let dir = d.map(|x| x / len);
         let back = far_exp.map_or(0.0, |e| 10f64.powf(e) * dot(size, size).sqrt());
         let ray = Ray {
-            origin: std::array::from_fn(|k| pp[k] - back * dir[k]),
-            dir,
+            origin: v3(std::array::from_fn(|k| pp[k] - back * dir[k])),
+            dir: v3(dir),
         };
         let (t_enter, t_exit) = clip(&ray, &c)?;
         let v = Visit {
@@ -725,7 +734,7 @@ mod tests {
                 prev = gt;
             }
             let te = find_hit(&ray, &v, &c, iso, HitMethod::Exact).unwrap();
-            let slope = dot(c.gradient(at(&ray, te)), ray.dir).abs();
+            let slope = c.gradient(at(&ray, te)).dot(ray.dir).abs();
             prop_assume!(slope * l >= 1e-2 * m, "ill-conditioned crossing");
             let params = HitParams { bisect_iters: 60, newton_iters: 100, newton_tol: 1e-15 };
             let dg = noise(&c, &ray, iso, te) + 1e-15 * iso.abs().max(1.0);
@@ -788,7 +797,7 @@ mod tests {
             f,
         };
         let ray = Ray {
-            origin: [0.0, 1.0, 0.5],
+            origin: v3([0.0, 1.0, 0.5]),
             dir: normalize([1.0, -1.0, 0.0]),
         };
         let v = Visit {
@@ -831,7 +840,7 @@ mod tests {
             f,
         };
         let ray = Ray {
-            origin: [0.0; 3],
+            origin: DVec3::ZERO,
             dir: normalize([1.0; 3]),
         };
         let r3 = 3f64.sqrt();

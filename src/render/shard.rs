@@ -4,11 +4,14 @@
 //! checks that
 //! the parts belong to one render (same file contents, camera, options and
 //! N), that every shard and every tile is there exactly once, and colours
-//! the image with the same code as a single-process render, so the bytes
-//! are the same.
+//! the image with the same code as a single-process render
+//! ([`tiles::finish`](super::tiles::finish)), so the bytes are the same.
+//! A single-process render never comes here: it calls the tile scheduler
+//! and the image output directly.
 //!
 //! Part file (little-endian): magic `CDVPART\x01`, u64 length of a JSON
-//! header ([`PartHeader`]), the header, then per tile in header order its
+//! header (`PartHeader`: the [`RenderKey`], the shard, its [`Stats`] and
+//! the tile rectangles), the header, then per tile in header order its
 //! pixels row by row, 21 bytes each (3 f32 colour, f32 depth, u32 steps,
 //! u8 hit), then a u32 CRC-32 of everything before it. Written to a
 //! temporary file and renamed when complete.
@@ -18,34 +21,157 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::camera::Camera;
-use super::{colour, mip_range, Frame, Mode, Px, RenderOptions, Shard, ShardLayout, Stats};
+use super::cache::BrickCache;
+use super::camera::{Camera, Projection};
+use super::error::RenderError;
+use super::integrate::Px;
+use super::options::{Mode, RenderOptions};
+pub use super::output::Colouring;
+use super::output::Frame;
+use super::stats::Stats;
+pub use super::tiles::TilePx;
+use super::tiles::{finish, render_shard, Shard, ShardLayout};
+use crate::classify::TransferFunction;
 use crate::format::reader::PackedVolume;
+use crate::fsutil::{write_atomic, WriteError};
+use crate::progress::Progress;
 
-/// How pixels become colours: the only part of the mode colouring needs.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub enum Colouring {
-    /// Surface and composite: the pixel's colour as it is.
-    Rgb,
-    /// Grey from `lo` to `hi`.
-    Mip { lo: f64, hi: f64 },
-    /// Heat map scaled to the largest step count of the whole image.
-    Cost,
-    /// Grey scaled to the depth range of the whole image.
-    Depth,
+/// Renders the tiles of `shard` (pixels before colouring, and their
+/// counters): one part of a render for [`assemble`].
+pub fn render_part(
+    vol: &PackedVolume,
+    camera: &Camera,
+    opts: &RenderOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<Part, RenderError> {
+    let cache = super::policy::cache_for(vol, opts);
+    render_part_in(vol, &cache, camera, opts, shard, progress)
 }
 
-/// What makes two parts parts of the same render.
+/// [`render_part`] with a brick cache from [`super::policy::cache_for`]
+/// (with another cache the result is the same, only slower or larger).
+pub fn render_part_in(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<Part, RenderError> {
+    let (tiles, stats) = render_shard(vol, cache, camera, opts, shard, progress)?;
+    Ok(Part {
+        key: RenderKey::new(vol, camera, opts, shard.n, shard.layout),
+        shard,
+        tiles,
+        stats,
+    })
+}
+
+/// The camera as a part key stores it: the placed frame (unit forward,
+/// right and up) and the projection, in mm and degrees.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraKey {
+    pub eye: [f64; 3],
+    pub forward: [f64; 3],
+    pub right: [f64; 3],
+    pub up: [f64; 3],
+    /// `ortho` or `persp`.
+    pub projection: String,
+    /// Orthographic frame height in mm.
+    pub frame_mm: Option<f64>,
+    /// Perspective vertical field of view in degrees.
+    pub fov_deg: Option<f64>,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl CameraKey {
+    pub fn new(c: &Camera) -> CameraKey {
+        let (projection, frame_mm, fov_deg) = match c.projection {
+            Projection::Ortho { frame_mm } => ("ortho", Some(frame_mm), None),
+            Projection::Persp { fov_deg } => ("persp", None, Some(fov_deg)),
+        };
+        CameraKey {
+            eye: c.eye.to_array(),
+            forward: c.forward.to_array(),
+            right: c.right.to_array(),
+            up: c.up.to_array(),
+            projection: projection.into(),
+            frame_mm,
+            fov_deg,
+            width: c.width,
+            height: c.height,
+        }
+    }
+}
+
+/// The render options as a part key stores them, by stable names (the
+/// cache budget left out: it never changes the output).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OptionsKey {
+    /// [`Mode::name`].
+    pub mode: String,
+    /// Surface and depth: [`HitMethod::name`](super::shade::HitMethod::name).
+    pub hit: Option<String>,
+    /// Surface: shadow rays.
+    pub shadows: Option<bool>,
+    /// Composite: the transfer function and the sample distance.
+    pub tf: Option<TransferFunction>,
+    pub step_mm: Option<f64>,
+    /// [`Method::name`](super::traverse::Method::name).
+    pub method: String,
+    pub bisect_iters: u32,
+    pub newton_iters: u32,
+    pub newton_tol: f64,
+    /// [`Precision::name`](super::Precision::name).
+    pub precision: String,
+    pub tile: u32,
+    pub cd_lazy_min: u8,
+}
+
+impl OptionsKey {
+    pub fn new(o: &RenderOptions) -> OptionsKey {
+        let (mut hit, mut shadows, mut tf, mut step_mm) = (None, None, None, None);
+        match &o.mode {
+            Mode::Surface { hit: h, shadows: s } => {
+                hit = Some(h.name().to_string());
+                shadows = Some(*s);
+            }
+            Mode::Depth { hit: h } => hit = Some(h.name().to_string()),
+            Mode::Composite { tf: t, step_mm: s } => {
+                tf = Some(t.clone());
+                step_mm = Some(*s);
+            }
+            Mode::Mip | Mode::Cost => {}
+        }
+        OptionsKey {
+            mode: o.mode.name().into(),
+            hit,
+            shadows,
+            tf,
+            step_mm,
+            method: o.method.name(),
+            bisect_iters: o.hit_params.bisect_iters,
+            newton_iters: o.hit_params.newton_iters,
+            newton_tol: o.hit_params.newton_tol,
+            precision: o.precision.name().into(),
+            tile: o.tile,
+            cd_lazy_min: o.cd_lazy_min,
+        }
+    }
+}
+
+/// What makes two parts parts of the same render. Floats are stored as
+/// JSON numbers, which round-trip exactly.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RenderKey {
     /// Name, length and header+index checksum of the packed file.
     pub volume: String,
     pub volume_bytes: u64,
     pub volume_crc: u32,
-    /// The camera and the options (cache budget left out: it never
-    /// changes the output), as Rust debug text, which round-trips floats.
-    pub camera: String,
-    pub options: String,
+    pub camera: CameraKey,
+    pub options: OptionsKey,
     pub width: u32,
     pub height: u32,
     pub tile: u32,
@@ -62,15 +188,6 @@ impl RenderKey {
         n: u32,
         layout: ShardLayout,
     ) -> RenderKey {
-        let colouring = match opts.mode {
-            Mode::Surface { .. } | Mode::Composite { .. } => Colouring::Rgb,
-            Mode::Mip => {
-                let [lo, hi] = mip_range(vol);
-                Colouring::Mip { lo, hi }
-            }
-            Mode::Cost => Colouring::Cost,
-            Mode::Depth { .. } => Colouring::Depth,
-        };
         RenderKey {
             volume: vol
                 .path()
@@ -79,31 +196,16 @@ impl RenderKey {
                 .unwrap_or_default(),
             volume_bytes: vol.file_len(),
             volume_crc: vol.checksum(),
-            camera: format!("{camera:?}"),
-            options: format!(
-                "{:?}",
-                RenderOptions {
-                    cache_bytes: 0,
-                    ..opts.clone()
-                }
-            ),
+            camera: CameraKey::new(camera),
+            options: OptionsKey::new(opts),
             width: camera.width,
             height: camera.height,
             tile: opts.tile,
             shards: n,
             layout,
-            colouring,
+            colouring: Colouring::of(vol, &opts.mode),
         }
     }
-}
-
-/// One tile's pixels before colouring.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TilePx {
-    pub x0: u32,
-    pub y0: u32,
-    pub w: u32,
-    pub(super) pixels: Vec<Px>,
 }
 
 /// One shard of a render.
@@ -129,10 +231,78 @@ struct PartHeader {
 const MAGIC: &[u8; 8] = b"CDVPART\x01";
 const PX_BYTES: usize = 21;
 
+/// Why a part file could not be written or read.
+#[derive(Debug, thiserror::Error)]
+pub enum PartError {
+    /// The file could not be read.
+    #[error("{}: cannot read: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// The first 8 bytes are not the magic (or the file is shorter than a
+    /// header).
+    #[error("{}: not a cdvol part file (magic CDVPART\\x01 expected)", path.display())]
+    Magic { path: PathBuf },
+    /// The trailing CRC-32 does not match the bytes before it.
+    #[error(
+        "{}: checksum mismatch: the part file is damaged or truncated \
+         (stored CRC-32 {stored:#010x}, computed {computed:#010x})",
+        path.display()
+    )]
+    Checksum {
+        path: PathBuf,
+        stored: u32,
+        computed: u32,
+    },
+    /// The JSON header's length field points past the end of the file.
+    #[error("{}: header length {length} exceeds the file ({available} bytes)", path.display())]
+    HeaderLength {
+        path: PathBuf,
+        length: u64,
+        available: usize,
+    },
+    /// The JSON header could not be encoded (write) or decoded (read).
+    #[error("{}: header: {source}", path.display())]
+    Header {
+        path: PathBuf,
+        source: serde_json::Error,
+    },
+    /// A tile rectangle of the header lies outside the image.
+    #[error(
+        "{}: tile [{x0}, {y0}, {w}, {h}] lies outside the {width}x{height} image",
+        path.display()
+    )]
+    TileOutside {
+        path: PathBuf,
+        x0: u32,
+        y0: u32,
+        w: u32,
+        h: u32,
+        width: u32,
+        height: u32,
+    },
+    /// Fewer pixel records than the header's tiles hold.
+    #[error(
+        "{}: pixel records end early ({found} bytes left, expected {expected})",
+        path.display()
+    )]
+    Short {
+        path: PathBuf,
+        found: usize,
+        expected: usize,
+    },
+    /// Bytes after the last tile's pixel records.
+    #[error("{}: {extra} bytes after the last tile", path.display())]
+    Trailing { path: PathBuf, extra: usize },
+    #[error(transparent)]
+    Write(#[from] WriteError),
+}
+
 impl Part {
     /// Writes the part to `path` (temporary file beside it, renamed when
     /// complete).
-    pub fn write(&self, path: &Path) -> Result<(), String> {
+    pub fn write(&self, path: &Path) -> Result<(), PartError> {
         let header = PartHeader {
             key: self.key.clone(),
             shard: self.shard,
@@ -143,7 +313,10 @@ impl Part {
                 .map(|t| [t.x0, t.y0, t.w, t.pixels.len() as u32 / t.w.max(1)])
                 .collect(),
         };
-        let json = serde_json::to_vec(&header).map_err(|e| e.to_string())?;
+        let json = serde_json::to_vec(&header).map_err(|source| PartError::Header {
+            path: path.to_path_buf(),
+            source,
+        })?;
         let mut b = Vec::with_capacity(16 + json.len() + self.stats.rays as usize * PX_BYTES + 4);
         b.extend_from_slice(MAGIC);
         b.extend_from_slice(&(json.len() as u64).to_le_bytes());
@@ -160,32 +333,37 @@ impl Part {
         }
         let crc = crc32fast::hash(&b);
         b.extend_from_slice(&crc.to_le_bytes());
-        super::write_atomic(path, &b)
+        Ok(write_atomic(path, &b)?)
     }
 
     /// Reads and checks a part file.
-    pub fn read(path: &Path) -> Result<Part, String> {
-        let e = |msg: String| format!("{}: {msg}", path.display());
-        let b = std::fs::read(path).map_err(|x| e(format!("cannot read: {x}")))?;
+    pub fn read(path: &Path) -> Result<Part, PartError> {
+        let p = || path.to_path_buf();
+        let b = std::fs::read(path).map_err(|source| PartError::Read { path: p(), source })?;
         if b.len() < 20 || &b[..8] != MAGIC {
-            return Err(e(
-                "not a cdvol part file (magic CDVPART\\x01 expected)".into()
-            ));
+            return Err(PartError::Magic { path: p() });
         }
         let (body, tail) = b.split_at(b.len() - 4);
-        let crc = u32::from_le_bytes(tail.try_into().expect("4 bytes"));
-        if crc32fast::hash(body) != crc {
-            return Err(e(
-                "checksum mismatch: the part file is damaged or truncated".into(),
-            ));
+        let stored = u32::from_le_bytes(tail.try_into().expect("4 bytes"));
+        let computed = crc32fast::hash(body);
+        if computed != stored {
+            return Err(PartError::Checksum {
+                path: p(),
+                stored,
+                computed,
+            });
         }
         let jl = u64::from_le_bytes(body[8..16].try_into().expect("8 bytes"));
-        let jl = usize::try_from(jl)
-            .ok()
-            .filter(|&l| l <= body.len() - 16)
-            .ok_or_else(|| e(format!("header length {jl} exceeds the file")))?;
-        let h: PartHeader =
-            serde_json::from_slice(&body[16..16 + jl]).map_err(|x| e(format!("header: {x}")))?;
+        let available = body.len() - 16;
+        let jl = usize::try_from(jl).ok().filter(|&l| l <= available).ok_or(
+            PartError::HeaderLength {
+                path: p(),
+                length: jl,
+                available,
+            },
+        )?;
+        let h: PartHeader = serde_json::from_slice(&body[16..16 + jl])
+            .map_err(|source| PartError::Header { path: p(), source })?;
         let mut rest = &body[16 + jl..];
         let mut tiles = Vec::with_capacity(h.tiles.len());
         for &[x0, y0, w, th] in &h.tiles {
@@ -194,14 +372,23 @@ impl Part {
                 && x0.checked_add(w).is_some_and(|x| x <= h.key.width)
                 && y0.checked_add(th).is_some_and(|y| y <= h.key.height);
             if !inside {
-                return Err(e(format!(
-                    "tile [{x0}, {y0}, {w}, {th}] lies outside the {}x{} image",
-                    h.key.width, h.key.height
-                )));
+                return Err(PartError::TileOutside {
+                    path: p(),
+                    x0,
+                    y0,
+                    w,
+                    h: th,
+                    width: h.key.width,
+                    height: h.key.height,
+                });
             }
             let n = w as usize * th as usize;
             if rest.len() < n * PX_BYTES {
-                return Err(e("pixel records end early".into()));
+                return Err(PartError::Short {
+                    path: p(),
+                    found: rest.len(),
+                    expected: n * PX_BYTES,
+                });
             }
             let f = |r: &[u8], i: usize| f32::from_le_bytes(r[i..i + 4].try_into().expect("4"));
             let pixels = rest[..n * PX_BYTES]
@@ -217,7 +404,10 @@ impl Part {
             tiles.push(TilePx { x0, y0, w, pixels });
         }
         if !rest.is_empty() {
-            return Err(e(format!("{} bytes after the last tile", rest.len())));
+            return Err(PartError::Trailing {
+                path: p(),
+                extra: rest.len(),
+            });
         }
         Ok(Part {
             key: h.key,
@@ -228,70 +418,86 @@ impl Part {
     }
 }
 
-/// Places the tiles and colours the image; `stats` are the summed
-/// counters. Shared by [`super::render`] and [`assemble`].
-/// Tiles given by value are dropped as soon as they are placed, so a
-/// render holds about one copy of the pixels, not two.
-pub(super) fn finish<T: std::borrow::Borrow<TilePx>>(
-    key: &RenderKey,
-    tiles: impl IntoIterator<Item = T>,
-    mut stats: Stats,
-) -> (Frame, Stats) {
-    let (w, h) = (key.width, key.height);
-    let mut px = vec![Px::default(); w as usize * h as usize];
-    for t in tiles {
-        let t = t.borrow();
-        for (i, p) in t.pixels.iter().enumerate() {
-            let (lx, ly) = (i as u32 % t.w, i as u32 / t.w);
-            px[((t.y0 + ly) * w + t.x0 + lx) as usize] = *p;
-        }
-    }
-    let frame = colour(&key.colouring, w, h, &px);
-    stats.rays = w as u64 * h as u64;
-    (frame, stats)
+/// Why parts do not make one whole render. Parts are named by the file
+/// names given to [`assemble`] (or `part I` beyond them).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AssembleError {
+    #[error("no parts to assemble")]
+    NoParts,
+    /// Two parts' keys differ; `field` says in what (the packed file, the
+    /// camera, the number of shards, the shard layout, the render options).
+    #[error("{first} and {other} are parts of different renders: {field} differs")]
+    DifferentRenders {
+        first: String,
+        other: String,
+        field: &'static str,
+    },
+    /// A part's shard does not fit the render's shard count or layout.
+    #[error("{part}: shard {k}/{n} in a render of {shards} shards")]
+    ForeignShard {
+        part: String,
+        k: u32,
+        n: u32,
+        shards: u32,
+    },
+    #[error("{first} and {other} are both shard {k}/{n}")]
+    DuplicateShard {
+        first: String,
+        other: String,
+        k: u32,
+        n: u32,
+    },
+    /// Shards `K/N` no part holds.
+    #[error("shards missing: {}", missing.join(", "))]
+    MissingShards { missing: Vec<String> },
+    #[error("{part}: tile at ({x0}, {y0}) is not a tile of this render")]
+    NotATile { part: String, x0: u32, y0: u32 },
+    #[error("{part}: tile at ({x0}, {y0}) appears twice")]
+    DuplicateTile { part: String, x0: u32, y0: u32 },
+    #[error("tile at ({x0}, {y0}) is in no part")]
+    MissingTile { x0: u32, y0: u32 },
 }
 
 /// Checks that `parts` (read from `names`) make one whole render and
 /// assembles it: the image a single process would have written, and the
 /// counters summed (`peak_cache_bytes` the largest part's,
 /// `seconds_total` the sum of the parts' seconds).
-pub fn assemble(parts: &[Part], names: &[PathBuf]) -> Result<(Frame, Stats), String> {
+pub fn assemble(parts: &[Part], names: &[PathBuf]) -> Result<(Frame, Stats), AssembleError> {
     let name = |i: usize| {
         names
             .get(i)
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| format!("part {i}"))
     };
-    let first = parts.first().ok_or("no parts to assemble")?;
+    let first = parts.first().ok_or(AssembleError::NoParts)?;
     let key = &first.key;
     for (i, p) in parts.iter().enumerate().skip(1) {
         if p.key != key.clone() {
-            let field = differing_field(key, &p.key);
-            return Err(format!(
-                "{} and {} are parts of different renders: {field} differs",
-                name(0),
-                name(i)
-            ));
+            return Err(AssembleError::DifferentRenders {
+                first: name(0),
+                other: name(i),
+                field: differing_field(key, &p.key),
+            });
         }
     }
     let n = key.shards;
     let mut seen: BTreeMap<u32, usize> = BTreeMap::new();
     for (i, p) in parts.iter().enumerate() {
         if p.shard.n != n || p.shard.k >= n || p.shard.layout != key.layout {
-            return Err(format!(
-                "{}: shard {}/{} in a render of {n} shards",
-                name(i),
-                p.shard.k,
-                p.shard.n
-            ));
+            return Err(AssembleError::ForeignShard {
+                part: name(i),
+                k: p.shard.k,
+                n: p.shard.n,
+                shards: n,
+            });
         }
         if let Some(j) = seen.insert(p.shard.k, i) {
-            return Err(format!(
-                "{} and {} are both shard {}/{n}",
-                name(j),
-                name(i),
-                p.shard.k
-            ));
+            return Err(AssembleError::DuplicateShard {
+                first: name(j),
+                other: name(i),
+                k: p.shard.k,
+                n,
+            });
         }
     }
     let missing: Vec<String> = (0..n)
@@ -299,7 +505,7 @@ pub fn assemble(parts: &[Part], names: &[PathBuf]) -> Result<(Frame, Stats), Str
         .map(|k| format!("{k}/{n}"))
         .collect();
     if !missing.is_empty() {
-        return Err(format!("shards missing: {}", missing.join(", ")));
+        return Err(AssembleError::MissingShards { missing });
     }
     // Every tile of the image exactly once.
     let ts = key.tile.max(1);
@@ -314,34 +520,35 @@ pub fn assemble(parts: &[Part], names: &[PathBuf]) -> Result<(Frame, Stats), Str
                 && t.w == ts.min(key.width - t.x0)
                 && th == ts.min(key.height - t.y0);
             if !aligned {
-                return Err(format!(
-                    "{}: tile at ({}, {}) is not a tile of this render",
-                    name(i),
-                    t.x0,
-                    t.y0
-                ));
+                return Err(AssembleError::NotATile {
+                    part: name(i),
+                    x0: t.x0,
+                    y0: t.y0,
+                });
             }
             let idx = (t.y0 / ts * ntx + t.x0 / ts) as usize;
             if std::mem::replace(&mut have[idx], true) {
-                return Err(format!(
-                    "{}: tile at ({}, {}) appears twice",
-                    name(i),
-                    t.x0,
-                    t.y0
-                ));
+                return Err(AssembleError::DuplicateTile {
+                    part: name(i),
+                    x0: t.x0,
+                    y0: t.y0,
+                });
             }
             tiles.push(t);
         }
     }
     if let Some(i) = have.iter().position(|h| !h) {
         let (tx, ty) = (i as u32 % ntx, i as u32 / ntx);
-        return Err(format!("tile at ({}, {}) is in no part", tx * ts, ty * ts));
+        return Err(AssembleError::MissingTile {
+            x0: tx * ts,
+            y0: ty * ts,
+        });
     }
     let mut stats = first.stats.clone();
     for p in &parts[1..] {
         stats.merge(&p.stats);
     }
-    Ok(finish(key, tiles, stats))
+    Ok(finish(&key.colouring, key.width, key.height, tiles, stats))
 }
 
 fn differing_field(a: &RenderKey, b: &RenderKey) -> &'static str {

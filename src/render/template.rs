@@ -150,17 +150,18 @@
 use std::ops::Range;
 use std::time::Instant;
 
+use glam::DVec3;
 use rayon::prelude::*;
 
 use super::cache::{self, Accessor, BrickCache, CacheCounters, OBJECT};
 use super::camera::{Camera, Projection};
+use super::error::RenderError;
+use super::integrate::Px;
+use super::options::{check_mode, check_tol_and_size, Mode, RenderOptions, MAX_PIXELS};
+use super::output::{colour, Colouring, Frame};
 use super::shade::{self, at, find_hit_with, CellEval, HitMethod};
-use super::shard::Colouring;
+use super::stats::Stats;
 use super::traverse::{trace, CodeSource, Flow, Method, Ray, StepCounts, TGrid, Visit};
-use super::{
-    check_mode, check_tol_and_size, colour, mode_name, Frame, Mode, Px, RenderError, RenderOptions,
-    Stats, MAX_PIXELS,
-};
 use crate::classify::Classification;
 use crate::format::reader::PackedVolume;
 use crate::grid::Axis;
@@ -413,8 +414,8 @@ impl Setup<'_> {
         }
         (
             Ray {
-                origin,
-                dir: self.dir,
+                origin: DVec3::from_array(origin),
+                dir: DVec3::from_array(self.dir),
             },
             start,
         )
@@ -487,7 +488,7 @@ pub fn render_template_with(
             Mode::Mip | Mode::Composite { .. } => {
                 return Err(refuse(format!(
                     "mode {} is not implemented for templates (surface, depth and cost are)",
-                    mode_name(&opts.mode)
+                    opts.mode.name()
                 )))
             }
         };
@@ -496,8 +497,9 @@ pub fn render_template_with(
         Method::Cd { min_leap } => Some(min_leap),
         m @ (Method::CdAniso { .. } | Method::Octree | Method::Dda { .. }) => {
             return Err(refuse(format!(
-                "{m:?} (cd-aniso, octree, dda): templates leap by chessboard codes only (cd) or \
-                 step every entry (fvt)"
+                "traversal {} (cd-aniso, octree, dda): templates leap by chessboard codes only \
+                 (cd) or step every entry (fvt)",
+                m.name()
             )))
         }
     };
@@ -520,7 +522,7 @@ pub fn render_template_with(
     let lo: [f64; 3] = std::array::from_fn(|k| coords[k][0]);
     let hi: [f64; 3] = std::array::from_fn(|k| coords[k][ncells[k] as usize]);
     let h: [f64; 3] = std::array::from_fn(|k| (hi[k] - lo[k]) / ncells[k] as f64);
-    let dir = camera.forward;
+    let dir = camera.forward.to_array();
     // Every corner in front of the image plane: both walks then start
     // before the volume.
     for c in 0..8 {
@@ -530,7 +532,7 @@ pub fn render_template_with(
             return Err(refuse(format!(
                 "the eye {:?} is not in front of the whole volume (corner {p:?} is behind the \
                  image plane); move it back",
-                camera.eye
+                camera.eye.to_array()
             )));
         }
     }
@@ -622,7 +624,7 @@ pub fn render_template_with(
         });
     let frame = colour(&colouring, w, hh, &px);
     let mut stats = Stats::counted(inter_px, hits, &steps, &cc, &cache, opts, t0);
-    stats.traversal = format!("Template({:?})", opts.method);
+    stats.traversal = format!("template {}", opts.method.name());
     (stats.width, stats.height) = (w, hh);
     Ok((frame, stats))
 }
@@ -693,7 +695,7 @@ fn inter_pixel(
         px.hit = true;
         px.t = t;
         if matches!(mode, Mode::Surface { .. }) {
-            px.grad = c.gradient(at(ray, t));
+            px.grad = c.gradient(at(ray, t)).to_array();
         }
     }
     px.steps = counts.steps.min(u32::MAX as u64) as u32;
@@ -779,7 +781,7 @@ fn warp_pixel(
     out.depth = depth as f32;
     if matches!(mode, Mode::Surface { .. }) {
         let to_eye = ray.dir.map(|d| -d);
-        let v = shade::shade(grad, to_eye, to_eye, true) as f32;
+        let v = shade::shade(DVec3::from_array(grad), to_eye, to_eye, true) as f32;
         out.rgb = [v, v, v];
     }
     out

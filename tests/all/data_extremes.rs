@@ -784,7 +784,7 @@ fn thin_slab_at_the_format_maximum() {
         ("along -x".to_string(), look(last + 10.0, last)),
     ];
     for (_, c) in &cams {
-        assert_eq!(c.ray(0, 0).dir.map(f64::abs), [1.0, 0.0, 0.0]);
+        assert_eq!(c.ray(0, 0).dir.map(f64::abs), [1.0, 0.0, 0.0].into());
     }
     let t = check_renders(&vol, &cams, Expect::Mixed);
     // Codes saturate at 254 here (i16 words after widening), so CD needs

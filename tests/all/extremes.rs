@@ -87,8 +87,8 @@ fn computed_t(s: f64, o: f64, d: f64) -> f64 {
 
 fn oracle(vol: &MemVolume, ray: &Ray) -> Vec<ExactCell> {
     let c: [&[f64]; 3] = std::array::from_fn(|k| vol.axes[k].coords());
-    let o = ray.origin.map(q);
-    let d = ray.dir.map(q);
+    let o = ray.origin.to_array().map(q);
+    let d = ray.dir.to_array().map(q);
     vol.objects
         .iter()
         .map(|&cell| {
@@ -300,8 +300,8 @@ fn bad_rays_are_refused_and_visit_nothing() {
         );
         let g = TGrid::<f64>::new(&vol.axes);
         let ray = Ray {
-            origin: [0.5, 0.5, 0.5],
-            dir,
+            origin: [0.5, 0.5, 0.5].into(),
+            dir: dir.into(),
         };
         let mut src = &vol;
         let mut n = 0;

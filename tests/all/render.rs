@@ -344,7 +344,7 @@ fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(
-        e.contains("--classify-tf") && e.contains("below 300"),
+        e.contains("opacity to values below 300") && e.contains("classified as empty"),
         "{e}"
     );
 }

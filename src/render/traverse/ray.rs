@@ -1,13 +1,15 @@
 //! Rays in millimetres, checked before any walk: the one input every
 //! traversal shares.
 
+use glam::DVec3;
+
 use crate::grid::MAX_COORD_MM;
 
 /// A ray in mm: `origin + t * dir`, `t >= t_min`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ray {
-    pub origin: [f64; 3],
-    pub dir: [f64; 3],
+    pub origin: DVec3,
+    pub dir: DVec3,
 }
 
 /// Smallest largest-component of a direction [`Ray::new`] accepts
@@ -41,8 +43,14 @@ impl Ray {
     /// axis, and a finite direction whose largest component is in
     /// [[`MIN_DIR`], [`MAX_DIR`]]. Directions need not be normalised; other
     /// components may be 0.0, -0.0, subnormal or tiny.
+    ///
+    /// Takes arrays, as rays are usually written down; build a [`Ray`]
+    /// literal to pass [`DVec3`]s.
     pub fn new(origin: [f64; 3], dir: [f64; 3]) -> Result<Ray, RayError> {
-        let r = Ray { origin, dir };
+        let r = Ray {
+            origin: DVec3::from_array(origin),
+            dir: DVec3::from_array(dir),
+        };
         r.check()?;
         Ok(r)
     }
@@ -50,30 +58,31 @@ impl Ray {
     /// The checks of [`Ray::new`]; [`trace`](super::trace) visits nothing on a ray that
     /// fails them.
     pub fn check(&self) -> Result<(), RayError> {
-        if !self.origin.iter().all(|x| x.is_finite()) {
+        let (origin, dir) = (self.origin.to_array(), self.dir.to_array());
+        if !origin.iter().all(|x| x.is_finite()) {
             return Err(RayError::NotFinite {
                 what: "origin",
-                value: self.origin,
+                value: origin,
             });
         }
-        if !self.dir.iter().all(|x| x.is_finite()) {
+        if !dir.iter().all(|x| x.is_finite()) {
             return Err(RayError::NotFinite {
                 what: "direction",
-                value: self.dir,
+                value: dir,
             });
         }
-        let m = self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+        let m = dir.iter().fold(0.0f64, |m, d| m.max(d.abs()));
         if m == 0.0 {
-            return Err(RayError::ZeroDirection(self.dir));
+            return Err(RayError::ZeroDirection(dir));
         }
         if m < MIN_DIR {
-            return Err(RayError::TinyDirection(self.dir));
+            return Err(RayError::TinyDirection(dir));
         }
         if m > MAX_DIR {
-            return Err(RayError::HugeDirection(self.dir));
+            return Err(RayError::HugeDirection(dir));
         }
-        if self.origin.iter().any(|x| x.abs() > MAX_COORD_MM) {
-            return Err(RayError::FarOrigin(self.origin));
+        if origin.iter().any(|x| x.abs() > MAX_COORD_MM) {
+            return Err(RayError::FarOrigin(origin));
         }
         Ok(())
     }

@@ -692,5 +692,5 @@ fn tick(y: f64) -> String {
 }
 
 fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    crate::render::write_atomic(path, bytes).map_err(anyhow::Error::msg)
+    Ok(crate::fsutil::write_atomic(path, bytes)?)
 }

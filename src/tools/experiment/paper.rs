@@ -1021,7 +1021,7 @@ fn equidistant_hit(
         });
         let ce = CellEval::new(coords, cell, acc.vertices(cell));
         let g = ce.gradient(q);
-        (ce.value(q), g)
+        (ce.value(q), g.to_array())
     };
     let (mut ta, mut fa) = (t0, eval(t0).0);
     if fa >= iso {

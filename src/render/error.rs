@@ -1,0 +1,31 @@
+//! Why a render was refused or failed: the one error type of
+//! [`render`](super::render), [`render_part`](super::render_part) and the
+//! template renderer. Messages name fields and values, never CLI flags;
+//! the CLI adds its flag names when it reports them.
+
+use std::path::PathBuf;
+
+use crate::format::FormatError;
+
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// Reading or decoding the packed file failed.
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    /// The file cannot be rendered exactly with these options (its
+    /// classification, codes or grid do not fit the mode or traversal).
+    #[error("{}: {msg}", path.display())]
+    Incompatible { path: PathBuf, msg: String },
+    /// An option out of range: `field` is its name in
+    /// [`RenderOptions`](super::RenderOptions) or the camera (`tile`,
+    /// `step_mm`, `newton_tol`, `width x height`, `shard`).
+    #[error("{field} {value}, expected {expected}")]
+    Option {
+        field: &'static str,
+        value: String,
+        expected: String,
+    },
+    /// Inputs the template traversal (template.rs) cannot render.
+    #[error("template traversal: {0}")]
+    Template(String),
+}

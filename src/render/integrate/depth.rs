@@ -1,0 +1,24 @@
+//! Depth mode: the distance in mm to the first iso-surface hit (the
+//! surface mode's [`first_hit`](super::surface::first_hit), unshaded).
+
+use super::surface::first_hit;
+use super::{Ctx, Px};
+use crate::render::cache::Accessor;
+use crate::render::shade::HitMethod;
+use crate::render::traverse::{Ray, Real, StepCounts};
+
+/// Writes the hit distance of `ray` into `px` (NaN stays on a miss).
+pub(super) fn depth<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    acc: &mut Accessor,
+    hit: HitMethod,
+    px: &mut Px,
+) -> StepCounts {
+    let (found, counts) = first_hit(ctx, ray, 0.0, hit, acc);
+    if let Some((t, _)) = found {
+        px.hit = true;
+        px.depth = t as f32;
+    }
+    counts
+}

@@ -1,0 +1,82 @@
+//! Surface mode: the first iso-surface hit (paper section 5.3), shaded by
+//! the interpolant's gradient, with optional shadow rays traced by the
+//! same traversal. [`first_hit`] is shared with the depth and cost modes.
+
+use glam::DVec3;
+
+use super::{Ctx, Px};
+use crate::render::cache::Accessor;
+use crate::render::shade::{at, find_hit_with, shade, CellEval, HitMethod};
+use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
+
+/// The first iso-surface hit along `ray` after `t_min`: `(t, cell values)`.
+pub(super) fn first_hit<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    t_min: f64,
+    hit: HitMethod,
+    acc: &mut Accessor,
+) -> (Option<(f64, CellEval)>, StepCounts) {
+    let g = ctx.grid;
+    let coords = ctx.coords;
+    let mut found = None;
+    let s = trace(g, ray, t_min, ctx.opts.method, acc, |v, acc| {
+        let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+        match find_hit_with(ray, v, &c, ctx.iso, hit, &ctx.opts.hit_params) {
+            Some(t) => {
+                found = Some((t, c));
+                Flow::Stop
+            }
+            None => Flow::Continue,
+        }
+    });
+    (found, s)
+}
+
+/// Shades the first hit of `ray` into `px`; with `shadows`, a shadow ray
+/// towards a key light decides whether it is lit.
+pub(super) fn surface<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    acc: &mut Accessor,
+    hit: HitMethod,
+    shadows: bool,
+    px: &mut Px,
+) -> StepCounts {
+    let (found, mut counts) = first_hit(ctx, ray, 0.0, hit, acc);
+    let Some((t, c)) = found else {
+        return counts;
+    };
+    px.hit = true;
+    let p = at(ray, t);
+    let grad = c.gradient(p);
+    let to_eye = -ray.dir;
+    let cam = ctx.camera;
+    let to_light = if shadows {
+        // A key light above and to the left of the viewer.
+        let l = to_eye + 0.8 * cam.up - 0.6 * cam.right;
+        l / l.length()
+    } else {
+        to_eye
+    };
+    let mut lit = true;
+    if shadows {
+        // Shadow ray from just outside the surface, traced with the same
+        // traversal, starting inside the volume.
+        let gl = grad.length();
+        let eps = 1e-3 * c.size.iter().cloned().fold(f64::INFINITY, f64::min);
+        let out: DVec3 = if gl > 0.0 { -grad / gl } else { to_light };
+        let sign = if out.dot(to_light) >= 0.0 { 1.0 } else { -1.0 };
+        let sray = Ray {
+            origin: p + sign * eps * out + eps * to_light,
+            dir: to_light,
+        };
+        let (sh, s2) = first_hit(ctx, &sray, 0.0, HitMethod::Int, acc);
+        counts.add(&s2);
+        lit = sh.is_none();
+    }
+    let v = shade(grad, to_light, to_eye, lit) as f32;
+    px.rgb = [v, v, v];
+    px.depth = t as f32;
+    counts
+}

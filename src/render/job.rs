@@ -1,0 +1,284 @@
+//! A whole `cdvol render` job, as the CLI asks for it: place the camera
+//! (an orbit, or eye/target/up framed to the volume), then render one
+//! image, one part of a sharded render (shard.rs), or a turntable of
+//! numbered frames sharing one brick cache, and write the images, parts
+//! and statistics. The CLI only converts its arguments into a
+//! [`RenderJob`].
+
+use std::path::{Path, PathBuf};
+
+use super::cache::BrickCache;
+use super::camera::{Camera, CameraError, Projection};
+use super::error::RenderError;
+use super::options::RenderOptions;
+use super::output::{save, SaveError};
+use super::shard::{render_part, PartError};
+use super::stats::Stats;
+use super::template::render_template;
+use super::tiles::{render, render_in, Shard};
+use super::traverse::TGrid;
+use crate::format::reader::PackedVolume;
+use crate::fsutil::{write_atomic, WriteError};
+use crate::progress::Progress;
+
+/// Where the camera stands.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum View {
+    /// Around the volume centre ([`Camera::orbit`]), degrees.
+    Orbit { az_deg: f64, el_deg: f64 },
+    /// Exactly, in mm ([`Camera::look_at`]); an orthographic frame then
+    /// defaults to the volume's diagonal.
+    LookAt {
+        eye: [f64; 3],
+        target: [f64; 3],
+        up: [f64; 3],
+    },
+}
+
+/// The camera of a job, before it is placed against the volume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraSpec {
+    pub view: View,
+    /// Perspective with this vertical field of view in degrees; `None`
+    /// for orthographic.
+    pub persp_fov_deg: Option<f64>,
+    /// Orthographic frame height in mm (default: the whole volume).
+    pub frame_mm: Option<f64>,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl CameraSpec {
+    /// The camera over the box `bounds` (mm), turned by `az_turn_deg` of
+    /// azimuth (turntables; 0 for a single image).
+    pub fn place(
+        &self,
+        bounds: ([f64; 3], [f64; 3]),
+        az_turn_deg: f64,
+    ) -> Result<Camera, CameraError> {
+        match self.view {
+            View::LookAt { eye, target, up } => {
+                let projection = match self.persp_fov_deg {
+                    Some(fov_deg) => Projection::Persp { fov_deg },
+                    None => {
+                        let (lo, hi) = bounds;
+                        let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+                        Projection::Ortho {
+                            frame_mm: self.frame_mm.unwrap_or(diag * 1.02),
+                        }
+                    }
+                };
+                Camera::look_at(eye, target, up, projection, self.width, self.height)
+            }
+            View::Orbit { az_deg, el_deg } => Camera::orbit(
+                bounds,
+                az_deg + az_turn_deg,
+                el_deg,
+                self.persp_fov_deg,
+                self.frame_mm,
+                self.width,
+                self.height,
+            ),
+        }
+    }
+}
+
+/// One `cdvol render` run.
+#[derive(Debug, Clone)]
+pub struct RenderJob {
+    pub camera: CameraSpec,
+    pub options: RenderOptions,
+    /// Template-based CD (paper section 4.2.2, template.rs) instead of the
+    /// tile renderer; leaps like `options.method`.
+    pub template: bool,
+    /// The PNG (or, with `shard` and one frame, the part file `*.cdvpart`);
+    /// a turntable writes `NAME.0000.png` ...
+    pub output: PathBuf,
+    /// Where to write the statistics as JSON (per frame for turntables).
+    pub stats: Option<PathBuf>,
+    /// Frames of a turntable (1: a single image).
+    pub frames: u32,
+    /// Degrees of azimuth the turntable covers.
+    pub orbit_deg: f64,
+    /// One image: render only these tiles, into a part file. A turntable:
+    /// render frame `f` when `f % n == k`.
+    pub shard: Option<Shard>,
+    /// Worker threads (`None`: rayon's default, all cores).
+    pub threads: Option<usize>,
+}
+
+/// Why a render job failed. Fields are named as in [`RenderJob`].
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    #[error("camera: {0}")]
+    Camera(#[from] CameraError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error(transparent)]
+    Save(#[from] SaveError),
+    #[error(transparent)]
+    Part(#[from] PartError),
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error("{}: cannot encode statistics: {source}", path.display())]
+    StatsJson {
+        path: PathBuf,
+        source: serde_json::Error,
+    },
+    #[error("frames 0, expected at least 1")]
+    NoFrames,
+    /// Turntables orbit the volume; an exact eye cannot turn.
+    #[error("frames {frames}: a turntable orbits the volume, so its view must be an orbit, not eye, target and up")]
+    TurntableLookAt { frames: u32 },
+    #[error("the template traversal renders whole images: it takes no shard")]
+    TemplateShard,
+    /// A single image's shard is written as a part file.
+    #[error("{}: a shard's output is a part file for `cdvol assemble`; name it NAME.cdvpart", path.display())]
+    PartName { path: PathBuf },
+    #[error("cannot start the thread pool: {0}")]
+    Threads(#[from] rayon::ThreadPoolBuildError),
+}
+
+/// Runs `job` on `vol`: the files written, and the statistics (summed
+/// over the frames of a turntable).
+pub fn run(
+    vol: &PackedVolume,
+    job: &RenderJob,
+    progress: &dyn Progress,
+) -> Result<(Vec<PathBuf>, Stats), JobError> {
+    let bounds = TGrid::<f64>::new(&vol.header().axes).bounds();
+    if job.frames > 1 && matches!(job.camera.view, View::LookAt { .. }) {
+        return Err(JobError::TurntableLookAt { frames: job.frames });
+    }
+    let camera = job.camera.place(bounds, 0.0)?;
+    if job.template && job.shard.is_some() {
+        return Err(JobError::TemplateShard);
+    }
+    if job.frames == 0 {
+        return Err(JobError::NoFrames);
+    }
+    let work = || {
+        if job.frames > 1 {
+            turntable(vol, job, bounds, progress)
+        } else if let Some(shard) = job.shard {
+            part(vol, job, &camera, shard, progress)
+        } else {
+            image(vol, job, &camera, progress)
+        }
+    };
+    match job.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()?
+            .install(work),
+        None => work(),
+    }
+}
+
+/// Renders by the job's renderer (template or tiles).
+fn render_one(
+    vol: &PackedVolume,
+    cache: Option<&BrickCache>,
+    cam: &Camera,
+    job: &RenderJob,
+    progress: &dyn Progress,
+) -> Result<(super::Frame, Stats), RenderError> {
+    match (job.template, cache) {
+        (true, _) => render_template(vol, cam, &job.options, progress),
+        (false, Some(cache)) => render_in(vol, cache, cam, &job.options, progress),
+        (false, None) => render(vol, cam, &job.options, progress),
+    }
+}
+
+/// A single image and its statistics.
+fn image(
+    vol: &PackedVolume,
+    job: &RenderJob,
+    camera: &Camera,
+    progress: &dyn Progress,
+) -> Result<(Vec<PathBuf>, Stats), JobError> {
+    let (frame, stats) = render_one(vol, None, camera, job, progress)?;
+    let mut files = save(&frame, &job.output)?;
+    if let Some(p) = &job.stats {
+        write_json(p, &stats)?;
+        files.push(p.clone());
+    }
+    Ok((files, stats))
+}
+
+/// One shard of a single image, as a part file.
+fn part(
+    vol: &PackedVolume,
+    job: &RenderJob,
+    camera: &Camera,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<(Vec<PathBuf>, Stats), JobError> {
+    if job.output.extension().is_none_or(|e| e != "cdvpart") {
+        return Err(JobError::PartName {
+            path: job.output.clone(),
+        });
+    }
+    let part = render_part(vol, camera, &job.options, shard, progress)?;
+    part.write(&job.output)?;
+    let mut files = vec![job.output.clone()];
+    if let Some(p) = &job.stats {
+        write_json(p, &part.stats)?;
+        files.push(p.clone());
+    }
+    Ok((files, part.stats))
+}
+
+/// A turntable: frame `f` at azimuth `orbit_deg * f / frames` past the
+/// view, all frames through one cache (later frames reuse decoded
+/// bricks); a shard renders its frames only.
+fn turntable(
+    vol: &PackedVolume,
+    job: &RenderJob,
+    bounds: ([f64; 3], [f64; 3]),
+    progress: &dyn Progress,
+) -> Result<(Vec<PathBuf>, Stats), JobError> {
+    let (mut files, mut total, mut per_frame) = (Vec::new(), Stats::default(), Vec::new());
+    let cache = super::policy::cache_for(vol, &job.options);
+    for f in 0..job.frames {
+        if job.shard.is_some_and(|s| f % s.n != s.k) {
+            continue;
+        }
+        let cam = job
+            .camera
+            .place(bounds, job.orbit_deg * f as f64 / job.frames as f64)?;
+        let (frame, stats) = render_one(vol, Some(&cache), &cam, job, progress)?;
+        files.extend(save(&frame, &numbered(&job.output, f))?);
+        total.merge(&stats);
+        per_frame.push(stats);
+    }
+    // The frames shared one cache: its own count is exact.
+    if !job.template {
+        total.bricks_distinct = cache.distinct_read();
+    }
+    total.bricks_total = vol.header().brick_count();
+    if let Some(p) = &job.stats {
+        write_json(p, &per_frame)?;
+        files.push(p.clone());
+    }
+    Ok((files, total))
+}
+
+/// `out.png` -> `out.0007.png`: frame `f` of a turntable.
+pub fn numbered(path: &Path, f: u32) -> PathBuf {
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "png".into());
+    path.with_file_name(format!("{stem}.{f:04}.{ext}"))
+}
+
+/// Writes `value` as pretty JSON to `p` (temporary file, renamed).
+fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<(), JobError> {
+    let bytes = serde_json::to_vec_pretty(value).map_err(|source| JobError::StatsJson {
+        path: p.to_path_buf(),
+        source,
+    })?;
+    Ok(write_atomic(p, &bytes)?)
+}

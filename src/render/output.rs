@@ -1,0 +1,239 @@
+//! Image output, the last stage of a render: pixels (before colouring,
+//! from the integrators or from part files) become an RGB8 [`Frame`] by
+//! the mode's [`Colouring`], and [`save`] writes it as PNG (plus raw f32
+//! and 16-bit PNG depth in the depth mode). A single-process render and
+//! an assembled sharded one colour through the same [`colour`], so their
+//! bytes are the same.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::integrate::Px;
+use super::options::Mode;
+use crate::format::reader::PackedVolume;
+use crate::fsutil::{write_atomic, WriteError};
+
+/// How pixels become colours: the only part of the mode colouring needs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Colouring {
+    /// Surface and composite: the pixel's colour as it is.
+    Rgb,
+    /// Grey from `lo` to `hi`.
+    Mip { lo: f64, hi: f64 },
+    /// Heat map scaled to the largest step count of the whole image.
+    Cost,
+    /// Grey scaled to the depth range of the whole image.
+    Depth,
+}
+
+impl Colouring {
+    /// The colouring of `mode` on `vol` (MIP maps the file's value range).
+    pub fn of(vol: &PackedVolume, mode: &Mode) -> Colouring {
+        match mode {
+            Mode::Surface { .. } | Mode::Composite { .. } => Colouring::Rgb,
+            Mode::Mip => {
+                let [lo, hi] = mip_range(vol);
+                Colouring::Mip { lo, hi }
+            }
+            Mode::Cost => Colouring::Cost,
+            Mode::Depth { .. } => Colouring::Depth,
+        }
+    }
+}
+
+/// A rendered image: RGB8 for display, plus per-pixel data of the depth
+/// and cost modes.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub rgb: Vec<u8>,
+    /// Depth mode: hit distance in mm, NaN where the ray misses.
+    pub depth: Option<Vec<f32>>,
+    /// Steps per pixel.
+    pub steps: Vec<u32>,
+}
+
+/// The value range MIP maps to black..white: the file's rescaled raw range.
+pub(crate) fn mip_range(vol: &PackedVolume) -> [f64; 2] {
+    let s = &vol.header().summary;
+    let rs = vol.header().rescale;
+    let (a, b) = (
+        rs.apply(s.raw_min.unwrap_or(0.0)),
+        rs.apply(s.raw_max.unwrap_or(1.0)),
+    );
+    [a.min(b), a.max(b)]
+}
+
+/// Colours the pixels `px` of a `w` x `h` image.
+pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
+    let n = (w * h) as usize;
+    let mut rgb = vec![0u8; 3 * n];
+    let to8 = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let mut depth = None;
+    match kind {
+        Colouring::Rgb => {
+            for (i, p) in px.iter().enumerate() {
+                for k in 0..3 {
+                    rgb[3 * i + k] = to8(p.rgb[k]);
+                }
+            }
+        }
+        Colouring::Mip { lo, hi } => {
+            let (lo, hi) = (*lo, *hi);
+            for (i, p) in px.iter().enumerate() {
+                let g = if p.hit {
+                    ((p.rgb[0] as f64 - lo) / (hi - lo).max(1e-300)) as f32
+                } else {
+                    0.0
+                };
+                rgb[3 * i..3 * i + 3].fill(to8(g));
+            }
+        }
+        Colouring::Cost => {
+            let max = px.iter().map(|p| p.steps).max().unwrap_or(1).max(1) as f32;
+            for (i, p) in px.iter().enumerate() {
+                let c = heat(p.steps as f32 / max);
+                rgb[3 * i..3 * i + 3].copy_from_slice(&c);
+            }
+        }
+        Colouring::Depth => {
+            let d: Vec<f32> = px.iter().map(|p| p.depth).collect();
+            let (lo, hi) = d
+                .iter()
+                .filter(|x| x.is_finite())
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            for (i, &x) in d.iter().enumerate() {
+                let g = if x.is_finite() {
+                    1.0 - (x - lo) / (hi - lo).max(1e-30) * 0.9
+                } else {
+                    0.0
+                };
+                rgb[3 * i..3 * i + 3].fill(to8(g));
+            }
+            depth = Some(d);
+        }
+    }
+    Frame {
+        width: w,
+        height: h,
+        rgb,
+        depth,
+        steps: px.iter().map(|p| p.steps).collect(),
+    }
+}
+
+/// Black -> purple -> orange -> yellow-white heat map.
+fn heat(x: f32) -> [u8; 3] {
+    let stops: [(f32, [f32; 3]); 4] = [
+        (0.0, [0.0, 0.0, 0.0]),
+        (0.35, [0.45, 0.05, 0.55]),
+        (0.7, [0.95, 0.45, 0.1]),
+        (1.0, [1.0, 1.0, 0.75]),
+    ];
+    let x = x.clamp(0.0, 1.0);
+    let i = stops.iter().position(|s| s.0 >= x).unwrap_or(3).max(1);
+    let (a, b) = (stops[i - 1], stops[i]);
+    let f = (x - a.0) / (b.0 - a.0);
+    std::array::from_fn(|k| ((a.1[k] + f * (b.1[k] - a.1[k])) * 255.0).round() as u8)
+}
+
+/// Why [`save`] wrote no image.
+#[derive(Debug, thiserror::Error)]
+pub enum SaveError {
+    /// The depth mode writes its raw f32 beside the PNG with `.f32`.
+    #[error(
+        "{}: the depth mode writes its raw f32 beside the PNG with the extension .f32; \
+         use a .png name",
+        path.display()
+    )]
+    F32Name { path: PathBuf },
+    /// The frame's pixel buffer does not hold `width x height` pixels.
+    #[error(
+        "{}: frame of {width} x {height} pixels holds {found} {what} values, expected {expected}",
+        path.display()
+    )]
+    Size {
+        path: PathBuf,
+        what: &'static str,
+        width: u32,
+        height: u32,
+        found: usize,
+        expected: usize,
+    },
+    /// PNG encoding failed.
+    #[error("{}: cannot encode PNG: {source}", path.display())]
+    Encode {
+        path: PathBuf,
+        source: image::ImageError,
+    },
+    #[error(transparent)]
+    Write(#[from] WriteError),
+}
+
+/// Writes `frame` as PNG to `path` (temporary file beside it, renamed when
+/// complete); the depth mode also writes `path` with `.f32` (raw
+/// little-endian f32, NaN = miss) and a 16-bit PNG `*.depth16.png`.
+pub fn save(frame: &Frame, path: &Path) -> Result<Vec<PathBuf>, SaveError> {
+    let png = |img: image::DynamicImage, to: &Path| -> Result<Vec<u8>, SaveError> {
+        let mut buf = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut buf, image::ImageFormat::Png)
+            .map_err(|source| SaveError::Encode {
+                path: to.to_path_buf(),
+                source,
+            })?;
+        Ok(buf.into_inner())
+    };
+    let size = |what, found: usize, per_px: usize| SaveError::Size {
+        path: path.to_path_buf(),
+        what,
+        width: frame.width,
+        height: frame.height,
+        found,
+        expected: frame.width as usize * frame.height as usize * per_px,
+    };
+    if frame.depth.is_some() && path.extension().is_some_and(|e| e == "f32") {
+        return Err(SaveError::F32Name {
+            path: path.to_path_buf(),
+        });
+    }
+    let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
+        .ok_or_else(|| size("rgb", frame.rgb.len(), 3))?;
+    write_atomic(path, &png(image::DynamicImage::ImageRgb8(rgb), path)?)?;
+    let mut out = vec![path.to_path_buf()];
+    if let Some(d) = &frame.depth {
+        let raw: Vec<u8> = d.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let f32_path = path.with_extension("f32");
+        write_atomic(&f32_path, &raw)?;
+        let (lo, hi) = d
+            .iter()
+            .filter(|x| x.is_finite())
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        let px16: Vec<u16> = d
+            .iter()
+            .map(|&x| {
+                if x.is_finite() {
+                    1 + ((x - lo) / (hi - lo).max(1e-30) * 65534.0) as u16
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(
+            frame.width,
+            frame.height,
+            px16,
+        )
+        .ok_or_else(|| size("depth", d.len(), 1))?;
+        let p16 = path.with_extension("depth16.png");
+        write_atomic(&p16, &png(image::DynamicImage::ImageLuma16(img), &p16)?)?;
+        out.push(f32_path);
+        out.push(p16);
+    }
+    Ok(out)
+}

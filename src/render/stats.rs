@@ -1,0 +1,97 @@
+//! Counters of a render (the `--stats` contract): rays, traversal steps,
+//! hits and the brick cache's reads, per render, summed over the tiles of
+//! a part and over the parts or frames of a job.
+
+use std::time::Instant;
+
+use super::cache::{BrickCache, CacheCounters};
+use super::options::RenderOptions;
+use super::traverse::StepCounts;
+
+/// Counters of a render (the `--stats` contract).
+#[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize)]
+pub struct Stats {
+    pub rays: u64,
+    pub steps: u64,
+    pub macro_steps: u64,
+    pub cell_steps: u64,
+    pub hits: u64,
+    /// Brick payloads read and decoded into the cache (a brick evicted
+    /// and needed again counts again; two threads racing to decode the
+    /// same brick count once).
+    pub bricks_read: u64,
+    /// Distinct bricks read: the share of the file the scene needed. In
+    /// merged statistics (parts, frames) the sum of theirs, an upper bound.
+    #[serde(default)]
+    pub bricks_distinct: u64,
+    /// Bricks without 1-cells the traversal crossed without reading them.
+    pub bricks_skipped: u64,
+    pub cache_hits: u64,
+    pub cache_misses: u64,
+    pub bytes_decompressed: u64,
+    pub peak_cache_bytes: u64,
+    pub bricks_total: u64,
+    pub seconds_total: f64,
+    /// The traversal's stable name ([`Method::name`](super::traverse::Method::name):
+    /// `cd`, `cd min_leap=3`, `fvt`, `dda-chamfer no_switch`, ...; the
+    /// template renderer prefixes `template `).
+    pub traversal: String,
+    /// [`Mode::name`](super::Mode::name).
+    pub mode: String,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Stats {
+    /// The counters of a render with `opts` through `cache`, started at
+    /// `t0`; `width` and `height` are the caller's to fill, and `traversal`
+    /// is [`Method::name`](super::traverse::Method::name) of `opts.method`.
+    pub(crate) fn counted(
+        rays: u64,
+        hits: u64,
+        steps: &StepCounts,
+        cc: &CacheCounters,
+        cache: &BrickCache,
+        opts: &RenderOptions,
+        t0: Instant,
+    ) -> Stats {
+        Stats {
+            rays,
+            steps: steps.steps,
+            macro_steps: steps.macro_steps,
+            cell_steps: steps.cell_steps,
+            hits,
+            bricks_read: cc.bricks_read,
+            bricks_distinct: cache.distinct_read(),
+            bricks_skipped: cc.bricks_skipped,
+            cache_hits: cc.cache_hits,
+            cache_misses: cc.cache_misses,
+            bytes_decompressed: cc.bytes_decompressed,
+            peak_cache_bytes: cache.peak_bytes() as u64,
+            bricks_total: cache.volume().header().brick_count(),
+            seconds_total: t0.elapsed().as_secs_f64(),
+            traversal: opts.method.name(),
+            mode: opts.mode.name().into(),
+            width: 0,
+            height: 0,
+        }
+    }
+
+    /// Adds the counters of `o` (another part or frame): sums, except
+    /// `peak_cache_bytes` (the larger); `seconds_total` sums too.
+    pub fn merge(&mut self, o: &Stats) {
+        self.rays += o.rays;
+        self.steps += o.steps;
+        self.macro_steps += o.macro_steps;
+        self.cell_steps += o.cell_steps;
+        self.hits += o.hits;
+        self.bricks_read += o.bricks_read;
+        self.bricks_distinct += o.bricks_distinct;
+        self.bricks_skipped += o.bricks_skipped;
+        self.cache_hits += o.cache_hits;
+        self.cache_misses += o.cache_misses;
+        self.bytes_decompressed += o.bytes_decompressed;
+        self.peak_cache_bytes = self.peak_cache_bytes.max(o.peak_cache_bytes);
+        self.seconds_total += o.seconds_total;
+    }
+}

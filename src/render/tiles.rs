@@ -1,0 +1,326 @@
+//! Tile scheduling: the image is cut into `opts.tile`-pixel squares,
+//! taken in Morton (Z) order so that rayon hands each thread compact runs
+//! whose rays share bricks; a [`Shard`] selects some of them. Each tile is
+//! one rayon task with its own [`Accessor`] in front of the shared
+//! [`BrickCache`], and each pixel is computed on its own (integrate/), so
+//! the output is the same whatever the thread count, tile size or cache
+//! budget. Tiles are then placed and coloured (output.rs).
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::cache::{self, Accessor, BrickCache, CacheCounters};
+use super::camera::Camera;
+use super::error::RenderError;
+use super::integrate::{pixel, Ctx, Px};
+use super::lut;
+use super::options::{check_render, Mode, Precision, RenderOptions};
+use super::output::{colour, Colouring, Frame};
+use super::stats::Stats;
+use super::traverse::{Real, StepCounts, TGrid};
+use crate::classify::Classification;
+use crate::format::reader::PackedVolume;
+use crate::format::FormatError;
+use crate::progress::Progress;
+
+/// Renders `vol` as seen by `camera`: every tile, then the colouring
+/// [`shard::assemble`](super::shard::assemble) uses too, so a sharded
+/// render assembles to the same bytes.
+pub fn render(
+    vol: &PackedVolume,
+    camera: &Camera,
+    opts: &RenderOptions,
+    progress: &dyn Progress,
+) -> Result<(Frame, Stats), RenderError> {
+    render_in(
+        vol,
+        &super::policy::cache_for(vol, opts),
+        camera,
+        opts,
+        progress,
+    )
+}
+
+/// [`render`] with a brick cache that outlives it: the frames of a
+/// turntable share the bricks they decode (a frame's `bricks_distinct`
+/// then counts the cache's whole history).
+pub fn render_in(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    progress: &dyn Progress,
+) -> Result<(Frame, Stats), RenderError> {
+    let t0 = Instant::now();
+    let (tiles, stats) = render_shard(vol, cache, camera, opts, Shard::WHOLE, progress)?;
+    let colouring = Colouring::of(vol, &opts.mode);
+    let (frame, mut stats) = finish(&colouring, camera.width, camera.height, tiles, stats);
+    stats.seconds_total = t0.elapsed().as_secs_f64();
+    Ok((frame, stats))
+}
+
+/// Renders the tiles of `shard` after checking the options: their pixels
+/// before colouring, and the summed counters (`width` and `height` set).
+/// The common core of [`render_in`] and
+/// [`render_part_in`](super::shard::render_part_in).
+pub(crate) fn render_shard(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<(Vec<TilePx>, Stats), RenderError> {
+    let t0 = Instant::now();
+    check_render(vol, camera, opts)?;
+    if shard.n == 0 || shard.k >= shard.n {
+        return Err(RenderError::Option {
+            field: "shard",
+            value: format!("{}/{}", shard.k, shard.n),
+            expected: "K/N with 0 <= K < N".into(),
+        });
+    }
+    let (w, hgt) = (camera.width, camera.height);
+    let results = match opts.precision {
+        Precision::F64 => render_tiles::<f64>(vol, cache, camera, opts, shard, progress),
+        Precision::F32 => render_tiles::<f32>(vol, cache, camera, opts, shard, progress),
+    };
+
+    // Merge counters; keep the tiles' pixels for colouring.
+    let mut steps = StepCounts::default();
+    let mut cc = CacheCounters::default();
+    let mut hits = 0u64;
+    let mut rays = 0u64;
+    let mut tiles = Vec::with_capacity(results.len());
+    for r in results {
+        if let Some(e) = r.error {
+            return Err(e.into());
+        }
+        steps.add(&r.steps);
+        cc.add(&r.cache);
+        hits += r.hits;
+        rays += r.pixels.len() as u64;
+        tiles.push(TilePx {
+            x0: r.x0,
+            y0: r.y0,
+            w: r.w,
+            pixels: r.pixels,
+        });
+    }
+    let mut stats = Stats::counted(rays, hits, &steps, &cc, cache, opts, t0);
+    (stats.width, stats.height) = (w, hgt);
+    Ok((tiles, stats))
+}
+
+/// Which tiles a render computes, out of the Morton-ordered tile list.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Shard {
+    pub k: u32,
+    pub n: u32,
+    pub layout: ShardLayout,
+}
+
+/// How the tiles are dealt to shards (docs/BENCHMARKS.md, "Sharded
+/// renders", measures the two).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum ShardLayout {
+    /// Tile `i` to shard `i % n`: every shard gets a share of every part
+    /// of the image, so shards take about the same time; but each reads
+    /// most of the bricks the whole image needs.
+    #[default]
+    Interleaved,
+    /// Tile `i` of `t` to shard `i * n / t`: contiguous runs of the Morton
+    /// curve, compact on screen, so shards read mostly different bricks;
+    /// but a shard over empty space finishes early.
+    Blocks,
+}
+
+impl Shard {
+    pub const WHOLE: Shard = Shard {
+        k: 0,
+        n: 1,
+        layout: ShardLayout::Interleaved,
+    };
+
+    /// Parses `K/N` with `0 <= K < N` (interleaved layout).
+    pub fn parse(s: &str) -> Result<Shard, ShardParseError> {
+        let bad = || ShardParseError {
+            found: s.to_string(),
+        };
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let k: u32 = k.trim().parse().map_err(|_| bad())?;
+        let n: u32 = n.trim().parse().map_err(|_| bad())?;
+        if n == 0 || k >= n {
+            return Err(bad());
+        }
+        Ok(Shard {
+            k,
+            n,
+            layout: ShardLayout::Interleaved,
+        })
+    }
+
+    /// Whether tile `i` of `t` (Morton order) belongs to this shard.
+    pub fn owns(&self, i: u64, t: u64) -> bool {
+        let (k, n) = (self.k as u64, self.n as u64);
+        match self.layout {
+            ShardLayout::Interleaved => i % n == k,
+            ShardLayout::Blocks => i * n / t.max(1) == k,
+        }
+    }
+}
+
+/// A `--shard`-style `K/N` that is not one.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("shard {found:?}, expected K/N with 0 <= K < N, e.g. 3/8")]
+pub struct ShardParseError {
+    /// The text given.
+    pub found: String,
+}
+
+/// One tile's pixels before colouring, row by row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TilePx {
+    pub x0: u32,
+    pub y0: u32,
+    pub w: u32,
+    pub(crate) pixels: Vec<Px>,
+}
+
+/// Places the tiles in a `w` x `h` image and colours it; `stats` are the
+/// summed counters. Shared by [`render_in`] and
+/// [`shard::assemble`](super::shard::assemble). Tiles given by value are
+/// dropped as soon as they are placed, so a render holds about one copy
+/// of the pixels, not two.
+pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
+    colouring: &Colouring,
+    w: u32,
+    h: u32,
+    tiles: impl IntoIterator<Item = T>,
+    mut stats: Stats,
+) -> (Frame, Stats) {
+    let mut px = vec![Px::default(); w as usize * h as usize];
+    for t in tiles {
+        let t = t.borrow();
+        for (i, p) in t.pixels.iter().enumerate() {
+            let (lx, ly) = (i as u32 % t.w, i as u32 / t.w);
+            px[((t.y0 + ly) * w + t.x0 + lx) as usize] = *p;
+        }
+    }
+    let frame = colour(colouring, w, h, &px);
+    stats.rays = w as u64 * h as u64;
+    (frame, stats)
+}
+
+/// Renders the tiles of `shard` in the traversal arithmetic `T`.
+fn render_tiles<T: Real>(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Vec<TileOut> {
+    let h = vol.header();
+    let grid = TGrid::<T>::new(&h.axes);
+    let (w, hgt) = (camera.width, camera.height);
+    let ts = opts.tile;
+    let (ntx, nty) = (w.div_ceil(ts), hgt.div_ceil(ts));
+    // Tiles in Morton (Z) order: rayon hands each thread contiguous runs,
+    // which are then compact squares of the image whose rays share bricks.
+    let mut tiles: Vec<(u32, u32)> = (0..nty)
+        .flat_map(|ty| (0..ntx).map(move |tx| (tx, ty)))
+        .collect();
+    tiles.sort_by_key(|&(tx, ty)| morton(tx, ty));
+    let total = tiles.len() as u64;
+    let tiles: Vec<(u32, u32)> = tiles
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| shard.owns(*i as u64, total))
+        .map(|(_, t)| t)
+        .collect();
+    let ctx = Ctx {
+        grid: &grid,
+        coords: [h.axes[0].coords(), h.axes[1].coords(), h.axes[2].coords()],
+        camera,
+        opts,
+        // Mapped like the stored values (see cache::to_f32).
+        iso: match h.classification {
+            Classification::Iso { iso } => cache::to_f32(iso) as f64,
+            _ => f64::NAN,
+        },
+        lut: match &opts.mode {
+            Mode::Composite { tf, step_mm } => Some(lut::TfLut::new(tf, *step_mm)),
+            _ => None,
+        },
+    };
+    progress.begin("render tiles", tiles.len() as u64);
+    let results = tiles
+        .par_iter()
+        .map(|&(tx, ty)| {
+            let r = render_tile(&ctx, cache, tx * ts, ty * ts, ts);
+            progress.advance(1);
+            r
+        })
+        .collect();
+    progress.end();
+    results
+}
+
+/// Interleaves the bits of `x` and `y` (Z-order curve).
+fn morton(x: u32, y: u32) -> u64 {
+    let spread = |v: u32| {
+        let mut v = v as u64;
+        v = (v | (v << 16)) & 0x0000_ffff_0000_ffff;
+        v = (v | (v << 8)) & 0x00ff_00ff_00ff_00ff;
+        v = (v | (v << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
+        v = (v | (v << 2)) & 0x3333_3333_3333_3333;
+        (v | (v << 1)) & 0x5555_5555_5555_5555
+    };
+    spread(x) | (spread(y) << 1)
+}
+
+/// One tile's pixels and counters, as a rayon task returns them.
+struct TileOut {
+    x0: u32,
+    y0: u32,
+    w: u32,
+    pixels: Vec<Px>,
+    steps: StepCounts,
+    cache: CacheCounters,
+    hits: u64,
+    error: Option<FormatError>,
+}
+
+/// Renders the tile at `(x0, y0)`, at most `ts` pixels square, with one
+/// accessor in front of the shared cache.
+fn render_tile<T: Real>(ctx: &Ctx<T>, cache: &BrickCache, x0: u32, y0: u32, ts: u32) -> TileOut {
+    let cam = ctx.camera;
+    let w = ts.min(cam.width - x0);
+    let hh = ts.min(cam.height - y0);
+    let policy = super::policy::brick_policy(ctx.opts.method, ctx.opts.cd_lazy_min);
+    let mut acc = Accessor::for_policy(cache, &policy);
+    let mut pixels = Vec::with_capacity((w * hh) as usize);
+    let mut steps = StepCounts::default();
+    let mut hits = 0;
+    for y in y0..y0 + hh {
+        for x in x0..x0 + w {
+            let ray = cam.ray(x, y);
+            let (p, s) = pixel(ctx, &ray, &mut acc);
+            steps.add(&s);
+            hits += p.hit as u64;
+            pixels.push(p);
+        }
+    }
+    TileOut {
+        x0,
+        y0,
+        w,
+        pixels,
+        steps,
+        cache: acc.counters,
+        hits,
+        error: acc.error.take(),
+    }
+}
