@@ -8,14 +8,22 @@
 //!
 //! ## The pipeline, one module a stage
 //! ```text
-//! input::SliceSource   raw stack + JSON sidecar (memory-mapped), z slices
+//! input::SliceSource   raw+sidecar (memmap2), DICOM, NRRD, NIfTI: z slices
 //!   -> classify        cells between 8 samples -> 1-cells / 0-cells
 //!   -> dt              streaming chessboard distance transform (2 passes)
 //!   -> prep            slabs of bricks, codes embedded, zstd, atomic write
 //! == packed file (format, docs/FORMAT.md) ==
 //!   -> format::reader  header, index, checked brick payloads on demand
+//!   -> format::brick   the one payload decoder (values, codes, planes)
 //!   -> info, export    summaries and full-resolution arrays back out
+//!   -> render          camera -> tiles (rayon) -> cache (decoded bricks,
+//!                      bounded) -> traverse (walkers: fvt, cd, octree,
+//!                      dda; paper Figs. 11-12) -> integrate (surface,
+//!                      depth, mip, composite, cost) -> output (PNG)
 //! ```
+//! docs/DESIGN.md maps every room: what it owns and what it may import
+//! (checked by tests/all/layout.rs).
+//!
 //! With the cargo feature `tools` (default), [`tools`] adds what is built
 //! on the library rather than part of it: test scenes (`tools::phantom`,
 //! the paper's sphere scenes of section 5.1 and a CT-like head with
