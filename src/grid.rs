@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 /// The header lists every sample position, so this keeps a header below
 /// 100 MB; it is 500 times the slices of any CT series, and small enough
 /// that the extreme-case suite reaches it with a thin slab
-/// (tests/extremes.rs). Cell and brick indices fit in `u32`.
+/// (tests/all/extremes.rs). Cell and brick indices fit in `u32`.
 pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 20;
 
 /// Largest |position| in mm an axis may hold (10^15 mm, a million km):

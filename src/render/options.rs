@@ -89,7 +89,7 @@ impl RenderOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Precision {
     F32,
-    /// Never misses a 1-cell in tests/extremes.rs (f32 does).
+    /// Never misses a 1-cell in tests/all/extremes.rs (f32 does).
     #[default]
     F64,
 }

@@ -38,7 +38,7 @@
 //! 0-cells, and the next entry read is `s + n + 1`, one array increment
 //! (paper: "increment of the actual template voxel coordinate by n").
 //! [`walk`] with leaps yields exactly the 1-cells the single-step template
-//! walk yields (tests/template.rs checks this by property test).
+//! walk yields (tests/all/template.rs checks this by property test).
 //!
 //! **Hit test.** At a 1-cell the hit is searched along the *true* ray of
 //! that base-plane cell (origin at the start cell's centre on the base
@@ -88,7 +88,7 @@
 //!    surface that the ray meets only inside such a skipped cell is found
 //!    later, in a following template cell (the gap refinement recovers the
 //!    crossing when that cell is entered inside the surface), or not at all
-//!    (the ray grazes the surface through skipped cells only). tests/template.rs
+//!    (the ray grazes the surface through skipped cells only). tests/all/template.rs
 //!    counts the FVT 1-cell visits the template skips on random volumes and
 //!    the pixels whose hit/miss or depth differs from [`super::render`] on
 //!    a sphere phantom.
@@ -100,7 +100,7 @@
 //!
 //! # Measured
 //!
-//! tests/template.rs, sphere phantom (48^3, cubic and 0.8 x 1 x 1.5 mm
+//! tests/all/template.rs, sphere phantom (48^3, cubic and 0.8 x 1 x 1.5 mm
 //! grids, 96 x 96, four views), against FVT: hit/miss differs on
 //! 0.65-1.02 % of the pixels; over pixels both hit, the median depth
 //! difference is 0.03-0.09 mm (nearest warp 0.19-0.31 mm; without the

@@ -1,13 +1,13 @@
 //! Named extreme cases for the traversal: grids, objects and rays at the
 //! edges of what the arithmetic must handle (issue "numerical stability
-//! at the extremes"). tests/extremes.rs checks every case against an
+//! at the extremes"). tests/all/extremes.rs checks every case against an
 //! exact rational oracle; `cdvol experiment tradeoffs` replays them in f32
 //! and f64 and counts where the two differ.
 //!
 //! The volumes live in memory ([`MemVolume`]), with codes computed by
 //! brute force from the list of 1-cells, so a case can reach the format's
 //! largest axis (a thin slab) without writing a file. The packed-file
-//! path is covered by tests/traverse.rs and tests/extremes.rs.
+//! path is covered by tests/all/traverse.rs and tests/all/extremes.rs.
 
 use crate::grid::{Axis, MAX_SAMPLES_PER_AXIS};
 use crate::render::cache::OBJECT;

@@ -18,7 +18,7 @@
 //! empty, and chessboard DDA with the switch visits exactly FVT's 1-cells.
 //! City block and chamfer leaps of length `d - 1` from a point that is not
 //! the centre can reach cells at distance `d + 1` (`L1`) and are not
-//! exact; tests/generators.rs counts what they miss.
+//! exact; tests/all/generators.rs counts what they miss.
 //!
 //! A visit's entry and exit are the cell's slab interval along the ray,
 //! computed by the same `plane_t` as FVT (bit-identical where FVT visits

@@ -22,13 +22,13 @@
 //!
 //! Termination: every step raises at least one cell index by one and lowers
 //! none, so a ray takes at most `ncx + ncy + ncz - 2` steps (the suite in
-//! tests/extremes.rs checks this bound on every ray).
+//! tests/all/extremes.rs checks this bound on every ray).
 //!
 //! Precision: [`trace`] is generic over [`Real`] (`f64` or `f32`). In f64
 //! every computed crossing is the exact one times `(1 + e)`, `|e| <= 3u`
 //! (`u = 2^-53`), and crossings are compared only through these values, so
 //! the walk equals the exact one except for cells whose exact length along
-//! the ray is within `6u * |t|` of zero; tests/extremes.rs checks exactly
+//! the ray is within `6u * |t|` of zero; tests/all/extremes.rs checks exactly
 //! this against rational arithmetic. f32 adds the rounding of origins and
 //! sample positions to 24 bits, relative to their magnitude: it misses
 //! cells (docs/TRADEOFFS.md), so f64 is the default.
@@ -184,7 +184,7 @@ pub enum Method {
 
 impl Method {
     /// Whether every 1-cell the FVT visits is visited, in the same order
-    /// with the same entry and exit (tests/generators.rs checks these bit
+    /// with the same entry and exit (tests/all/generators.rs checks these bit
     /// for bit against FVT).
     pub fn is_exact(self) -> bool {
         match self {

@@ -461,7 +461,7 @@ fn rmse_psnr(a: &[u8], b: &[u8]) -> (f64, f64) {
     (rmse, 20.0 * (255.0 / rmse).log10())
 }
 
-/// f32 against f64 on the named corpus of src/corpus.rs (FVT): rays, rays
+/// f32 against f64 on the named corpus of src/tools/corpus.rs (FVT): rays, rays
 /// whose 1-cell sequence differs, 1-cells f64 visits and f32 misses, rays
 /// whose first 1-cell differs.
 pub fn f32_corpus_diffs() -> [u64; 4] {
@@ -589,13 +589,13 @@ fn report(rows: &[Row], o: &TradeoffOptions, diffs: &[u64; 4]) -> String {
     let _ = writeln!(
         s,
         "## f32 against f64 on the extreme-case corpus\n\n\
-         The named corpus of src/corpus.rs (grids with one-cell axes, spacing ratios \
+         The named corpus of src/tools/corpus.rs (grids with one-cell axes, spacing ratios \
          of 1e4, offsets of 1e6 mm, gaps of 1e-9 mm; origins on samples, faces, edges \
          and 1e9 mm away; directions with 0.0/-0.0, 1e-30, subnormal and huge \
          components), walked by FVT: {} rays; the f32 walk gives a different 1-cell \
          sequence on {} of them, misses {} 1-cells that f64 visits, and has a \
          different first 1-cell on {}. f64 matches an exact rational oracle on every \
-         one (tests/extremes.rs), so f64 is the default.\n",
+         one (tests/all/extremes.rs), so f64 is the default.\n",
         diffs[0], diffs[1], diffs[2], diffs[3]
     );
     s

@@ -660,7 +660,7 @@ impl Sweep {
             );
         }
         s.push_str(
-            "\nWith the switch, chessboard DDA is exact (tests/traverse.rs proves it against \
+            "\nWith the switch, chessboard DDA is exact (tests/all/traverse.rs proves it against \
              an exact enumeration); city block and chamfer are checked there never to invent \
              or misplace a 1-cell, and the table counts what they miss.\n\
              \nWhy city block leaps furthest here: along an axis `D1(r) = Dinf(r) = 1`, so \
