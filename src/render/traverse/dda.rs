@@ -168,6 +168,7 @@ impl<'g, T: Real> Dda<'g, T> {
 }
 
 impl<T: Real, S: CodeSource> Walker<S> for Dda<'_, T> {
+    #[inline]
     fn next_visit(&mut self, src: &mut S) -> Option<Visit> {
         if self.done {
             return None;

@@ -53,6 +53,7 @@ impl<'g, T: Real> Frame<'g, T> {
     /// with. A component that underflows to 0 in `T` (f32 only) is treated
     /// as parallel, keeping its sign for mirroring and leaving at once
     /// from the far face.
+    #[inline(always)]
     pub(super) fn enter(
         grid: &'g TGrid<T>,
         ray: &Ray,

@@ -63,12 +63,6 @@ impl<'g, T: Real, R> CellWalker<'g, T, R> {
             counts: StepCounts::default(),
         }
     }
-
-    #[inline(always)]
-    fn step(&mut self) -> bool {
-        self.counts.cell_steps += 1;
-        self.c.step(&self.f)
-    }
 }
 
 impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, T, R> {
@@ -77,35 +71,45 @@ impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, T, R> 
         if self.done {
             return None;
         }
+        // The walk's state in locals for the loop (the struct is written
+        // back on return), so the compiler keeps it in registers.
+        let f = &self.f;
+        let mut c = self.c;
+        let mut counts = self.counts;
+        let mut moved = true;
         if self.pending {
             self.pending = false;
-            if !self.step() {
-                self.done = true;
-                return None;
-            }
+            counts.cell_steps += 1;
+            moved = c.step(f);
         }
-        loop {
-            let real = self.f.real(self.c.v);
-            self.counts.steps += 1;
-            let moved = match self.rule.at(&self.f, self.c.v, real, src) {
+        let mut found = None;
+        while moved {
+            let real = f.real(c.v);
+            counts.steps += 1;
+            moved = match self.rule.at(f, c.v, real, src) {
                 Action::Visit => {
-                    if let Some(vis) = self.c.visit(&self.f, real) {
-                        self.pending = true;
-                        return Some(vis);
+                    if let Some(vis) = c.visit(f, real) {
+                        found = Some(vis);
+                        break;
                     }
-                    self.step()
+                    counts.cell_steps += 1;
+                    c.step(f)
                 }
-                Action::Step => self.step(),
+                Action::Step => {
+                    counts.cell_steps += 1;
+                    c.step(f)
+                }
                 Action::Leap(far) => {
-                    self.counts.macro_steps += 1;
-                    self.c.leap(&self.f, far)
+                    counts.macro_steps += 1;
+                    c.leap(f, far)
                 }
             };
-            if !moved {
-                self.done = true;
-                return None;
-            }
         }
+        self.c = c;
+        self.counts = counts;
+        self.pending = found.is_some();
+        self.done = !moved;
+        found
     }
 
     fn counts(&self) -> StepCounts {
