@@ -31,8 +31,8 @@ use super::walker::Walker;
 use super::{CodeSource, DistKind, Real, StepCounts, Visit};
 
 /// The DDA walk of one ray.
-pub struct Dda<'g, T> {
-    f: Frame<'g, T>,
+pub struct Dda<'f, 'g, T> {
+    f: &'f Frame<'g, T>,
     kind: DistKind,
     switch_fvt: bool,
     /// Every crossed axis uniform: the walk has cell units.
@@ -55,8 +55,8 @@ pub struct Dda<'g, T> {
     counts: StepCounts,
 }
 
-impl<'g, T: Real> Dda<'g, T> {
-    pub(super) fn new(f: Frame<'g, T>, e: Entry<T>, kind: DistKind, switch_fvt: bool) -> Self {
+impl<'f, 'g, T: Real> Dda<'f, 'g, T> {
+    pub(super) fn new(f: &'f Frame<'g, T>, e: Entry<T>, kind: DistKind, switch_fvt: bool) -> Self {
         let regular = (0..3).all(|k| f.d[k] == T::zero() || f.uniform[k].is_some());
         // Direction in cells per unit of t, and its norms (eq. 3).
         let r: [f64; 3] = std::array::from_fn(|k| match f.uniform[k] {
@@ -108,7 +108,7 @@ impl<'g, T: Real> Dda<'g, T> {
     /// leaves the volume.
     #[inline(always)]
     fn advance(&mut self, dist: u8) -> bool {
-        let f = &self.f;
+        let f = self.f;
         let leap = dist as f64 / self.kind.unit() as f64 - 1.0;
         // Near objects (the free length along the ray, eq. 2, is shorter
         // than one DDA step) the switch takes single-cell steps.
@@ -167,7 +167,7 @@ impl<'g, T: Real> Dda<'g, T> {
     }
 }
 
-impl<T: Real, S: CodeSource> Walker<S> for Dda<'_, T> {
+impl<T: Real, S: CodeSource> Walker<S> for Dda<'_, '_, T> {
     #[inline]
     fn next_visit(&mut self, src: &mut S) -> Option<Visit> {
         if self.done {

@@ -343,23 +343,23 @@ where
         return StepCounts::default();
     };
     match method {
-        Method::Fvt => drive(CellWalker::new(f, e, Fvt), src, visit),
+        Method::Fvt => drive(CellWalker::new(&f, e, Fvt), src, visit),
         Method::Cd { min_leap } => {
             let rule = Cd {
                 min_leap: min_leap.max(1),
                 octant: None,
             };
-            drive(CellWalker::new(f, e, rule), src, visit)
+            drive(CellWalker::new(&f, e, rule), src, visit)
         }
         Method::CdAniso { min_leap } => {
             let rule = Cd {
                 min_leap: min_leap.max(1),
                 octant: Some(f.octant()),
             };
-            drive(CellWalker::new(f, e, rule), src, visit)
+            drive(CellWalker::new(&f, e, rule), src, visit)
         }
-        Method::Octree => drive(CellWalker::new(f, e, Octree), src, visit),
-        Method::Dda { kind, switch_fvt } => drive(Dda::new(f, e, kind, switch_fvt), src, visit),
+        Method::Octree => drive(CellWalker::new(&f, e, Octree), src, visit),
+        Method::Dda { kind, switch_fvt } => drive(Dda::new(&f, e, kind, switch_fvt), src, visit),
     }
 }
 

@@ -41,8 +41,9 @@ pub(super) trait CellRule<S> {
 
 /// A walk by single-cell steps and leaps, the method's rule deciding at
 /// each cell which.
-pub struct CellWalker<'g, T, R> {
-    f: Frame<'g, T>,
+pub struct CellWalker<'f, 'g, T, R> {
+    /// The ray's frame, borrowed: a walker is small to move.
+    f: &'f Frame<'g, T>,
     c: Cursor<T>,
     rule: R,
     /// The last call yielded a visit; the step out of that cell is due.
@@ -51,9 +52,10 @@ pub struct CellWalker<'g, T, R> {
     counts: StepCounts,
 }
 
-impl<'g, T: Real, R> CellWalker<'g, T, R> {
-    pub(super) fn new(f: Frame<'g, T>, e: Entry<T>, rule: R) -> Self {
-        let c = Cursor::new(&f, e);
+impl<'f, 'g, T: Real, R> CellWalker<'f, 'g, T, R> {
+    #[inline(always)]
+    pub(super) fn new(f: &'f Frame<'g, T>, e: Entry<T>, rule: R) -> Self {
+        let c = Cursor::new(f, e);
         CellWalker {
             f,
             c,
@@ -65,7 +67,7 @@ impl<'g, T: Real, R> CellWalker<'g, T, R> {
     }
 }
 
-impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, T, R> {
+impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, '_, T, R> {
     #[inline(always)]
     fn next_visit(&mut self, src: &mut S) -> Option<Visit> {
         if self.done {
@@ -73,7 +75,7 @@ impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, T, R> 
         }
         // The walk's state in locals for the loop (the struct is written
         // back on return), so the compiler keeps it in registers.
-        let f = &self.f;
+        let f = self.f;
         let mut c = self.c;
         let mut counts = self.counts;
         let mut moved = true;
