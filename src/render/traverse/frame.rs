@@ -1,8 +1,9 @@
 //! The per-ray frame every walker shares (paper section 4.1): mirrored
 //! axes, the one crossing formula `plane_t`, *Locate*, the entry into the
-//! volume, and the two moves of Figs. 11-12: the leap to the far faces of
-//! an empty region ([`leap`], a short pure function) and the single-cell
-//! step ([`Cursor::step`]).
+//! volume, and the two moves of Figs. 11-12: the leap out of an empty
+//! region ([`Cursor::leap`], whose exit [`leap_exit`] and far faces
+//! [`cube_far`] are short pure functions) and the single-cell step
+//! ([`Cursor::step`]).
 //!
 //! Every axis with a negative direction component is mirrored
 //! (`S'[i] = -S[n-1-i]`), so a walk only ever moves towards higher
@@ -329,50 +330,45 @@ impl<T: Real> Cursor<T> {
         true
     }
 
-    /// Macro step (Figs. 11-12): [`leap`] from the current cell, then
-    /// the next crossings from the landing cell. `false` when the ray
-    /// leaves the volume.
+    /// Macro step (Figs. 11-12): out of the empty region whose far faces
+    /// are planes `far` through the nearest of them ([`leap_exit`]), then
+    /// *Locate* the other axes at that `t` within the region. `false` when
+    /// the ray leaves the volume.
     #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // v[k], far[k], f.d[k] side by side
     pub(super) fn leap(&mut self, f: &Frame<'_, T>, far: [u32; 3]) -> bool {
-        let Some((v, t)) = leap(f, self.v, far) else {
+        let Some((m, t)) = leap_exit(f, far) else {
             return false;
         };
-        self.v = v;
-        self.next = f.crossings(v);
+        for k in 0..3 {
+            if k == m {
+                self.v[k] = far[k];
+            } else if f.d[k] != T::zero() {
+                self.v[k] = f.locate(k, t, self.v[k], far[k]);
+                if self.v[k] >= f.n[k] {
+                    return false;
+                }
+            }
+            self.next[k] = f.plane_t(k, self.v[k] + 1);
+        }
         self.t_enter = t;
         true
     }
 }
 
-/// The leap of Figs. 11-12 from cell `v` out of an empty region whose far
-/// faces are planes `far` (mirrored frame; [`cube_far`] for CD,
-/// [`Frame::node_far`] for the octree): the ray leaves through the nearest
-/// far face, at `t`; the other axes are *Locate*d at that `t` within the
-/// region. Returns the landing cell and `t`, or `None` when the ray leaves
-/// the volume.
+/// Where the leap of Figs. 11-12 leaves an empty region whose far faces
+/// are planes `far` (mirrored frame; [`cube_far`] for CD, eq. 12;
+/// [`Frame::node_far`] for the octree): the axis and `t` of the nearest far
+/// face, ties to x then y; `None` when that face is the volume's own far
+/// face, where the ray leaves. A short pure function of the frame and the
+/// faces.
 #[inline(always)]
-#[allow(clippy::needless_range_loop)] // v[k], far[k], f.d[k] side by side
-pub(super) fn leap<T: Real>(f: &Frame<'_, T>, v: [u32; 3], far: [u32; 3]) -> Option<([u32; 3], T)> {
+pub(super) fn leap_exit<T: Real>(f: &Frame<'_, T>, far: [u32; 3]) -> Option<(usize, T)> {
     let t_far = [
         f.plane_t(0, far[0]),
         f.plane_t(1, far[1]),
         f.plane_t(2, far[2]),
     ];
     let m = argmin(t_far);
-    let t = t_far[m];
-    if far[m] >= f.n[m] {
-        return None;
-    }
-    let mut w = v;
-    for k in 0..3 {
-        if k == m {
-            w[k] = far[k];
-        } else if f.d[k] != T::zero() {
-            w[k] = f.locate(k, t, v[k], far[k]);
-            if w[k] >= f.n[k] {
-                return None;
-            }
-        }
-    }
-    Some((w, t))
+    (far[m] < f.n[m]).then_some((m, t_far[m]))
 }
