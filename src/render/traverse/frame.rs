@@ -40,9 +40,7 @@ pub(super) struct Entry<T> {
 }
 
 impl<'g, T: Real> Frame<'g, T> {
-    /// The frame of `ray` and where it enters the volume at or after
-    /// `t_min`; `None` when it misses the volume, fails [`Ray::check`] or
-    /// `t_min` is not finite.
+    /// The frame of `ray`, which has passed [`Ray::check`].
     ///
     /// Where the largest direction component `m` or `1 / m` is not a
     /// normal number of `T` (f32 outside its range; never in f64, as `m`
@@ -54,15 +52,11 @@ impl<'g, T: Real> Frame<'g, T> {
     /// with. A component that underflows to 0 in `T` (f32 only) is treated
     /// as parallel, keeping its sign for mirroring and leaving at once
     /// from the far face.
+    ///
+    /// Returned by value and never wrapped, so it is built in place (a
+    /// frame in an `Option` cost a 200-byte copy per ray).
     #[inline(always)]
-    pub(super) fn enter(
-        grid: &'g TGrid<T>,
-        ray: &Ray,
-        t_min: f64,
-    ) -> Option<(Frame<'g, T>, Entry<T>)> {
-        if ray.check().is_err() || !t_min.is_finite() {
-            return None;
-        }
+    pub(super) fn new(grid: &'g TGrid<T>, ray: &Ray) -> Frame<'g, T> {
         let m = ray.dir[0].abs().max(ray.dir[1].abs()).max(ray.dir[2].abs());
         let p = if T::of(m).is_normal() && T::of(1.0 / m).is_normal() {
             1.0
@@ -81,11 +75,7 @@ impl<'g, T: Real> Frame<'g, T> {
                 ray.origin[k]
             })
         });
-        if !o.iter().all(|x| x.is_finite()) {
-            // Only in f32: an origin beyond its range.
-            return None;
-        }
-        let f = Frame {
+        Frame {
             s: std::array::from_fn(|k| &grid.axes[k].s[mirror[k] as usize][..]),
             uniform: std::array::from_fn(|k| grid.axes[k].uniform),
             o,
@@ -95,10 +85,20 @@ impl<'g, T: Real> Frame<'g, T> {
             mirror,
             n: grid.ncells,
             p,
-        };
+        }
+    }
 
-        // Enter the volume: slab test, then the starting cell by the t rule.
-        let mut t_in = T::of(t_min * p);
+    /// Where the ray enters the volume at or after `t_min` (finite): the
+    /// slab test, then the starting cell by the `t` rule. `None` when it
+    /// misses the volume (or, in f32, its origin is beyond the range).
+    #[inline(always)]
+    pub(super) fn entry(&self, ray: &Ray, t_min: f64) -> Option<Entry<T>> {
+        let f = self;
+        if !f.o.iter().all(|x| x.is_finite()) {
+            // Only in f32: an origin beyond its range.
+            return None;
+        }
+        let mut t_in = T::of(t_min * f.p);
         let mut t_out = T::infinity();
         for k in 0..3 {
             let s = f.s[k];
@@ -131,7 +131,7 @@ impl<'g, T: Real> Frame<'g, T> {
                 f.locate(k, t_in, 0, f.n[k] - 1)
             }
         });
-        Some((f, Entry { v, t_in, t_out }))
+        Some(Entry { v, t_in, t_out })
     }
 
     /// The ray's `t` of the frame's parameter `t`.

@@ -317,7 +317,7 @@ pub enum Flow {
 /// `visit` for every 1-cell it passes with positive length, in order, until
 /// `visit` says stop or the ray leaves the volume. Returns the step counts.
 /// A ray that fails [`Ray::check`], or a non-finite `t_min`, visits nothing
-/// (see [`Frame::enter`](frame::Frame) for how extreme directions are
+/// (see [`Frame::new`](frame::Frame) for how extreme directions are
 /// scaled).
 ///
 /// The method is chosen once per ray; the loop then runs one walker
@@ -339,7 +339,11 @@ where
     S: CodeSource,
     F: FnMut(&Visit, &mut S) -> Flow,
 {
-    let Some((f, e)) = frame::Frame::enter(grid, ray, t_min) else {
+    if ray.check().is_err() || !t_min.is_finite() {
+        return StepCounts::default();
+    }
+    let f = frame::Frame::new(grid, ray);
+    let Some(e) = f.entry(ray, t_min) else {
         return StepCounts::default();
     };
     match method {
