@@ -56,6 +56,7 @@ pub struct Dda<'f, 'g, T> {
 }
 
 impl<'f, 'g, T: Real> Dda<'f, 'g, T> {
+    #[inline(always)]
     pub(super) fn new(f: &'f Frame<'g, T>, e: Entry<T>, kind: DistKind, switch_fvt: bool) -> Self {
         let regular = (0..3).all(|k| f.d[k] == T::zero() || f.uniform[k].is_some());
         // Direction in cells per unit of t, and its norms (eq. 3).
