@@ -24,7 +24,8 @@
 //! docs/DESIGN.md maps every room: what it owns and what it may import
 //! (checked by tests/all/layout.rs).
 //!
-//! With the cargo feature `tools` (default), [`tools`] adds what is built
+//! With the cargo feature `tools` (on by default, through the binary's
+//! feature `cli`), `tools` adds what is built
 //! on the library rather than part of it: test scenes (`tools::phantom`,
 //! the paper's sphere scenes of section 5.1 and a CT-like head with
 //! variable slice thickness), the traversal corpus and the experiments.

@@ -1,6 +1,6 @@
 //! Tooling on top of the library, compiled only with the cargo feature
-//! `tools` (on by default): test scenes, the traversal corpus and the
-//! reproducible experiments. Nothing under `src/` outside this folder may
+//! `tools` (on by default through `cli`, the binary's feature): test
+//! scenes, the traversal corpus and the reproducible experiments. Nothing under `src/` outside this folder may
 //! use it; it uses the library like any other client, plus `anyhow` and
 //! `plotters`, which the library proper does not depend on
 //! (`cargo tree -e normal --no-default-features` shows neither).

@@ -125,9 +125,10 @@ fn rooms_import_only_upstream() {
                 }
             }
             if is_library(&rel) {
-                // Nothing in the library uses the tooling, anyhow or
-                // plotters, or returns bare strings as errors.
-                for f in ["crate::tools", "anyhow", "plotters"] {
+                // Nothing in the library uses the tooling, anyhow,
+                // plotters, clap or indicatif, or returns bare strings as
+                // errors.
+                for f in ["crate::tools", "anyhow", "plotters", "clap", "indicatif"] {
                     if line.contains(f) {
                         bad.push(format!(
                             "src/{rel}:{n}: the library may not use {f}: {line}"
