@@ -28,7 +28,7 @@
 
 use super::frame::{argmin, Entry, Frame};
 use super::walker::Walker;
-use super::{CodeSource, DistKind, Real, StepCounts, Visit};
+use super::{CodeSource, DistKind, Flow, Real, StepCounts, Visit};
 
 /// The DDA walk of one ray.
 pub struct Dda<'f, 'g, T> {
@@ -168,16 +168,23 @@ impl<'f, 'g, T: Real> Dda<'f, 'g, T> {
     }
 }
 
-impl<T: Real, S: CodeSource> Walker<S> for Dda<'_, '_, T> {
-    #[inline]
-    fn next_visit(&mut self, src: &mut S) -> Option<Visit> {
+impl<T: Real> Dda<'_, '_, T> {
+    /// The walk from where the last call stopped: each sampled 1-cell
+    /// goes to `on_visit`, once, and the walk stops where that says stop
+    /// (the move out of that cell is then due).
+    #[inline(always)]
+    fn run<S, F>(&mut self, src: &mut S, mut on_visit: F)
+    where
+        S: CodeSource,
+        F: FnMut(&Visit, &mut S) -> Flow,
+    {
         if self.done {
-            return None;
+            return;
         }
         if let Some(dist) = self.pending.take() {
             if !self.advance(dist) {
                 self.done = true;
-                return None;
+                return;
             }
         }
         loop {
@@ -188,22 +195,43 @@ impl<T: Real, S: CodeSource> Walker<S> for Dda<'_, '_, T> {
                 self.last_visit = Some(self.v);
                 let (a, b) = self.span(self.v);
                 if b > a {
-                    self.pending = Some(dist);
-                    return Some(Visit {
+                    let vis = Visit {
                         cell: real,
                         t_enter: self.f.to_t(a),
                         t_exit: self.f.to_t(b),
-                    });
+                    };
+                    if on_visit(&vis, src) == Flow::Stop {
+                        self.pending = Some(dist);
+                        return;
+                    }
                 }
             }
             if !self.advance(dist) {
                 self.done = true;
-                return None;
+                return;
             }
         }
     }
+}
+
+impl<T: Real, S: CodeSource> Walker<S> for Dda<'_, '_, T> {
+    #[inline]
+    fn next_visit(&mut self, src: &mut S) -> Option<Visit> {
+        let mut found = None;
+        self.run(src, |v, _| {
+            found = Some(*v);
+            Flow::Stop
+        });
+        found
+    }
 
     fn counts(&self) -> StepCounts {
+        self.counts
+    }
+
+    #[inline(always)]
+    fn walk<F: FnMut(&Visit, &mut S) -> Flow>(&mut self, src: &mut S, visit: F) -> StepCounts {
+        self.run(src, visit);
         self.counts
     }
 }

@@ -369,15 +369,143 @@ where
 
 /// Runs walker `w` to the end or until `visit` says stop.
 #[inline(always)]
-fn drive<S, W, F>(mut w: W, src: &mut S, mut visit: F) -> StepCounts
+fn drive<S, W, F>(mut w: W, src: &mut S, visit: F) -> StepCounts
 where
     W: Walker<S>,
     F: FnMut(&Visit, &mut S) -> Flow,
 {
-    while let Some(v) = w.next_visit(src) {
-        if visit(&v, src) == Flow::Stop {
-            break;
+    w.walk(src, visit)
+}
+
+#[cfg(test)]
+mod tests {
+    //! The two ways to drive a walker give the same walk: pulling visits
+    //! with [`Walker::next_visit`] and pushing them with [`Walker::walk`]
+    //! yield the same 1-cells with the same `t`, and the same step counts
+    //! when stopped after any visit. (That these walks are the exact ones
+    //! is checked against FVT and an exact enumeration in tests/all/.)
+    use super::frame::Frame;
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Codes from a table, consistent or not: both drives must agree on
+    /// any input.
+    struct Table {
+        n: [u32; 3],
+        codes: Vec<u8>,
+    }
+
+    impl CodeSource for Table {
+        fn code(&mut self, c: [u32; 3], _: Option<usize>) -> u8 {
+            self.codes[((c[2] * self.n[1] + c[1]) * self.n[0] + c[0]) as usize]
         }
     }
-    w.counts()
+
+    /// One `next_visit` call and the counts after it.
+    type Pull<'a> = Box<dyn FnMut(&mut Table) -> (Option<Visit>, StepCounts) + 'a>;
+
+    /// Visits and counts of `method` on `ray`, pulled one by one, and the
+    /// counts after each visit.
+    fn pulled(
+        g: &TGrid<f64>,
+        ray: &Ray,
+        method: Method,
+        src: &mut Table,
+    ) -> (Vec<Visit>, Vec<StepCounts>) {
+        let f = Frame::new(g, ray);
+        let Some(e) = f.entry(ray, 0.0) else {
+            return (Vec::new(), vec![StepCounts::default()]);
+        };
+        let mut w: Pull<'_> = match method {
+            Method::Fvt => {
+                let mut w = CellWalker::new(&f, e, Fvt);
+                Box::new(move |s| (w.next_visit(s), Walker::<Table>::counts(&w)))
+            }
+            Method::Cd { min_leap } => {
+                let rule = Cd {
+                    min_leap,
+                    octant: None,
+                };
+                let mut w = CellWalker::new(&f, e, rule);
+                Box::new(move |s| (w.next_visit(s), Walker::<Table>::counts(&w)))
+            }
+            Method::Octree => {
+                let mut w = CellWalker::new(&f, e, Octree);
+                Box::new(move |s| (w.next_visit(s), Walker::<Table>::counts(&w)))
+            }
+            Method::Dda { kind, switch_fvt } => {
+                let mut w = Dda::new(&f, e, kind, switch_fvt);
+                Box::new(move |s| (w.next_visit(s), Walker::<Table>::counts(&w)))
+            }
+            Method::CdAniso { .. } => unreachable!("not generated"),
+        };
+        let (mut visits, mut counts) = (Vec::new(), Vec::new());
+        loop {
+            let (v, c) = w(src);
+            match v {
+                Some(v) => {
+                    visits.push(v);
+                    counts.push(c);
+                }
+                None => {
+                    counts.push(c);
+                    return (visits, counts);
+                }
+            }
+        }
+    }
+
+    fn method() -> impl Strategy<Value = Method> {
+        prop_oneof![
+            Just(Method::Fvt),
+            (1u8..4).prop_map(|min_leap| Method::Cd { min_leap }),
+            Just(Method::Octree),
+            (0usize..3, any::<bool>()).prop_map(|(k, switch_fvt)| Method::Dda {
+                kind: [DistKind::Cityblock, DistKind::Chessboard, DistKind::Chamfer][k],
+                switch_fvt,
+            }),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn pulled_and_pushed_walks_agree(
+            n in proptest::array::uniform3(1u32..7),
+            seed in proptest::collection::vec(0u8..8, 343),
+            o in proptest::array::uniform3(-3.0f64..10.0),
+            d in proptest::array::uniform3(-1.0f64..1.0),
+            method in method(),
+            stop_at in 0usize..6,
+        ) {
+            prop_assume!(d.iter().any(|x| x.abs() > 1e-3));
+            let axes = n.map(|c| {
+                crate::grid::Axis::uniform(0.0, 1.0, c as usize + 1).expect("axis")
+            });
+            let g = TGrid::<f64>::new(&axes);
+            let cells = (n[0] * n[1] * n[2]) as usize;
+            // 0..5: codes, 6 and 7: 1-cells.
+            let codes = seed[..cells].iter().map(|&x| if x >= 6 { OBJECT } else { x }).collect();
+            let mut src = Table { n, codes };
+            let ray = Ray::new(o, d).expect("finite ray");
+            let (visits, counts) = pulled(&g, &ray, method, &mut src);
+            // Pushed to the end.
+            let mut pushed = Vec::new();
+            let all = trace(&g, &ray, 0.0, method, &mut src, |v, _| {
+                pushed.push(*v);
+                Flow::Continue
+            });
+            prop_assert_eq!(&pushed, &visits);
+            prop_assert_eq!(all, *counts.last().expect("final counts"));
+            // Pushed and stopped after visit `stop_at`: the counts pulling
+            // had right after yielding it.
+            if stop_at < visits.len() {
+                let mut seen = 0;
+                let part = trace(&g, &ray, 0.0, method, &mut src, |_, _| {
+                    seen += 1;
+                    if seen > stop_at { Flow::Stop } else { Flow::Continue }
+                });
+                prop_assert_eq!(part, counts[stop_at]);
+            }
+        }
+    }
 }

@@ -5,7 +5,7 @@
 //! [`super::frame`].
 
 use super::frame::{Cursor, Entry, Frame};
-use super::{CodeSource, Real, StepCounts, Visit};
+use super::{CodeSource, Flow, Real, StepCounts, Visit};
 
 /// One ray generator walking one ray (paper section 5: FVT, CD, octree,
 /// DDA), in the manner of pbrt-v4's `DDAMajorantIterator`: each call
@@ -20,6 +20,20 @@ pub trait Walker<S> {
 
     /// The steps taken so far.
     fn counts(&self) -> StepCounts;
+
+    /// Walks on, handing each 1-cell to `visit` until it says stop or the
+    /// ray leaves the volume; returns the steps taken. The same visits and
+    /// counts as calling [`Walker::next_visit`] in a loop, but the walkers
+    /// call `visit` from inside their loop, so a visit costs no return and
+    /// re-entry (composite and MIP visit every 1-cell of a ray).
+    fn walk<F: FnMut(&Visit, &mut S) -> Flow>(&mut self, src: &mut S, mut visit: F) -> StepCounts {
+        while let Some(v) = self.next_visit(src) {
+            if visit(&v, src) == Flow::Stop {
+                break;
+            }
+        }
+        self.counts()
+    }
 }
 
 /// What a cell-stepping method makes of the cell the walk is in.
@@ -67,11 +81,19 @@ impl<'f, 'g, T: Real, R> CellWalker<'f, 'g, T, R> {
     }
 }
 
-impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, '_, T, R> {
+impl<T: Real, R> CellWalker<'_, '_, T, R> {
+    /// The walk: from where the last call stopped, each cell's rule picks
+    /// the move; each 1-cell goes to `on_visit`, and the walk stops where
+    /// that says stop (the step out of that cell is then due).
     #[inline(always)]
-    fn next_visit(&mut self, src: &mut S) -> Option<Visit> {
+    fn run<S, F>(&mut self, src: &mut S, mut on_visit: F)
+    where
+        S: CodeSource,
+        R: CellRule<S>,
+        F: FnMut(&Visit, &mut S) -> Flow,
+    {
         if self.done {
-            return None;
+            return;
         }
         // The walk's state in locals for the loop (the struct is written
         // back on return), so the compiler keeps it in registers.
@@ -84,15 +106,17 @@ impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, '_, T,
             counts.cell_steps += 1;
             moved = c.step(f);
         }
-        let mut found = None;
+        let mut stopped = false;
         while moved {
             let real = f.real(c.v);
             counts.steps += 1;
             moved = match self.rule.at(f, c.v, real, src) {
                 Action::Visit => {
                     if let Some(vis) = c.visit(f, real) {
-                        found = Some(vis);
-                        break;
+                        if on_visit(&vis, src) == Flow::Stop {
+                            stopped = true;
+                            break;
+                        }
                     }
                     counts.cell_steps += 1;
                     c.step(f)
@@ -109,12 +133,29 @@ impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, '_, T,
         }
         self.c = c;
         self.counts = counts;
-        self.pending = found.is_some();
+        self.pending = stopped;
         self.done = !moved;
+    }
+}
+
+impl<T: Real, S: CodeSource, R: CellRule<S>> Walker<S> for CellWalker<'_, '_, T, R> {
+    #[inline(always)]
+    fn next_visit(&mut self, src: &mut S) -> Option<Visit> {
+        let mut found = None;
+        self.run(src, |v, _| {
+            found = Some(*v);
+            Flow::Stop
+        });
         found
     }
 
     fn counts(&self) -> StepCounts {
+        self.counts
+    }
+
+    #[inline(always)]
+    fn walk<F: FnMut(&Visit, &mut S) -> Flow>(&mut self, src: &mut S, visit: F) -> StepCounts {
+        self.run(src, visit);
         self.counts
     }
 }
