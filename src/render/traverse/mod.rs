@@ -440,8 +440,14 @@ mod tests {
             Method::CdAniso { .. } => unreachable!("not generated"),
         };
         let (mut visits, mut counts) = (Vec::new(), Vec::new());
+        // A ray crosses at most ncx + ncy + ncz - 2 cells.
+        let bound = (g.ncells.iter().sum::<u32>()) as usize;
         loop {
             let (v, c) = w(src);
+            assert!(
+                visits.len() <= bound,
+                "{method:?} yields more visits than cells"
+            );
             match v {
                 Some(v) => {
                     visits.push(v);
