@@ -62,9 +62,7 @@ fn main() -> anyhow::Result<()> {
                 method: Method::Cd { min_leap: 1 },
                 tile: 16,
                 cache_bytes: 1 << 30,
-                cd_lazy_min: cdvol::render::cache::LAZY_MIN_CODE_CD,
-                precision: Default::default(),
-                hit_params: Default::default(),
+                ..RenderOptions::new(mode.clone(), Method::Cd { min_leap: 1 })
             };
             type R = fn(
                 &PackedVolume,

@@ -10,7 +10,9 @@ use cdvol::render::camera::CameraError;
 use cdvol::render::job::{CameraSpec, JobError, RenderJob, View};
 use cdvol::render::shade::{HitMethod, HitParams};
 use cdvol::render::traverse::{DistKind, Method};
-use cdvol::render::{Mode, Precision, RenderError, RenderOptions, Shard, ShardLayout};
+use cdvol::render::{
+    CompositeLook, Mode, Precision, RenderError, RenderOptions, Shard, ShardLayout, Window,
+};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -570,6 +572,25 @@ pub struct RenderArgs {
     /// Composite sample distance in mm.
     #[arg(long, default_value_t = 0.5)]
     pub step: f64,
+    /// Arithmetic of composite samples: f32 (fast) or f64 (the
+    /// reference); docs/TRADEOFFS.md measures the difference.
+    #[arg(long, value_enum, default_value = "f32")]
+    pub sample_precision: PrecisionArg,
+    /// Composite: stop a ray once its opacity exceeds this (1 = never).
+    #[arg(long, default_value_t = cdvol::render::EARLY_STOP)]
+    pub early_stop: f64,
+    /// Composite: light the samples (headlight; also `"shade": true` in
+    /// the --tf file).
+    #[arg(long)]
+    pub shade: bool,
+    /// MIP grey window: `auto` (the 1st to the 99.9th percentile of the
+    /// image's values), `full` (the file's value range) or a width W,
+    /// with --level L (values L - W/2 .. L + W/2 map to black..white).
+    #[arg(long, default_value = "auto")]
+    pub window: String,
+    /// MIP: window centre (with a numeric --window).
+    #[arg(long, allow_hyphen_values = true)]
+    pub level: Option<f64>,
     #[arg(long, default_value_t = 512)]
     pub width: u32,
     #[arg(long, default_value_t = 512)]
@@ -689,6 +710,40 @@ impl RenderArgs {
         })
     }
 
+    /// The MIP window of `--window` and `--level`.
+    pub fn window(&self) -> anyhow::Result<Window> {
+        Ok(match (self.window.as_str(), self.level) {
+            ("auto", None) => Window::Auto,
+            ("full", None) => Window::Full,
+            ("auto" | "full", Some(_)) => {
+                anyhow::bail!(
+                    "--level goes with a numeric --window W, not --window {}",
+                    self.window
+                )
+            }
+            (w, Some(level)) => Window::Fixed {
+                width: w.parse().map_err(|_| {
+                    anyhow::anyhow!("--window {w:?}: expected auto, full or a width (a number)")
+                })?,
+                level,
+            },
+            (w, None) => {
+                anyhow::bail!("--window {w}: a numeric window needs --level L (its centre)")
+            }
+        })
+    }
+
+    /// The composite look: the --tf file's `shade` and
+    /// `gradient_opacity` keys, `--shade` on top.
+    pub fn look(&self) -> anyhow::Result<CompositeLook> {
+        let mut look = match (&self.tf, self.mode) {
+            (Some(tf), ModeArg::Composite) => CompositeLook::load(tf)?,
+            _ => CompositeLook::default(),
+        };
+        look.shade |= self.shade;
+        Ok(look)
+    }
+
     /// The traversal; `template` leaps like `cd` (its renderer is chosen
     /// by [`RenderJob::template`]).
     pub fn method(&self) -> Method {
@@ -740,6 +795,10 @@ impl RenderArgs {
                     newton_tol: self.newton_tol,
                 },
                 precision: self.precision.into(),
+                sampling: self.sample_precision.into(),
+                early_stop: self.early_stop,
+                look: self.look()?,
+                window: self.window()?,
             },
             template: self.traversal == TraversalArg::Template,
             output: self.output.clone(),
@@ -760,6 +819,8 @@ fn render_flag(field: &str) -> Option<&'static str> {
     Some(match field {
         "tile" => "--tile",
         "step_mm" => "--step",
+        "early_stop" => "--early-stop",
+        "window" => "--window",
         "newton_tol" => "--newton-tol",
         "width x height" => "--width/--height",
         "shard" => "--shard",

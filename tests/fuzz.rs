@@ -891,8 +891,7 @@ fn exercise(path: &Path, bytes: &[u8], must_work: bool) -> Result<(), TestCaseEr
                     tile: 4,
                     cache_bytes: 256 << 10,
                     cd_lazy_min: 4,
-                    precision: Default::default(),
-                    hit_params: Default::default(),
+                    ..RenderOptions::new(mode.clone(), method)
                 };
                 match render(&vol, &cam, &o, &NoProgress) {
                     Ok((f, _)) => {

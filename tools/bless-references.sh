@@ -43,7 +43,7 @@ for name in ct phantom; do
     "$cdvol" render "$work/$name-iso.cdv" -o "$out/$name-surface.png" \
         --mode surface --shadows "${common[@]}"
     "$cdvol" render "$work/$name-iso.cdv" -o "$out/$name-mip.png" \
-        --mode mip "${common[@]}"
+        --mode mip --window full "${common[@]}"
     "$cdvol" render "$work/$name-tf.cdv" -o "$out/$name-composite.png" \
         --mode composite --tf "$tf" "${common[@]}"
     # Traversal cost maps (paper Fig. 17): steps per pixel of CD and of

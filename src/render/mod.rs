@@ -40,7 +40,10 @@ mod tiles;
 pub mod traverse;
 
 pub use error::RenderError;
-pub use options::{mode_name, Mode, Precision, RenderOptions, MAX_PIXELS, MIN_STEP_MM};
+pub use options::{
+    mode_name, CompositeLook, GradientPoint, Mode, Precision, RenderOptions, Window, EARLY_STOP,
+    MAX_PIXELS, MIN_STEP_MM,
+};
 pub use output::{save, Colouring, Frame, SaveError};
 pub use shard::{render_part, render_part_in};
 pub use stats::Stats;

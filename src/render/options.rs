@@ -66,6 +66,129 @@ pub struct RenderOptions {
     pub precision: Precision,
     /// Iterations and tolerance of the bisect and newton hit methods.
     pub hit_params: HitParams,
+    /// Arithmetic of composite and MIP samples (f32 by default; the
+    /// traversal keeps [`RenderOptions::precision`]). Measured against f64
+    /// in docs/TRADEOFFS.md, "Sampling precision".
+    pub sampling: Precision,
+    /// Composite stops a ray once its opacity exceeds this (early ray
+    /// termination; 0.99 by default, 1 never stops early).
+    pub early_stop: f64,
+    /// Composite shading and gradient opacity.
+    pub look: CompositeLook,
+    /// MIP grey mapping.
+    pub window: Window,
+}
+
+/// Default of [`RenderOptions::early_stop`].
+pub const EARLY_STOP: f64 = 0.99;
+
+/// How composite samples are lit and weighted beyond the transfer
+/// function's colour and opacity. Read from the transfer function file's
+/// optional keys `"shade": true` and `"gradient_opacity": [{"gradient":
+/// g, "opacity": f}, ...]` (g in value units per mm, f in [0, 1], g
+/// strictly increasing) by [`CompositeLook::load`]; `render --shade` sets
+/// `shade` too. Render-time only: the file's classification is untouched,
+/// and neither can make a transparent sample opaque, so the prepared
+/// envelope stays valid.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CompositeLook {
+    /// Light each sample with the surface mode's headlight model
+    /// ([`shade`](super::shade::shade): ambient 0.12, diffuse 0.75,
+    /// specular 0.25 with exponent 32), the normal from the gradient.
+    #[serde(default)]
+    pub shade: bool,
+    /// Opacity factor by gradient magnitude, linear between points and
+    /// constant beyond the ends; empty for none.
+    #[serde(default)]
+    pub gradient_opacity: Vec<GradientPoint>,
+}
+
+/// A point of [`CompositeLook::gradient_opacity`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GradientPoint {
+    /// Gradient magnitude, value units per mm.
+    pub gradient: f64,
+    /// Factor on the sample's opacity, 0..=1.
+    pub opacity: f64,
+}
+
+impl CompositeLook {
+    /// The look keys of transfer function file `path` (absent keys give
+    /// no shading and no gradient opacity), checked.
+    pub fn load(path: &std::path::Path) -> Result<CompositeLook, crate::classify::TfError> {
+        let e = |msg: String| crate::classify::TfError {
+            path: path.to_path_buf(),
+            msg,
+        };
+        let text = std::fs::read_to_string(path).map_err(|x| e(format!("cannot read: {x}")))?;
+        let look: CompositeLook = serde_json::from_str(&text).map_err(|x| {
+            e(format!(
+                "expected optional \"shade\": true|false and \"gradient_opacity\": \
+                 [{{\"gradient\", \"opacity\"}}, ...]: {x}"
+            ))
+        })?;
+        look.check().map_err(|x| e(x.to_string()))?;
+        Ok(look)
+    }
+
+    /// Gradient points finite, strictly increasing, opacities in 0..=1.
+    pub fn check(&self) -> Result<(), crate::classify::TfInvalid> {
+        for (i, p) in self.gradient_opacity.iter().enumerate() {
+            let bad = |field: &str, found: String, expected: &'static str| {
+                Err(crate::classify::TfInvalid {
+                    field: format!("gradient_opacity[{i}].{field}"),
+                    found,
+                    expected,
+                })
+            };
+            if !(p.gradient.is_finite() && p.gradient >= 0.0) {
+                return bad("gradient", p.gradient.to_string(), "a finite number >= 0");
+            }
+            if !(0.0..=1.0).contains(&p.opacity) {
+                return bad("opacity", p.opacity.to_string(), "0..=1");
+            }
+            if i > 0 && p.gradient <= self.gradient_opacity[i - 1].gradient {
+                return bad(
+                    "gradient",
+                    p.gradient.to_string(),
+                    "strictly increasing gradients",
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The opacity factor at gradient magnitude `g` (1 without points).
+    pub fn gradient_factor(&self, g: f64) -> f64 {
+        let p = &self.gradient_opacity;
+        let (Some(first), Some(last)) = (p.first(), p.last()) else {
+            return 1.0;
+        };
+        if !(g > first.gradient) {
+            return first.opacity;
+        }
+        if g >= last.gradient {
+            return last.opacity;
+        }
+        let i = p.partition_point(|q| q.gradient <= g);
+        let (a, b) = (p[i - 1], p[i]);
+        a.opacity + (g - a.gradient) / (b.gradient - a.gradient) * (b.opacity - a.opacity)
+    }
+}
+
+/// How MIP values map to black..white.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub enum Window {
+    /// The 1st to the 99.9th percentile of the image's values
+    /// ([`auto_window`](super::output::auto_window)).
+    #[default]
+    Auto,
+    /// The file's whole value range (`--window full`; before the
+    /// automatic window, the only mapping).
+    Full,
+    /// `level - width / 2 .. level + width / 2` (`--window W --level L`,
+    /// as in radiology viewers).
+    Fixed { width: f64, level: f64 },
 }
 
 impl RenderOptions {
@@ -81,6 +204,10 @@ impl RenderOptions {
             cd_lazy_min: cache::LAZY_MIN_CODE_CD,
             precision: Precision::F64,
             hit_params: HitParams::default(),
+            sampling: Precision::F32,
+            early_stop: EARLY_STOP,
+            look: CompositeLook::default(),
+            window: Window::Auto,
         }
     }
 }
@@ -158,6 +285,22 @@ pub(crate) fn check_render(
         }
     }
     check_tol_and_size(opts, camera)?;
+    if !(opts.early_stop > 0.0 && opts.early_stop <= 1.0) {
+        return Err(bad(
+            "early_stop",
+            opts.early_stop.to_string(),
+            "an opacity in (0, 1]".into(),
+        ));
+    }
+    if let Window::Fixed { width, level } = opts.window {
+        if !(width > 0.0 && width.is_finite() && level.is_finite()) {
+            return Err(bad(
+                "window",
+                format!("width {width} level {level}"),
+                "a finite width > 0 and a finite level".into(),
+            ));
+        }
+    }
     if matches!(opts.method, Method::CdAniso { .. }) && vol.header().aniso_block.is_none() {
         return Err(RenderError::Incompatible {
             path: vol.path().to_path_buf(),

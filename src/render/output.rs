@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::integrate::Px;
-use super::options::Mode;
+use super::options::{Mode, RenderOptions, Window};
 use crate::format::reader::PackedVolume;
 use crate::fsutil::{write_atomic, WriteError};
 
@@ -19,8 +19,9 @@ use crate::fsutil::{write_atomic, WriteError};
 pub enum Colouring {
     /// Surface and composite: the pixel's colour as it is.
     Rgb,
-    /// Grey from `lo` to `hi`.
-    Mip { lo: f64, hi: f64 },
+    /// Grey from `lo` to `hi`; `None` for the automatic window
+    /// ([`auto_window`]).
+    Mip { window: Option<[f64; 2]> },
     /// Heat map scaled to the largest step count of the whole image.
     Cost,
     /// Grey scaled to the depth range of the whole image.
@@ -28,14 +29,19 @@ pub enum Colouring {
 }
 
 impl Colouring {
-    /// The colouring of `mode` on `vol` (MIP maps the file's value range).
-    pub fn of(vol: &PackedVolume, mode: &Mode) -> Colouring {
-        match mode {
+    /// The colouring of a render of `vol` with `opts` (MIP: `opts.window`).
+    pub fn of(vol: &PackedVolume, opts: &RenderOptions) -> Colouring {
+        match opts.mode {
             Mode::Surface { .. } | Mode::Composite { .. } => Colouring::Rgb,
-            Mode::Mip => {
-                let [lo, hi] = mip_range(vol);
-                Colouring::Mip { lo, hi }
-            }
+            Mode::Mip => Colouring::Mip {
+                window: match opts.window {
+                    Window::Auto => None,
+                    Window::Full => Some(value_range(vol)),
+                    Window::Fixed { width, level } => {
+                        Some([level - 0.5 * width, level + 0.5 * width])
+                    }
+                },
+            },
             Mode::Cost => Colouring::Cost,
             Mode::Depth { .. } => Colouring::Depth,
         }
@@ -55,8 +61,8 @@ pub struct Frame {
     pub steps: Vec<u32>,
 }
 
-/// The value range MIP maps to black..white: the file's rescaled raw range.
-pub(crate) fn mip_range(vol: &PackedVolume) -> [f64; 2] {
+/// The file's rescaled raw range ([`Window::Full`]).
+pub fn value_range(vol: &PackedVolume) -> [f64; 2] {
     let s = &vol.header().summary;
     let rs = vol.header().rescale;
     let (a, b) = (
@@ -64,6 +70,33 @@ pub(crate) fn mip_range(vol: &PackedVolume) -> [f64; 2] {
         rs.apply(s.raw_max.unwrap_or(1.0)),
     );
     [a.min(b), a.max(b)]
+}
+
+/// Percentiles of the automatic MIP window: the values the rays meet,
+/// from the 1st to the 99.9th percentile, map to black..white (robust
+/// against a few metal or air pixels, unlike the raw range).
+pub const AUTO_WINDOW_PERCENTILES: [f64; 2] = [0.01, 0.999];
+
+/// The automatic MIP window of an image: the [`AUTO_WINDOW_PERCENTILES`]
+/// of its hit pixels' values (the maxima the rays met), `[0, 1]` when no
+/// ray hit; never an empty range.
+pub fn auto_window(px: &[Px]) -> [f64; 2] {
+    let mut v: Vec<f32> = px
+        .iter()
+        .filter(|p| p.hit && !p.rgb[0].is_nan())
+        .map(|p| p.rgb[0])
+        .collect();
+    if v.is_empty() {
+        return [0.0, 1.0];
+    }
+    v.sort_by(f32::total_cmp);
+    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize] as f64;
+    let [lo, hi] = AUTO_WINDOW_PERCENTILES.map(at);
+    if hi > lo {
+        [lo, hi]
+    } else {
+        [lo - 0.5, lo + 0.5]
+    }
 }
 
 /// Colours the pixels `px` of a `w` x `h` image.
@@ -80,8 +113,8 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
                 }
             }
         }
-        Colouring::Mip { lo, hi } => {
-            let (lo, hi) = (*lo, *hi);
+        Colouring::Mip { window } => {
+            let [lo, hi] = window.unwrap_or_else(|| auto_window(px));
             for (i, p) in px.iter().enumerate() {
                 let g = if p.hit {
                     ((p.rgb[0] as f64 - lo) / (hi - lo).max(1e-300)) as f32

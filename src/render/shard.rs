@@ -128,6 +128,11 @@ pub struct OptionsKey {
     pub precision: String,
     pub tile: u32,
     pub cd_lazy_min: u8,
+    /// Composite: the sampler's arithmetic, the early-stop opacity and
+    /// the look.
+    pub sampling: Option<String>,
+    pub early_stop: Option<f64>,
+    pub look: Option<super::CompositeLook>,
 }
 
 impl OptionsKey {
@@ -145,6 +150,7 @@ impl OptionsKey {
             }
             Mode::Mip | Mode::Cost => {}
         }
+        let composite = matches!(o.mode, Mode::Composite { .. });
         OptionsKey {
             mode: o.mode.name().into(),
             hit,
@@ -158,6 +164,9 @@ impl OptionsKey {
             precision: o.precision.name().into(),
             tile: o.tile,
             cd_lazy_min: o.cd_lazy_min,
+            sampling: composite.then(|| o.sampling.name().into()),
+            early_stop: composite.then_some(o.early_stop),
+            look: composite.then(|| o.look.clone()),
         }
     }
 }
@@ -203,7 +212,7 @@ impl RenderKey {
             tile: opts.tile,
             shards: n,
             layout,
-            colouring: Colouring::of(vol, &opts.mode),
+            colouring: Colouring::of(vol, opts),
         }
     }
 }

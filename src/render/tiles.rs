@@ -10,16 +10,14 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::cache::{self, Accessor, BrickCache, CacheCounters};
+use super::cache::{Accessor, BrickCache, CacheCounters};
 use super::camera::Camera;
 use super::error::RenderError;
 use super::integrate::{pixel, Ctx, Px};
-use super::lut;
-use super::options::{check_render, Mode, Precision, RenderOptions};
+use super::options::{check_render, Precision, RenderOptions};
 use super::output::{colour, Colouring, Frame};
 use super::stats::Stats;
 use super::traverse::{Real, StepCounts, TGrid};
-use crate::classify::Classification;
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 use crate::progress::Progress;
@@ -54,7 +52,7 @@ pub fn render_in(
 ) -> Result<(Frame, Stats), RenderError> {
     let t0 = Instant::now();
     let (tiles, stats) = render_shard(vol, cache, camera, opts, Shard::WHOLE, progress)?;
-    let colouring = Colouring::of(vol, &opts.mode);
+    let colouring = Colouring::of(vol, opts);
     let (frame, mut stats) = finish(&colouring, camera.width, camera.height, tiles, stats);
     stats.seconds_total = t0.elapsed().as_secs_f64();
     Ok((frame, stats))
@@ -240,21 +238,7 @@ fn render_tiles<T: Real>(
         .filter(|(i, _)| shard.owns(*i as u64, total))
         .map(|(_, t)| t)
         .collect();
-    let ctx = Ctx {
-        grid: &grid,
-        coords: [h.axes[0].coords(), h.axes[1].coords(), h.axes[2].coords()],
-        camera,
-        opts,
-        // Mapped like the stored values (see cache::to_f32).
-        iso: match h.classification {
-            Classification::Iso { iso } => cache::to_f32(iso) as f64,
-            _ => f64::NAN,
-        },
-        lut: match &opts.mode {
-            Mode::Composite { tf, step_mm } => Some(lut::TfLut::new(tf, *step_mm)),
-            _ => None,
-        },
-    };
+    let ctx = Ctx::new(&grid, h, camera, opts);
     progress.begin("render tiles", tiles.len() as u64);
     let results = tiles
         .par_iter()

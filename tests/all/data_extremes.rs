@@ -202,8 +202,7 @@ fn opts(mode: &Mode, method: Method) -> RenderOptions {
         tile: 8,
         cache_bytes: 16 << 20,
         cd_lazy_min: 4,
-        precision: Default::default(),
-        hit_params: Default::default(),
+        ..RenderOptions::new(mode.clone(), method)
     }
 }
 

@@ -12,7 +12,7 @@ use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::Method;
-use cdvol::render::{render, render_in, Frame, Mode, RenderOptions, Stats};
+use cdvol::render::{render, render_in, Frame, Mode, Precision, RenderOptions, Stats, EARLY_STOP};
 use cdvol::tools::phantom;
 
 fn run(vol: &PackedVolume, c: &Camera, mode: &Mode, method: Method) -> (Frame, Stats) {
@@ -246,6 +246,10 @@ fn same_image_whatever_cache_threads_and_tiles() {
         cd_lazy_min: 16,
         precision: Default::default(),
         hit_params: Default::default(),
+        sampling: Precision::F32,
+        early_stop: EARLY_STOP,
+        look: Default::default(),
+        window: Default::default(),
     };
     let (want, ws) = render(&vol, &c, &big, &NoProgress).unwrap();
     // A budget of about two bricks.
@@ -318,6 +322,10 @@ fn corrupt_brick_is_an_error_not_pixels() {
         cd_lazy_min: 16,
         precision: Default::default(),
         hit_params: Default::default(),
+        sampling: Precision::F32,
+        early_stop: EARLY_STOP,
+        look: Default::default(),
+        window: Default::default(),
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(
@@ -341,6 +349,10 @@ fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
         cd_lazy_min: 16,
         precision: Default::default(),
         hit_params: Default::default(),
+        sampling: Precision::F32,
+        early_stop: EARLY_STOP,
+        look: Default::default(),
+        window: Default::default(),
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(

@@ -16,7 +16,10 @@ use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::shard::{assemble, Part};
 use cdvol::render::traverse::Method;
-use cdvol::render::{render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats};
+use cdvol::render::{
+    render, render_part, Frame, Mode, Precision, RenderOptions, Shard, ShardLayout, Stats,
+    EARLY_STOP,
+};
 use cdvol::tools::phantom;
 use proptest::prelude::*;
 
@@ -49,6 +52,10 @@ fn options(mode: Mode, tile: u32) -> RenderOptions {
         cd_lazy_min: 4,
         precision: Default::default(),
         hit_params: Default::default(),
+        sampling: Precision::F32,
+        early_stop: EARLY_STOP,
+        look: Default::default(),
+        window: Default::default(),
     }
 }
 

@@ -1,15 +1,26 @@
 //! Composite mode: front-to-back compositing of a transfer function
 //! (tabulated for the step by lut.rs) at samples `t = k * step_mm` along
-//! the ray, stopping once the ray is 99% opaque. Cells the ray only clips
-//! between two samples are not read.
+//! the ray, stopping once the ray's opacity exceeds
+//! [`RenderOptions::early_stop`](crate::render::RenderOptions::early_stop)
+//! (0.99). Cells the ray only clips between two samples are not read.
+//!
+//! Two samplers, [`RenderOptions::sampling`](crate::render::RenderOptions::sampling):
+//! [`composite32`] (the default) and [`composite`] (f64, the reference).
+//! Both take the same samples in the same cells; the traversal that finds
+//! the cells is f64 either way, so every exact traversal gives the same
+//! image with either sampler.
+
+use glam::Vec3;
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::lut::TfLut;
-use crate::render::shade::AlongRay;
-use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
+use crate::render::options::CompositeLook;
+use crate::render::shade::{at, AlongRay, CellEval};
+use crate::render::traverse::{trace, CodeSource, Flow, Ray, Real, StepCounts, OBJECT};
 
-/// Composites `ray` into `px.rgb`; `px.hit` when anything is opaque.
+/// Composites `ray` into `px.rgb` with f64 samples (the reference
+/// sampler, `--sample-precision f64`); `px.hit` when anything is opaque.
 pub(super) fn composite<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
@@ -18,40 +29,396 @@ pub(super) fn composite<T: Real>(
     step: f64,
     px: &mut Px,
 ) -> StepCounts {
+    let mut s = Sampler64 {
+        coords: ctx.coords,
+        ray,
+        lut,
+        look: Look::new(&ctx.opts.look, ray),
+        stop: ctx.opts.early_stop,
+        c: None,
+        ce: None,
+        col: [0.0; 3],
+        alpha: 0.0,
+    };
+    let counts = march(ctx, ray, acc, step, &mut s);
+    px.hit = s.alpha > 0.0;
+    px.rgb = s.col.map(|x| x as f32);
+    counts
+}
+
+/// [`composite`] with samples in f32 (the default sampler): per cell the
+/// local coordinates of the first sample and their increment per sample
+/// are computed once (by multiplication with the cell's inverse size),
+/// then each sample is an f32 trilinear evaluation and an f32 table
+/// lookup. The samples and their cells are [`composite`]'s;
+/// docs/TRADEOFFS.md ("Sampling precision") measures the image
+/// difference.
+pub(super) fn composite32<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    acc: &mut Accessor,
+    lut: &TfLut,
+    step: f64,
+    px: &mut Px,
+) -> StepCounts {
+    let mut s = Sampler32 {
+        coords: ctx.coords,
+        inv_size: &ctx.inv_size,
+        ray,
+        lut,
+        step,
+        look: Look::new(&ctx.opts.look, ray),
+        stop: ctx.opts.early_stop as f32,
+        c: Trilinear32 { f: [0.0; 8] },
+        u: Vec3::ZERO,
+        du: Vec3::ZERO,
+        inv: Vec3::ZERO,
+        col: Vec3::ZERO,
+        alpha: 0.0,
+    };
+    let counts = march(ctx, ray, acc, step, &mut s);
+    px.hit = s.alpha > 0.0;
+    px.rgb = s.col.to_array();
+    counts
+}
+
+/// What the composite samplers do along a run of 1-cells.
+trait Sampler {
+    /// The samples move into 1-cell `cell` with vertex values `f`; the
+    /// next sample is at `t`.
+    fn enter(&mut self, cell: [u32; 3], f: [f32; 8], t: f64);
+    /// The sample at `t` (in the cell last entered); `Stop` once opaque.
+    fn sample(&mut self, t: f64) -> Flow;
+}
+
+/// A 0-cell code from which the run marcher hands the ray back to the
+/// traversal to leap (below it, samples in the 0-cell are skipped and the
+/// march goes on: a leap of at most 2 cells does not pay for a new
+/// traversal). docs/BENCHMARKS.md, "Composite sampler".
+const RESUME_CODE: u8 = 2;
+
+/// The composite samples `t = k * step` of `ray` in 1-cells, in order,
+/// handed to `s`.
+///
+/// The traversal (`ctx.opts.method`) finds the first 1-cell; from there
+/// the samples are marched directly: per sample, the cell holding it is
+/// advanced plane by plane (`S[j]` crossed at `(S[j] - o) / d`, the
+/// sample belonging to the cell whose planes it has crossed), and its
+/// code is read only when the cell changes. A sample in a 0-cell is
+/// transparent (the transfer function is zero on the cell's value range)
+/// and skipped; from a 0-cell with code >= [`RESUME_CODE`] the traversal
+/// takes over again at that sample and leaps. So the walk costs one
+/// code read per cell holding a sample instead of a traversal step per
+/// cell, and a sample costs no visit.
+///
+/// Every exact traversal yields the same first 1-cell after a given `t`
+/// (module traverse), so the marched samples, and the image, are the
+/// same whichever traversal finds the runs.
+fn march<T: Real, P: Sampler>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    acc: &mut Accessor,
+    step: f64,
+    s: &mut P,
+) -> StepCounts {
     let coords = ctx.coords;
     let inv_step = 1.0 / step;
-    let mut col = [0.0f64; 3];
-    let mut alpha = 0.0f64;
-    let counts = trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |v, acc| {
-        // Samples at t = k * step inside [t_enter, t_exit); a cell the ray
-        // only clips between two samples is not read.
-        let mut k = first_sample(v.t_enter, step, inv_step);
-        if !(k * step < v.t_exit) {
+    let n: [u32; 3] = std::array::from_fn(|a| (coords[a].len() - 1) as u32);
+    // The plane ahead of cell index `i` on axis `a`, and its `t`.
+    let ahead = |a: usize, i: u32| -> f64 {
+        let d = ray.dir[a];
+        if d > 0.0 {
+            (coords[a][i as usize + 1] - ray.origin[a]) / d
+        } else if d < 0.0 {
+            (coords[a][i as usize] - ray.origin[a]) / d
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut counts = StepCounts::default();
+    let mut t_min = 0.0;
+    // The first sample not yet handled: runs never go back.
+    let mut k_next = 0.0f64;
+    loop {
+        let mut first = None;
+        let c = trace(ctx.grid, ray, t_min, ctx.opts.method, acc, |v, _| {
+            first = Some(*v);
+            Flow::Stop
+        });
+        counts.add(&c);
+        let Some(v) = first else {
+            return counts;
+        };
+        let mut cell = v.cell;
+        let mut tn: [f64; 3] = std::array::from_fn(|a| ahead(a, cell[a]));
+        let mut k = first_sample(v.t_enter, step, inv_step).max(k_next);
+        let mut entered = false;
+        loop {
+            let t = k * step;
+            for a in 0..3 {
+                while tn[a] <= t {
+                    if ray.dir[a] > 0.0 {
+                        cell[a] += 1;
+                        if cell[a] >= n[a] {
+                            return counts;
+                        }
+                    } else {
+                        if cell[a] == 0 {
+                            return counts;
+                        }
+                        cell[a] -= 1;
+                    }
+                    tn[a] = ahead(a, cell[a]);
+                    counts.steps += 1;
+                    counts.cell_steps += 1;
+                    entered = false;
+                }
+            }
+            k += 1.0;
+            if !entered {
+                let code = acc.code(cell, None);
+                if code != OBJECT {
+                    if code >= RESUME_CODE {
+                        t_min = t;
+                        k_next = k;
+                        break;
+                    }
+                    continue;
+                }
+                s.enter(cell, acc.vertices(cell), t);
+                entered = true;
+            }
+            if s.sample(t) == Flow::Stop {
+                return counts;
+            }
+        }
+    }
+}
+
+/// The f64 sampler: [`AlongRay`] per cell, the f64 table.
+struct Sampler64<'a> {
+    coords: [&'a [f64]; 3],
+    ray: &'a Ray,
+    lut: &'a TfLut,
+    look: Look<'a>,
+    stop: f64,
+    c: Option<AlongRay>,
+    ce: Option<CellEval>,
+    col: [f64; 3],
+    alpha: f64,
+}
+
+impl Sampler for Sampler64<'_> {
+    #[inline]
+    fn enter(&mut self, cell: [u32; 3], f: [f32; 8], _t: f64) {
+        self.c = Some(AlongRay::new(self.coords, cell, f, self.ray));
+        self.ce = self.look.on.then(|| CellEval::new(self.coords, cell, f));
+    }
+
+    #[inline]
+    fn sample(&mut self, t: f64) -> Flow {
+        let Some(c) = &self.c else {
+            return Flow::Continue;
+        };
+        let s = self.lut.sample(c.value(t));
+        if s[3] == 0.0 {
+            // Transparent: adds nothing.
             return Flow::Continue;
         }
-        let c = AlongRay::new(coords, v.cell, acc.vertices(v.cell), ray);
-        while k * step < v.t_exit {
-            let val = c.value(k * step);
-            let [r, gr, b, a] = lut.sample(val);
-            k += 1.0;
-            if a == 0.0 {
-                // Transparent: adds nothing.
-                continue;
+        let [r, g, b, a] = match &self.ce {
+            Some(ce) => {
+                let grad = ce.gradient(at(self.ray, t)).as_vec3();
+                self.look.apply(s.map(|x| x as f32), grad).map(|x| x as f64)
             }
-            let w = 1.0 - alpha;
-            col[0] += w * r;
-            col[1] += w * gr;
-            col[2] += w * b;
-            alpha += w * a;
-            if alpha > 0.99 {
-                return Flow::Stop;
-            }
+            None => s,
+        };
+        let w = 1.0 - self.alpha;
+        self.col[0] += w * r;
+        self.col[1] += w * g;
+        self.col[2] += w * b;
+        self.alpha += w * a;
+        if self.alpha > self.stop {
+            Flow::Stop
+        } else {
+            Flow::Continue
         }
-        Flow::Continue
-    });
-    px.hit = alpha > 0.0;
-    px.rgb = col.map(|x| x as f32);
-    counts
+    }
+}
+
+/// The f32 sampler: local coordinates per cell, advanced by a constant
+/// increment per sample.
+struct Sampler32<'a> {
+    coords: [&'a [f64]; 3],
+    inv_size: &'a [Vec<f64>; 3],
+    ray: &'a Ray,
+    lut: &'a TfLut,
+    step: f64,
+    look: Look<'a>,
+    stop: f32,
+    c: Trilinear32,
+    /// Local coordinates of the next sample and their step.
+    u: Vec3,
+    du: Vec3,
+    /// The cell's inverse sizes (local coordinates per mm).
+    inv: Vec3,
+    col: Vec3,
+    alpha: f32,
+}
+
+impl Sampler for Sampler32<'_> {
+    #[inline(always)]
+    fn enter(&mut self, cell: [u32; 3], f: [f32; 8], t: f64) {
+        let ray = self.ray;
+        for (a, &i) in cell.iter().enumerate() {
+            let i = i as usize;
+            let s = self.inv_size[a][i];
+            self.u[a] = ((ray.origin[a] - self.coords[a][i] + t * ray.dir[a]) * s) as f32;
+            self.du[a] = (self.step * ray.dir[a] * s) as f32;
+            self.inv[a] = s as f32;
+        }
+        self.c = Trilinear32::new(f);
+    }
+
+    #[inline(always)]
+    fn sample(&mut self, _t: f64) -> Flow {
+        let uc = self.u.clamp(Vec3::ZERO, Vec3::ONE);
+        self.u += self.du;
+        let mut s = self.lut.sample32(self.c.value(uc));
+        if s[3] == 0.0 {
+            return Flow::Continue;
+        }
+        if self.look.on {
+            s = self.look.apply(s, self.c.gradient(uc) * self.inv);
+        }
+        let w = 1.0 - self.alpha;
+        self.col += w * Vec3::new(s[0], s[1], s[2]);
+        self.alpha += w * s[3];
+        if self.alpha > self.stop {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        }
+    }
+}
+
+/// A cell's trilinear interpolant in f32 at local coordinates: the vertex
+/// values and their differences along x, taken once per cell.
+struct Trilinear32 {
+    /// `f0, f1 - f0, f2, f3 - f2, f4, f5 - f4, f6, f7 - f6`.
+    f: [f32; 8],
+}
+
+impl Trilinear32 {
+    #[inline(always)]
+    fn new(f: [f32; 8]) -> Trilinear32 {
+        Trilinear32 {
+            f: [
+                f[0],
+                f[1] - f[0],
+                f[2],
+                f[3] - f[2],
+                f[4],
+                f[5] - f[4],
+                f[6],
+                f[7] - f[6],
+            ],
+        }
+    }
+
+    #[inline(always)]
+    fn value(&self, u: Vec3) -> f32 {
+        let f = &self.f;
+        let x00 = f[0] + u.x * f[1];
+        let x10 = f[2] + u.x * f[3];
+        let x01 = f[4] + u.x * f[5];
+        let x11 = f[6] + u.x * f[7];
+        let y0 = x00 + u.y * (x10 - x00);
+        let y1 = x01 + u.y * (x11 - x01);
+        y0 + u.z * (y1 - y0)
+    }
+
+    /// The interpolant's derivative by the local coordinates (times the
+    /// inverse cell sizes it is the gradient per mm).
+    #[inline(always)]
+    fn gradient(&self, u: Vec3) -> Vec3 {
+        let f = &self.f;
+        let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
+        // Vertex values back from the differences.
+        let v = [
+            f[0],
+            f[0] + f[1],
+            f[2],
+            f[2] + f[3],
+            f[4],
+            f[4] + f[5],
+            f[6],
+            f[6] + f[7],
+        ];
+        Vec3::new(
+            lerp(lerp(f[1], f[3], u.y), lerp(f[5], f[7], u.y), u.z),
+            lerp(
+                lerp(v[2] - v[0], v[3] - v[1], u.x),
+                lerp(v[6] - v[4], v[7] - v[5], u.x),
+                u.z,
+            ),
+            lerp(
+                lerp(v[4] - v[0], v[5] - v[1], u.x),
+                lerp(v[6] - v[2], v[7] - v[3], u.x),
+                u.y,
+            ),
+        )
+    }
+}
+
+/// [`CompositeLook`] for one ray: the headlight and whether anything
+/// beyond the transfer function applies.
+struct Look<'a> {
+    look: &'a CompositeLook,
+    /// Shading or gradient opacity is on.
+    on: bool,
+    to_eye: Vec3,
+}
+
+impl<'a> Look<'a> {
+    fn new(look: &'a CompositeLook, ray: &Ray) -> Look<'a> {
+        Look {
+            look,
+            on: look.shade || !look.gradient_opacity.is_empty(),
+            to_eye: (-ray.dir).as_vec3(),
+        }
+    }
+
+    /// Sample `s` (premultiplied colour, opacity) with gradient `g` (per
+    /// mm): opacity and colour scaled by the gradient opacity, the colour
+    /// lit by the surface mode's headlight model
+    /// ([`shade`](crate::render::shade::shade): ambient 0.12, diffuse
+    /// 0.75, white specular 0.25 with exponent 32, two-sided).
+    #[inline]
+    fn apply(&self, s: [f32; 4], g: Vec3) -> [f32; 4] {
+        let len = g.length();
+        let mut s = s;
+        if !self.look.gradient_opacity.is_empty() {
+            let k = self.look.gradient_factor(len as f64) as f32;
+            s = s.map(|x| x * k);
+        }
+        if !self.look.shade {
+            return s;
+        }
+        const AMBIENT: f32 = 0.12;
+        let (diffuse, spec) = if len > 0.0 {
+            // The light is at the eye: n.l = |g.e| / |g| for the normal
+            // facing the eye, and r.e = 2 (n.l)^2 - 1.
+            let ndl = (g.dot(self.to_eye).abs() / len).min(1.0);
+            let re = (2.0 * ndl * ndl - 1.0).max(0.0);
+            (ndl, re.powi(32))
+        } else {
+            // No gradient: as the surface mode's flat fallback.
+            (0.5, 0.0)
+        };
+        let k = AMBIENT + 0.75 * diffuse;
+        let sp = 0.25 * spec * s[3];
+        [s[0] * k + sp, s[1] * k + sp, s[2] * k + sp, s[3]]
+    }
 }
 
 /// `ceil(t / step)`, the first composite sample at or after `t`, with a

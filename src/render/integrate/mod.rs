@@ -19,7 +19,7 @@ mod surface;
 use super::cache::Accessor;
 use super::camera::Camera;
 use super::lut::TfLut;
-use super::options::{Mode, RenderOptions};
+use super::options::{Mode, Precision, RenderOptions};
 use super::traverse::{Ray, Real, StepCounts, TGrid};
 
 /// Per-pixel result before colouring (image.rs colours it; part files
@@ -45,6 +45,38 @@ pub(crate) struct Ctx<'a, T> {
     pub(crate) iso: f64,
     /// The composite mode's transfer function, tabulated for its step.
     pub(crate) lut: Option<TfLut>,
+    /// `1 / (S[i + 1] - S[i])` per axis and cell: the samplers' local
+    /// coordinates by multiplication.
+    pub(crate) inv_size: [Vec<f64>; 3],
+}
+
+impl<'a, T: Real> Ctx<'a, T> {
+    /// The context of a render of `h`'s volume: the iso value mapped like
+    /// the stored values ([`to_f32`](super::cache::to_f32)), the composite
+    /// table for the mode's step, the cells' inverse sizes.
+    pub(crate) fn new(
+        grid: &'a TGrid<T>,
+        h: &'a crate::format::Header,
+        camera: &'a Camera,
+        opts: &'a RenderOptions,
+    ) -> Ctx<'a, T> {
+        let coords = [h.axes[0].coords(), h.axes[1].coords(), h.axes[2].coords()];
+        Ctx {
+            grid,
+            coords,
+            camera,
+            opts,
+            iso: match h.classification {
+                crate::classify::Classification::Iso { iso } => super::cache::to_f32(iso) as f64,
+                _ => f64::NAN,
+            },
+            lut: match &opts.mode {
+                Mode::Composite { tf, step_mm } => Some(TfLut::new(tf, *step_mm)),
+                _ => None,
+            },
+            inv_size: coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect()),
+        }
+    }
 }
 
 /// The pixel of `ray`: the mode's integrator, then its step count.
@@ -60,7 +92,10 @@ pub(crate) fn pixel<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (Px
         Mode::Cost => cost::cost(ctx, ray, acc, &mut px),
         Mode::Composite { step_mm, .. } => {
             let lut = ctx.lut.as_ref().expect("composite renders carry a table");
-            composite::composite(ctx, ray, acc, lut, *step_mm, &mut px)
+            match ctx.opts.sampling {
+                Precision::F32 => composite::composite32(ctx, ray, acc, lut, *step_mm, &mut px),
+                Precision::F64 => composite::composite(ctx, ray, acc, lut, *step_mm, &mut px),
+            }
         }
     };
     px.steps = counts.steps.min(u32::MAX as u64) as u32;
