@@ -16,6 +16,7 @@ mod common;
 
 mod bad_input;
 mod batch;
+mod composite;
 mod data_extremes;
 mod dda_planes;
 mod dicom;

@@ -1,0 +1,438 @@
+//! The composite mode's run marcher and samplers against a brute-force
+//! oracle that knows nothing of traversals, runs or bricks: every sample
+//! `t = k * step` of every ray, its cell found from its position, the
+//! transfer function evaluated exactly ([`exact_sample`]) wherever that
+//! cell is a 1-cell of the transfer-function classification. Plus the
+//! samplers' agreement with each other and across traversals, the
+//! early-stop knob at its ends, and the MIP window.
+
+use proptest::prelude::*;
+
+use crate::common::{self, orbit, write_stack};
+use cdvol::classify::{Classification, TfPoint, TransferFunction};
+use cdvol::format::reader::PackedVolume;
+use cdvol::prep::{prep, PrepOptions};
+use cdvol::progress::NoProgress;
+use cdvol::render::camera::Camera;
+use cdvol::render::lut::exact_sample;
+use cdvol::render::traverse::Method;
+use cdvol::render::{render, Frame, Mode, Precision, RenderOptions, Window};
+
+/// A transfer function transparent below 40 and above 180, coloured so
+/// the channels differ.
+fn tf() -> TransferFunction {
+    let p = |value: f64, opacity: f64, color: [f64; 3]| TfPoint {
+        value,
+        opacity,
+        color,
+    };
+    TransferFunction {
+        points: vec![
+            p(40.0, 0.0, [1.0, 0.2, 0.1]),
+            p(90.0, 0.35, [0.9, 0.8, 0.2]),
+            p(140.0, 0.05, [0.2, 0.6, 1.0]),
+            p(180.0, 0.0, [0.5, 0.5, 0.5]),
+        ],
+    }
+}
+
+/// `values` (x fastest) on axes with the given sample positions, prepared
+/// by the transfer function with 8-sample bricks.
+fn packed_tf(
+    dir: &std::path::Path,
+    dims: [usize; 3],
+    values: &[f64],
+    pos: &[Vec<f64>; 3],
+) -> PackedVolume {
+    let axis = |p: &Vec<f64>| {
+        format!(
+            "{{\"positions\": [{}]}}",
+            p.iter()
+                .map(|x| format!("{x:?}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    let (ax, ay, az) = (axis(&pos[0]), axis(&pos[1]), axis(&pos[2]));
+    let side = write_stack(dir, "v", dims, "u8", values, [&ax, &ay, &az], "");
+    let src = cdvol::input::open(&side).unwrap();
+    let mut o = PrepOptions::new(Classification::TransferFunction { tf: tf() });
+    o.brick_size = 8;
+    let out = dir.join("v.cdv");
+    prep(src.as_ref(), &out, &o, &NoProgress).unwrap();
+    PackedVolume::open(&out).unwrap()
+}
+
+/// The oracle's pixel: every sample of the ray inside the grid, in
+/// order; a sample counts when the cell holding it (per axis the largest
+/// `j` with `S[j] <= p`) has a vertex range on which the transfer
+/// function has opacity; trilinear value in f64, exact table entry,
+/// front-to-back until the opacity exceeds 0.99.
+fn oracle_pixel(
+    cam: &Camera,
+    x: u32,
+    y: u32,
+    dims: [usize; 3],
+    values: &[f64],
+    pos: &[Vec<f64>; 3],
+    step: f64,
+) -> [f64; 3] {
+    let tf = tf();
+    let ray = cam.ray(x, y);
+    // Slab entry and exit.
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for a in 0..3 {
+        let (lo, hi) = (pos[a][0], pos[a][dims[a] - 1]);
+        let (o, d) = (ray.origin[a], ray.dir[a]);
+        if d == 0.0 {
+            if o < lo || o > hi {
+                return [0.0; 3];
+            }
+        } else {
+            let (ta, tb) = ((lo - o) / d, (hi - o) / d);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+    }
+    let mut col = [0.0; 3];
+    let mut alpha = 0.0;
+    let mut k = (t0 / step).ceil();
+    while k * step < t1 {
+        let t = k * step;
+        k += 1.0;
+        let p: [f64; 3] = std::array::from_fn(|a| ray.origin[a] + t * ray.dir[a]);
+        let cell: [usize; 3] = std::array::from_fn(|a| {
+            pos[a].partition_point(|&s| s <= p[a]).clamp(1, dims[a] - 1) - 1
+        });
+        let at = |i: usize, j: usize, l: usize| values[(l * dims[1] + j) * dims[0] + i];
+        let f: [f64; 8] = std::array::from_fn(|v| {
+            at(
+                cell[0] + (v & 1),
+                cell[1] + ((v >> 1) & 1),
+                cell[2] + ((v >> 2) & 1),
+            )
+        });
+        let (lo, hi) = f
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        if !tf.nonzero_on(lo, hi) {
+            continue;
+        }
+        let u: [f64; 3] = std::array::from_fn(|a| {
+            let (s0, s1) = (pos[a][cell[a]], pos[a][cell[a] + 1]);
+            ((p[a] - s0) / (s1 - s0)).clamp(0.0, 1.0)
+        });
+        let l = |a: f64, b: f64, w: f64| a + w * (b - a);
+        let v = l(
+            l(l(f[0], f[1], u[0]), l(f[2], f[3], u[0]), u[1]),
+            l(l(f[4], f[5], u[0]), l(f[6], f[7], u[0]), u[1]),
+            u[2],
+        );
+        let (rgb, a) = exact_sample(&tf, step, v);
+        let w = 1.0 - alpha;
+        for c in 0..3 {
+            col[c] += w * rgb[c] * a;
+        }
+        alpha += w * a;
+        if alpha > 0.99 {
+            break;
+        }
+    }
+    col
+}
+
+fn opts(method: Method, sampling: Precision, step: f64) -> RenderOptions {
+    RenderOptions {
+        sampling,
+        ..common::test_opts(
+            Mode::Composite {
+                tf: tf(),
+                step_mm: step,
+            },
+            method,
+        )
+    }
+}
+
+fn draw(vol: &PackedVolume, cam: &Camera, o: &RenderOptions) -> Frame {
+    render(vol, cam, o, &NoProgress).unwrap().0
+}
+
+/// Blobs of values in the transfer function's support in a background
+/// of 0 (transparent), so rays cross runs of 1-cells, thin 0-cells and
+/// empty regions to leap.
+fn volume() -> impl Strategy<Value = ([usize; 3], Vec<f64>, [Vec<f64>; 3])> {
+    let axis = |n: usize| {
+        proptest::collection::vec(0.3f64..2.5, n - 1).prop_map(|gaps| {
+            let mut p = vec![0.0];
+            for g in gaps {
+                p.push(p[p.len() - 1] + g);
+            }
+            p
+        })
+    };
+    (6usize..18, 6usize..18, 6usize..14).prop_flat_map(move |(x, y, z)| {
+        let n = x * y * z;
+        (
+            Just([x, y, z]),
+            proptest::collection::vec(
+                (0u32..100).prop_map(|r| match r {
+                    0..=54 => 0.0,
+                    55..=69 => 200.0,
+                    _ => (30 + (r * 37) % 150) as f64,
+                }),
+                n,
+            ),
+            (axis(x), axis(y), axis(z)).prop_map(|(a, b, c)| [a, b, c]),
+        )
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    /// The f64 sampler equals the brute-force oracle to 1/255 on every
+    /// channel of every pixel, for FVT and CD, on random rectilinear
+    /// volumes and views; f32 to 2/255.
+    #[test]
+    fn composite_matches_the_brute_force_oracle(
+        (dims, values, pos) in volume(),
+        az in -180.0f64..180.0,
+        el in -80.0f64..80.0,
+        step in prop_oneof![Just(0.37), Just(0.5), Just(1.3)],
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let vol = packed_tf(dir.path(), dims, &values, &pos);
+        let cam = orbit(&vol, [az, el], None, 24, 24);
+        let mut want = vec![0u8; 24 * 24 * 3];
+        for y in 0..24 {
+            for x in 0..24 {
+                let c = oracle_pixel(&cam, x, y, dims, &values, &pos, step);
+                for (k, ch) in c.iter().enumerate() {
+                    want[(y * 24 + x) as usize * 3 + k] =
+                        (ch.clamp(0.0, 1.0) as f32 * 255.0).round() as u8;
+                }
+            }
+        }
+        for (method, sampling, tol) in [
+            (Method::Fvt, Precision::F64, 1),
+            (Method::Cd { min_leap: 1 }, Precision::F64, 1),
+            (Method::Cd { min_leap: 1 }, Precision::F32, 2),
+        ] {
+            let got = draw(&vol, &cam, &opts(method, sampling, step));
+            let worst = got.rgb.iter().zip(&want).map(|(&a, &b)| a.abs_diff(b)).max().unwrap();
+            prop_assert!(worst <= tol, "{method:?} {sampling:?}: channel off by {worst}");
+        }
+    }
+}
+
+/// Every exact traversal gives the same composite bytes with either
+/// sampler, shaded or not, with gradient opacity, at any early stop.
+#[test]
+fn composite_is_the_same_for_every_traversal_and_look() {
+    let dir = tempfile::tempdir().unwrap();
+    let side = dir.path().join("head.json");
+    cdvol::tools::phantom::ct(
+        &side,
+        &cdvol::tools::phantom::CtOptions {
+            dims: [40, 36, 30],
+            seed: 7,
+            ..Default::default()
+        },
+        &NoProgress,
+    )
+    .unwrap();
+    let src = cdvol::input::open(&side).unwrap();
+    let skin = common::white_tf(&[(-300.0, 0.0), (-100.0, 0.05), (400.0, 0.4)]);
+    let mut o = PrepOptions::new(Classification::TransferFunction { tf: skin.clone() });
+    o.brick_size = 8;
+    o.aniso = true;
+    let out = dir.path().join("ct.cdv");
+    prep(src.as_ref(), &out, &o, &NoProgress).unwrap();
+    let vol = PackedVolume::open(&out).unwrap();
+    let cam = orbit(&vol, [30.0, 20.0], None, 40, 40);
+    let looks = [
+        cdvol::render::CompositeLook::default(),
+        cdvol::render::CompositeLook {
+            shade: true,
+            gradient_opacity: vec![],
+        },
+        cdvol::render::CompositeLook {
+            shade: true,
+            gradient_opacity: vec![
+                cdvol::render::GradientPoint {
+                    gradient: 0.0,
+                    opacity: 0.0,
+                },
+                cdvol::render::GradientPoint {
+                    gradient: 50.0,
+                    opacity: 1.0,
+                },
+            ],
+        },
+    ];
+    let mut images = Vec::new();
+    for look in &looks {
+        for sampling in [Precision::F32, Precision::F64] {
+            for early_stop in [0.5, 0.99, 1.0] {
+                let mut first: Option<Frame> = None;
+                for method in [
+                    Method::Fvt,
+                    Method::Cd { min_leap: 1 },
+                    Method::Cd { min_leap: 3 },
+                    Method::CdAniso { min_leap: 1 },
+                    Method::Octree,
+                ] {
+                    let o = RenderOptions {
+                        sampling,
+                        early_stop,
+                        look: look.clone(),
+                        ..common::test_opts(
+                            Mode::Composite {
+                                tf: skin.clone(),
+                                step_mm: 0.6,
+                            },
+                            method,
+                        )
+                    };
+                    let f = draw(&vol, &cam, &o);
+                    match &first {
+                        None => first = Some(f),
+                        Some(w) => assert!(
+                            w.rgb == f.rgb,
+                            "{method:?} {sampling:?} stop {early_stop} {look:?} differs from FVT"
+                        ),
+                    }
+                }
+                images.push(first.unwrap().rgb);
+            }
+        }
+    }
+    // The knobs do something: shading, gradient opacity and the early
+    // stop each change the picture.
+    let lit = |i: usize| images[i].iter().map(|&x| x as u64).sum::<u64>();
+    assert!(images[1] != images[7], "shading changes the image");
+    assert!(
+        images[7] != images[13],
+        "gradient opacity changes the image"
+    );
+    assert!(
+        lit(0) < lit(1),
+        "stopping at opacity 0.5 leaves less colour than at 0.99"
+    );
+    assert!(images.iter().any(|i| i.iter().any(|&x| x > 0)));
+}
+
+/// The early stop at its ends: 1 never stops (the ray composites every
+/// sample), and a stop below any single sample's opacity keeps exactly the
+/// first sample; out-of-range values are refused by name.
+#[test]
+fn early_stop_extremes() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = [12, 12, 12];
+    let values: Vec<f64> = (0..12 * 12 * 12).map(|_| 90.0).collect();
+    let pos = [0, 1, 2].map(|_| (0..12).map(|i| i as f64).collect::<Vec<_>>());
+    let vol = packed_tf(dir.path(), dims, &values, &pos);
+    let cam = orbit(&vol, [0.0, 0.0], None, 8, 8);
+    let base = opts(Method::Cd { min_leap: 1 }, Precision::F64, 0.5);
+    let at = |stop: f64| {
+        draw(
+            &vol,
+            &cam,
+            &RenderOptions {
+                early_stop: stop,
+                ..base.clone()
+            },
+        )
+    };
+    // Value 90 everywhere: opacity 0.35 per mm, 1 - 0.65^0.5 per sample.
+    let a = 1.0 - 0.65f64.sqrt();
+    let first = at(1e-9);
+    let centre = ((4 * 8 + 4) * 3) as usize;
+    let want = (0.8 * a * 255.0).round() as u8;
+    assert_eq!(first.rgb[centre + 1], want, "one sample of green 0.8");
+    let all = at(1.0);
+    let never = at(0.99);
+    assert!(all.rgb[centre + 1] >= never.rgb[centre + 1]);
+    for bad in [0.0, -1.0, 1.5, f64::NAN] {
+        let e = render(
+            &vol,
+            &cam,
+            &RenderOptions {
+                early_stop: bad,
+                ..base.clone()
+            },
+            &NoProgress,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("early_stop"), "{bad}: {e}");
+    }
+}
+
+/// MIP windows: `full` maps the file's value range, a fixed window maps
+/// its ends to black and white, and the automatic one spreads the image's
+/// values (1st to 99.9th percentile) over the grey range.
+#[test]
+fn mip_windows() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = [10, 10, 10];
+    let values: Vec<f64> = (0..1000)
+        .map(|i| {
+            if (i * 7) % 10 < 4 {
+                60.0 + (i % 50) as f64
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let side = write_stack(dir.path(), "m", dims, "u8", &values, ["1", "1", "1"], "");
+    let vol = common::packed(&side, &dir.path().join("m.cdv"), 50.0);
+    let cam = orbit(&vol, [10.0, 5.0], None, 16, 16);
+    let with = |window: Window| {
+        let o = RenderOptions {
+            window,
+            ..common::test_opts(Mode::Mip, Method::Cd { min_leap: 1 })
+        };
+        draw(&vol, &cam, &o)
+    };
+    let auto = with(Window::Auto);
+    let grey: Vec<u8> = auto.rgb.iter().step_by(3).cloned().collect();
+    assert_eq!(*grey.iter().max().unwrap(), 255, "auto: the top is white");
+    // `full` is the file's value range, 0..109 here: the same as that
+    // window given by width and level.
+    let full = with(Window::Full);
+    assert!(full.rgb.iter().any(|&x| x > 0));
+    let same = with(Window::Fixed {
+        width: 109.0,
+        level: 54.5,
+    });
+    assert_eq!(full.rgb, same.rgb);
+    assert_ne!(full.rgb, auto.rgb, "auto spreads the values differently");
+    // A window below every value the rays meet (face samples of 1-cells
+    // are >= 0): a hit pixel is white unless its maximum is below 1.
+    let low = with(Window::Fixed {
+        width: 1.0,
+        level: -0.5,
+    });
+    let hit = |f: &Frame| f.rgb.iter().step_by(3).filter(|&&x| x > 0).count();
+    assert!(hit(&low) >= hit(&full));
+    assert!(low.rgb.iter().all(|&x| x == 0 || x == 255));
+    let e = render(
+        &vol,
+        &cam,
+        &RenderOptions {
+            window: Window::Fixed {
+                width: 0.0,
+                level: 1.0,
+            },
+            ..common::test_opts(Mode::Mip, Method::Cd { min_leap: 1 })
+        },
+        &NoProgress,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("window"), "{e}");
+}
