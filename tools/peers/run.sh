@@ -11,6 +11,8 @@
 # usage: tools/peers/run.sh [WORKDIR]   env: REPS=5 SIZE=512 THREADS=1,2 VIEW=35,15
 #        CDVOL=/path/to/cdvol (default: cargo build --release, copied into WORKDIR)
 #        OUT=docs/peers (where the CSVs, PNGs and RESULTS.md go)
+#        CT_SIDECAR=path/to/volume.json (another raw volume instead of the CT,
+#        e.g. a `cdvol phantom ct --dims 512,512,512` phantom)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 work=$(mkdir -p "${1:-$root/target/peers}" && cd "${1:-$root/target/peers}" && pwd)
@@ -18,7 +20,8 @@ out=${OUT:-$root/docs/peers}
 "$root/tools/peers/install.sh" "$work/venv"
 ct=$root/target/ct
 if [ -n "${CT_DIR:-}" ]; then ct=$CT_DIR; fi
-[ -f "$ct/cranium.json" ] || "$root/tools/fetch-ct.sh" "$ct" >/dev/null
+sidecar=${CT_SIDECAR:-$ct/cranium.json}
+[ -n "${CT_SIDECAR:-}" ] || [ -f "$ct/cranium.json" ] || "$root/tools/fetch-ct.sh" "$ct" >/dev/null
 if [ -z "${CDVOL:-}" ]; then
     (cd "$root" && cargo build --release --quiet)
     tdir=${CARGO_TARGET_DIR:-$root/target}
@@ -26,6 +29,6 @@ if [ -z "${CDVOL:-}" ]; then
     CDVOL=$work/cdvol
 fi
 "$CDVOL" --version >&2
-"$work/venv/bin/python" "$root/tools/peers/bench.py" --cdvol "$CDVOL" --ct "$ct/cranium.json" \
+"$work/venv/bin/python" "$root/tools/peers/bench.py" --cdvol "$CDVOL" --ct "$sidecar" \
     --work "$work" --out "$out" --reps "${REPS:-5}" --size "${SIZE:-512}" \
     --threads "${THREADS:-1,2}" --view "${VIEW:-35,15}"

@@ -8,7 +8,7 @@ of the same view, data already in memory), and the image written.
 
 usage: vtk_render.py SIDECAR MODE(composite|mip) OUT.png --eye X,Y,Z --target X,Y,Z
        --up X,Y,Z --frame MM [--tf TF.json] [--step MM] [--iso T] [--size N]
-       [--threads N] [--renders K]
+       [--threads N] [--renders K] [--shade]
 """
 import argparse, json, os, sys, time
 
@@ -34,6 +34,9 @@ ap.add_argument("--iso", type=float, default=300.0)
 ap.add_argument("--size", type=int, default=512)
 ap.add_argument("--threads", type=int, default=1)
 ap.add_argument("--renders", type=int, default=3)
+ap.add_argument("--shade", action="store_true",
+                help="composite: ShadeOn with cdvol's light (headlight; ambient 0.12, "
+                     "diffuse 0.75, specular 0.25, power 32)")
 a = ap.parse_args()
 
 vtk.vtkMultiThreader.SetGlobalMaximumNumberOfThreads(a.threads)
@@ -63,7 +66,16 @@ col = vtk.vtkColorTransferFunction()
 op = vtk.vtkPiecewiseFunction()
 prop = vtk.vtkVolumeProperty()
 prop.SetInterpolationTypeToLinear()
-prop.ShadeOff()
+if a.shade:
+    # cdvol render --shade: its surface light, a headlight (VTK's default
+    # light follows the camera), two-sided.
+    prop.ShadeOn()
+    prop.SetAmbient(0.12)
+    prop.SetDiffuse(0.75)
+    prop.SetSpecular(0.25)
+    prop.SetSpecularPower(32.0)
+else:
+    prop.ShadeOff()
 if a.mode == "composite":
     pts = json.load(open(a.tf))["points"]
     for p in pts:
