@@ -65,6 +65,7 @@ fn main() -> anyhow::Result<()> {
                 cd_lazy_min: cdvol::render::cache::LAZY_MIN_CODE_CD,
                 precision: Default::default(),
                 hit_params: Default::default(),
+                normals: Default::default(),
             };
             type R = fn(
                 &PackedVolume,

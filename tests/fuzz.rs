@@ -893,6 +893,7 @@ fn exercise(path: &Path, bytes: &[u8], must_work: bool) -> Result<(), TestCaseEr
                     cd_lazy_min: 4,
                     precision: Default::default(),
                     hit_params: Default::default(),
+                    normals: Default::default(),
                 };
                 match render(&vol, &cam, &o, &NoProgress) {
                     Ok((f, _)) => {

@@ -9,6 +9,7 @@ use crate::format::reader::PackedVolume;
 use super::cache;
 use super::camera::Camera;
 use super::error::RenderError;
+use super::gradient::Normals;
 use super::shade::{HitMethod, HitParams};
 use super::traverse::Method;
 
@@ -66,12 +67,14 @@ pub struct RenderOptions {
     pub precision: Precision,
     /// Iterations and tolerance of the bisect and newton hit methods.
     pub hit_params: HitParams,
+    /// How surface normals are estimated (smooth by default).
+    pub normals: Normals,
 }
 
 impl RenderOptions {
     /// `mode` by `method` with the defaults of `cdvol render`: 32-pixel
     /// tiles, a 512 MiB cache, CD's lazy threshold, f64, default hit
-    /// parameters.
+    /// parameters, smooth normals.
     pub fn new(mode: Mode, method: Method) -> RenderOptions {
         RenderOptions {
             mode,
@@ -81,6 +84,7 @@ impl RenderOptions {
             cd_lazy_min: cache::LAZY_MIN_CODE_CD,
             precision: Precision::F64,
             hit_params: HitParams::default(),
+            normals: Normals::default(),
         }
     }
 }

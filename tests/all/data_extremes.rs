@@ -204,6 +204,7 @@ fn opts(mode: &Mode, method: Method) -> RenderOptions {
         cd_lazy_min: 4,
         precision: Default::default(),
         hit_params: Default::default(),
+        normals: Default::default(),
     }
 }
 

@@ -244,6 +244,7 @@ fn planes_through_the_cache_with_uniform_bricks() {
                     cd_lazy_min: 4,
                     precision: Default::default(),
                     hit_params: Default::default(),
+                    normals: Default::default(),
                 };
                 let (a, sa) = render(&dda, &cam, &o, &NoProgress).unwrap();
                 let (b, sb) = render(&plain, &cam, &o, &NoProgress).unwrap();

@@ -246,6 +246,7 @@ fn same_image_whatever_cache_threads_and_tiles() {
         cd_lazy_min: 16,
         precision: Default::default(),
         hit_params: Default::default(),
+        normals: Default::default(),
     };
     let (want, ws) = render(&vol, &c, &big, &NoProgress).unwrap();
     // A budget of about two bricks.
@@ -318,6 +319,7 @@ fn corrupt_brick_is_an_error_not_pixels() {
         cd_lazy_min: 16,
         precision: Default::default(),
         hit_params: Default::default(),
+        normals: Default::default(),
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(
@@ -341,6 +343,7 @@ fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
         cd_lazy_min: 16,
         precision: Default::default(),
         hit_params: Default::default(),
+        normals: Default::default(),
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(

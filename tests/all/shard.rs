@@ -49,6 +49,7 @@ fn options(mode: Mode, tile: u32) -> RenderOptions {
         cd_lazy_min: 4,
         precision: Default::default(),
         hit_params: Default::default(),
+        normals: Default::default(),
     }
 }
 
