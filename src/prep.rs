@@ -552,7 +552,13 @@ fn emit_slab<W: Word>(
                     .min()
                     .unwrap_or(u8::MAX);
                 let no_object = min_d > 0;
-                let min_code = if no_object { code_of(min_d) } else { 0 };
+                // The smallest code the brick's cells read back as: a cell
+                // whose code is not embedded reads as code 0.
+                let min_code = if min_d >= embed_min {
+                    code_of(min_d)
+                } else {
+                    0
+                };
                 (
                     id,
                     BrickOut::Payload {
