@@ -103,3 +103,120 @@ pub fn sphere_normal_errors(
     }
     Some(out)
 }
+
+/// Angles (degrees) between the smooth normals of two files of the same
+/// samples and iso value (a file with and one without gradient halo) at
+/// the first hits of `size x size` orthographic rays per orbit view, and
+/// how many hits used a one-sided difference in each. The hits are the
+/// same in both files (the same 1-cells and vertex values); `None` when
+/// `a` is not classified by an iso value.
+pub fn compare_smooth(
+    a: &PackedVolume,
+    b: &PackedVolume,
+    views: &[[f64; 2]],
+    size: u32,
+) -> Option<(Vec<f64>, [u64; 2])> {
+    let h = a.header();
+    let iso = match h.classification {
+        Classification::Iso { iso } => to_f32(iso) as f64,
+        Classification::TransferFunction { .. } => return None,
+    };
+    let grid = TGrid::<f64>::new(&h.axes);
+    let coords: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
+    let (ca, cb) = (BrickCache::new(a, 256 << 20), BrickCache::new(b, 256 << 20));
+    let (mut aa, mut ab) = (Accessor::new(&ca), Accessor::new(&cb));
+    let mut out = Vec::new();
+    let mut one_sided = [0, 0];
+    for &[az, el] in views {
+        let cam = Camera::orbit(grid.bounds(), az, el, None, None, size, size).ok()?;
+        for py in 0..size {
+            for px in 0..size {
+                let ray = cam.ray(px, py);
+                let mut found = None;
+                trace(&grid, &ray, 0.0, Method::Fvt, &mut aa, |v, acc| {
+                    let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+                    match find_hit(&ray, v, &c, iso, HitMethod::Exact) {
+                        Some(t) => {
+                            found = Some((t, v.cell));
+                            Flow::Stop
+                        }
+                        None => Flow::Continue,
+                    }
+                });
+                let Some((t, cell)) = found else {
+                    continue;
+                };
+                let p = at(&ray, t);
+                let (ga, gb) = (
+                    vertex_gradients(&mut aa, coords, cell),
+                    vertex_gradients(&mut ab, coords, cell),
+                );
+                one_sided[0] += (ga.one_sided > 0) as u64;
+                one_sided[1] += (gb.one_sided > 0) as u64;
+                out.push(angle(ga.at(p), -gb.at(p).normalize()));
+            }
+        }
+    }
+    Some((out, one_sided))
+}
+
+/// Nanoseconds per hit of the cell gradient (with the 8 vertex values
+/// read, as the surface mode does) and of the smooth gradient, over the
+/// first hits of `size x size` orthographic rays per orbit view, each
+/// evaluated `reps` times in a loop (the cache warm): the cost smooth
+/// normals add per hit, apart from the noise of whole frames. Returns
+/// `(cell ns, smooth ns, hits)`; `None` when `vol` is not classified by an
+/// iso value.
+pub fn time_gradients(
+    vol: &PackedVolume,
+    views: &[[f64; 2]],
+    size: u32,
+    reps: u32,
+) -> Option<(f64, f64, usize)> {
+    let h = vol.header();
+    let iso = match h.classification {
+        Classification::Iso { iso } => to_f32(iso) as f64,
+        Classification::TransferFunction { .. } => return None,
+    };
+    let grid = TGrid::<f64>::new(&h.axes);
+    let coords: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
+    let cache = BrickCache::new(vol, 256 << 20);
+    let mut acc = Accessor::new(&cache);
+    let mut hits = Vec::new();
+    for &[az, el] in views {
+        let cam = Camera::orbit(grid.bounds(), az, el, None, None, size, size).ok()?;
+        for py in 0..size {
+            for px in 0..size {
+                let ray = cam.ray(px, py);
+                trace(&grid, &ray, 0.0, Method::Fvt, &mut acc, |v, acc| {
+                    let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+                    match find_hit(&ray, v, &c, iso, HitMethod::Int) {
+                        Some(t) => {
+                            hits.push((v.cell, at(&ray, t)));
+                            Flow::Stop
+                        }
+                        None => Flow::Continue,
+                    }
+                });
+            }
+        }
+    }
+    let mut sink = DVec3::ZERO;
+    let t0 = std::time::Instant::now();
+    for _ in 0..reps {
+        for &(cell, p) in &hits {
+            sink += CellEval::new(coords, cell, acc.vertices(cell)).gradient(p);
+        }
+    }
+    let cell_ns = t0.elapsed().as_nanos() as f64;
+    let t0 = std::time::Instant::now();
+    for _ in 0..reps {
+        for &(cell, p) in &hits {
+            sink += vertex_gradients(&mut acc, coords, cell).at(p);
+        }
+    }
+    let smooth_ns = t0.elapsed().as_nanos() as f64;
+    std::hint::black_box(sink);
+    let n = (hits.len() as f64 * reps as f64).max(1.0);
+    Some((cell_ns / n, smooth_ns / n, hits.len()))
+}

@@ -176,9 +176,9 @@ fn check_file(
                 }
                 let want = brute_force(values, xs, cell, &avail);
                 let got = vertex_gradients(&mut acc, coords, cell.map(|c| c as u32));
-                for v in 0..8 {
-                    for k in 0..3 {
-                        let (g, w) = (got.g[v][k], want[v][k]);
+                for (v, (gv, wv)) in got.g.iter().zip(&want).enumerate() {
+                    for (k, &w) in wv.iter().enumerate() {
+                        let g = gv[k];
                         prop_assert!(
                             (g - w).abs() <= 1e-9 * w.abs().max(1.0),
                             "cell {:?} vertex {} axis {}: {} from the file, {} brute force",
