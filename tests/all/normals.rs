@@ -321,3 +321,50 @@ fn traversals_agree_with_smooth_normals() {
         );
     }
 }
+
+/// The command line: `prep --gradient-halo` is recorded and shown by
+/// `info` (text and JSON), a file without it says nothing (old files read
+/// as no halo), `render --normals` takes `smooth` and `cell` and refuses
+/// anything else by naming the flag.
+#[test]
+fn cli_flags() {
+    use common::{cdvol, fails, ok};
+    let dir = tempfile::tempdir().unwrap();
+    let side = dir.path().join("s.json");
+    ok(cdvol()
+        .args(["phantom", "spheres", "-q", "--size", "24", "-o"])
+        .arg(&side));
+    for halo in [false, true] {
+        let out = dir.path().join(format!("s{halo}.cdv"));
+        let mut prep = cdvol();
+        prep.args(["prep", "-q", "--iso", "1000", "-o"])
+            .arg(&out)
+            .arg(&side);
+        if halo {
+            prep.arg("--gradient-halo");
+        }
+        ok(&mut prep);
+        let info = ok(cdvol().arg("info").arg(&out));
+        assert_eq!(info.contains("grad. halo"), halo, "{info}");
+        let json = ok(cdvol().args(["info", "--json"]).arg(&out));
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(v["gradient_halo"], serde_json::Value::Bool(halo), "{json}");
+        for n in ["smooth", "cell"] {
+            ok(cdvol()
+                .arg("render")
+                .arg(&out)
+                .arg("-o")
+                .arg(dir.path().join(format!("{halo}-{n}.png")))
+                .args(["--width", "32", "--height", "32", "-q", "--normals", n]));
+        }
+        let e = fails(
+            cdvol()
+                .arg("render")
+                .arg(&out)
+                .arg("-o")
+                .arg(dir.path().join("x.png"))
+                .args(["--normals", "central"]),
+        );
+        assert!(e.contains("--normals"), "{e}");
+    }
+}
