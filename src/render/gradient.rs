@@ -1,7 +1,11 @@
 //! Shading normals: how the gradient at a point of a 1-cell is estimated.
 //!
-//! The paper shades its surfaces with a gradient (section 5.3 finds the
-//! hit, Fig. 22; shading is left to the renderer). Two estimates:
+//! The paper leaves the gradient reconstruction to the data (section 2,
+//! citing filter analyses such as Bentum et al.'s of gradient estimators,
+//! its ref. 20); section 5.3 (item 3) relies only on the gradient being
+//! continuous *within* a cell, for Newton's hit refinement, which is why
+//! hits keep the cell interpolant's derivative whatever the normals. Two
+//! estimates for shading:
 //!
 //! - [`Normals::Cell`]: the derivative of the cell's own trilinear
 //!   interpolant ([`CellEval::gradient`](super::shade::CellEval::gradient)).
