@@ -231,6 +231,11 @@ pub struct PrepSettings {
     /// traversals (paper section 3), 2 bytes per cell.
     #[arg(long)]
     pub dda: bool,
+    /// Embed only codes >= 2, so every sample within one cell of a 1-cell
+    /// keeps its value: smooth normals read true central differences
+    /// everywhere (docs/TRADEOFFS.md, "Normals").
+    #[arg(long)]
+    pub gradient_halo: bool,
     /// Directory for the temporary spill (default: beside the output).
     #[arg(long)]
     pub temp_dir: Option<PathBuf>,
@@ -260,6 +265,7 @@ impl PrepSettings {
             zstd_level: self.zstd_level,
             aniso: self.aniso,
             dda: self.dda,
+            gradient_halo: self.gradient_halo,
             temp_dir: self.temp_dir.clone(),
         };
         opts.check().map_err(prep_error)?;
@@ -513,6 +519,15 @@ pub enum HitArg {
     Exact,
 }
 
+/// `--normals`: how surface normals are estimated.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NormalsArg {
+    /// Central differences at the samples, trilinearly interpolated.
+    Smooth,
+    /// The gradient of each cell's own trilinear interpolant (blocky).
+    Cell,
+}
+
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PrecisionArg {
     F32,
@@ -566,6 +581,10 @@ pub struct RenderArgs {
     /// Shadow rays, traced with the same traversal.
     #[arg(long)]
     pub shadows: bool,
+    /// Surface normals: central differences interpolated (smooth), or each
+    /// cell's own interpolant gradient (cell; docs/TRADEOFFS.md, "Normals").
+    #[arg(long, value_enum, default_value = "smooth")]
+    pub normals: NormalsArg,
     /// Transfer function (JSON) for --mode composite.
     #[arg(long)]
     pub tf: Option<PathBuf>,
@@ -799,6 +818,10 @@ impl RenderArgs {
                 early_stop: self.early_stop,
                 look: self.look()?,
                 window: self.window()?,
+                normals: match self.normals {
+                    NormalsArg::Smooth => cdvol::render::Normals::Smooth,
+                    NormalsArg::Cell => cdvol::render::Normals::Cell,
+                },
             },
             template: self.traversal == TraversalArg::Template,
             output: self.output.clone(),

@@ -41,6 +41,8 @@ pub struct Info {
     pub aniso_block: Option<u32>,
     /// City-block and chamfer distance planes present (`--dda`).
     pub dda: bool,
+    /// Codes embedded only where >= 2 (`--gradient-halo`).
+    pub gradient_halo: bool,
     pub input_bytes: u64,
     pub payload_bytes: u64,
     /// Input sample bytes divided by file bytes.
@@ -92,6 +94,7 @@ impl Info {
                 .collect(),
             aniso_block: h.aniso_block,
             dda: h.dda,
+            gradient_halo: h.gradient_halo,
             input_bytes: s.input_bytes,
             payload_bytes: s.payload_bytes,
             compression_ratio: s.input_bytes as f64 / vol.file_len().max(1) as f64,
@@ -149,6 +152,12 @@ impl Info {
             let _ = writeln!(
                 o,
                 "dda planes   city block + chamfer 3-4-5, 1 byte each per cell"
+            );
+        }
+        if self.gradient_halo {
+            let _ = writeln!(
+                o,
+                "grad. halo   codes embedded only where >= 2 (samples near 1-cells kept)"
             );
         }
         let _ = writeln!(

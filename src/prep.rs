@@ -35,6 +35,11 @@ pub struct PrepOptions {
     /// Also compute the city-block and chamfer 3-4-5 distance planes of
     /// the DDA traversals (paper section 3): 2 bytes per cell.
     pub dda: bool,
+    /// Embed only codes >= 2 (a gradient halo): every sample within one
+    /// cell of a 1-cell keeps its value, so central differences at a
+    /// 1-cell's vertices never read a code (docs/DESIGN.md, "Embedding").
+    /// Code-1 cells then read back as code 0 (conservative).
+    pub gradient_halo: bool,
     /// Where the one-byte-per-cell spill goes (default: beside the output).
     pub temp_dir: Option<PathBuf>,
 }
@@ -47,6 +52,7 @@ impl PrepOptions {
             zstd_level: 3,
             aniso: false,
             dda: false,
+            gradient_halo: false,
             temp_dir: None,
         }
     }
@@ -249,6 +255,7 @@ pub fn prep(
         bricks,
         aniso_block: opts.aniso.then_some(ANISO_BLOCK as u32),
         dda: opts.dda,
+        gradient_halo: opts.gradient_halo,
         zstd_level: opts.zstd_level,
         source: meta.origin_desc.clone(),
         notes: src.report(),
@@ -429,6 +436,10 @@ fn emit_slab<W: Word>(
     let nsl = ctx.z1 - ctx.z0 + 1;
     let enc: CodeEncoding = h.codes;
     let max_code = enc.max_code();
+    // Distances (code + 1) whose code is embedded: codes >= 1, or >= 2
+    // with a gradient halo. Uniform bricks are unaffected: no sample a
+    // gradient reads lies only in one (gradient.rs).
+    let embed_min: u8 = if h.gradient_halo { 3 } else { 2 };
     let n_cells_slice = ncx * ncy;
     // Sample words of slices z0..=z1, codes embedded (every word below is
     // written before it is read).
@@ -462,7 +473,7 @@ fn emit_slab<W: Word>(
                 let d =
                     &ctx.dist[slot * n_cells_slice + y * ncx..slot * n_cells_slice + (y + 1) * ncx];
                 for (w, &dd) in row.iter_mut().zip(d) {
-                    if dd >= 2 {
+                    if dd >= embed_min {
                         *w = W::code(&enc, (dd as u32 - 1).min(max_code));
                     }
                 }
@@ -541,7 +552,13 @@ fn emit_slab<W: Word>(
                     .min()
                     .unwrap_or(u8::MAX);
                 let no_object = min_d > 0;
-                let min_code = if no_object { code_of(min_d) } else { 0 };
+                // The smallest code the brick's cells read back as: a cell
+                // whose code is not embedded reads as code 0.
+                let min_code = if min_d >= embed_min {
+                    code_of(min_d)
+                } else {
+                    0
+                };
                 (
                     id,
                     BrickOut::Payload {

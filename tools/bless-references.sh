@@ -41,7 +41,7 @@ for name in ct phantom; do
     if [ "$name" = ct ]; then size=128; else size=96; fi
     common=(--width "$size" --height "$size" --view 120,10 --threads 2 -q)
     "$cdvol" render "$work/$name-iso.cdv" -o "$out/$name-surface.png" \
-        --mode surface --shadows "${common[@]}"
+        --mode surface --shadows --normals cell "${common[@]}"
     "$cdvol" render "$work/$name-iso.cdv" -o "$out/$name-mip.png" \
         --mode mip --window full "${common[@]}"
     "$cdvol" render "$work/$name-tf.cdv" -o "$out/$name-composite.png" \

@@ -116,6 +116,13 @@ pub struct Header {
     /// in older files and omitted from the JSON when false.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub dda: bool,
+    /// Codes are embedded only in words whose cell has code >= 2 (`prep
+    /// --gradient-halo`): every sample within one cell of a 1-cell keeps
+    /// its value, and code-1 cells of stored bricks read back as code 0
+    /// (conservative). Absent (false) in older files and omitted from the
+    /// JSON when false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub gradient_halo: bool,
     pub zstd_level: i32,
     pub source: String,
     /// What the input told about itself that a reader should know (a

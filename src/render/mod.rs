@@ -10,7 +10,8 @@
 //!   -> traverse/     fvt | cd | cd-aniso | octree | dda: the 1-cells a
 //!                    ray passes (paper section 4.1, Figs. 11-12)
 //!   -> integrate/    surface | depth | mip | composite | cost, per pixel
-//!                    (sampling, hits, shading in shade.rs; lut.rs)
+//!                    (sampling, hits, shading in shade.rs; lut.rs;
+//!                    smooth normals in gradient.rs)
 //! output.rs      pixels -> coloured Frame -> PNG
 //! stats.rs       counters of a render (`--stats`)
 //! shard.rs       parts of a sharded render: write, read, assemble
@@ -26,6 +27,7 @@
 pub mod cache;
 pub mod camera;
 mod error;
+pub mod gradient;
 mod integrate;
 pub mod job;
 pub mod lut;
@@ -40,6 +42,7 @@ mod tiles;
 pub mod traverse;
 
 pub use error::RenderError;
+pub use gradient::Normals;
 pub use options::{
     mode_name, CompositeLook, GradientPoint, Mode, Precision, RenderOptions, Window, EARLY_STOP,
     MAX_PIXELS, MIN_STEP_MM,

@@ -9,6 +9,7 @@ use crate::format::reader::PackedVolume;
 use super::cache;
 use super::camera::Camera;
 use super::error::RenderError;
+use super::gradient::Normals;
 use super::shade::{HitMethod, HitParams};
 use super::traverse::Method;
 
@@ -77,6 +78,8 @@ pub struct RenderOptions {
     pub look: CompositeLook,
     /// MIP grey mapping.
     pub window: Window,
+    /// How surface normals are estimated (smooth by default).
+    pub normals: Normals,
 }
 
 /// Default of [`RenderOptions::early_stop`].
@@ -194,7 +197,7 @@ pub enum Window {
 impl RenderOptions {
     /// `mode` by `method` with the defaults of `cdvol render`: 32-pixel
     /// tiles, a 512 MiB cache, CD's lazy threshold, f64, default hit
-    /// parameters.
+    /// parameters, smooth normals.
     pub fn new(mode: Mode, method: Method) -> RenderOptions {
         RenderOptions {
             mode,
@@ -208,6 +211,7 @@ impl RenderOptions {
             early_stop: EARLY_STOP,
             look: CompositeLook::default(),
             window: Window::Auto,
+            normals: Normals::default(),
         }
     }
 }

@@ -2,9 +2,10 @@
 //! and FVT images can only differ if their cell sequences differ).
 //!
 //! Values inside a cell come from the trilinear interpolant of its 8
-//! vertex values, all exact in a 1-cell; gradients are the interpolant's
-//! own derivative, never central differences, which would read samples
-//! whose words carry distance codes.
+//! vertex values, all exact in a 1-cell; [`CellEval::gradient`] is the
+//! interpolant's own derivative (Newton's hit refinement, `--normals
+//! cell`). Smooth shading normals, which read samples outside the cell,
+//! are in [`super::gradient`].
 
 use glam::DVec3;
 

@@ -133,6 +133,8 @@ pub struct OptionsKey {
     pub sampling: Option<String>,
     pub early_stop: Option<f64>,
     pub look: Option<super::CompositeLook>,
+    /// Surface and composite: [`Normals::name`](super::Normals::name).
+    pub normals: Option<String>,
 }
 
 impl OptionsKey {
@@ -167,6 +169,8 @@ impl OptionsKey {
             sampling: composite.then(|| o.sampling.name().into()),
             early_stop: composite.then_some(o.early_stop),
             look: composite.then(|| o.look.clone()),
+            normals: (composite || matches!(o.mode, Mode::Surface { .. }))
+                .then(|| o.normals.name().into()),
         }
     }
 }

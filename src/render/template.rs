@@ -156,6 +156,7 @@ use rayon::prelude::*;
 use super::cache::{self, Accessor, BrickCache, CacheCounters, OBJECT};
 use super::camera::{Camera, Projection};
 use super::error::RenderError;
+use super::gradient::{smooth_gradient, Normals};
 use super::integrate::Px;
 use super::options::{check_mode, check_tol_and_size, Mode, RenderOptions, MAX_PIXELS};
 use super::output::{colour, Colouring, Frame};
@@ -648,8 +649,9 @@ fn inter_pixel(
         _ => Some(HitMethod::Int),
     };
     let range = st.tpl.range(st.ncells, start);
-    // The template's hit: (t, cell values, entry, whether entered inside).
-    let mut found: Option<(f64, CellEval, usize, bool)> = None;
+    // The template's hit: (t, cell values, entry, whether entered inside,
+    // cell).
+    let mut found: Option<(f64, CellEval, usize, bool, [u32; 3])> = None;
     let mut counts = walk(&st.tpl, st.ncells, start, min_leap, acc, |s, cell, acc| {
         let Some(hit) = hit else {
             // Cost on a transfer-function file: steps to the first 1-cell.
@@ -660,13 +662,13 @@ fn inter_pixel(
         let c = CellEval::new(st.coords, cell, acc.vertices(cell));
         match find_hit_with(ray, &v, &c, iso, hit, &opts.hit_params) {
             Some(t) => {
-                found = Some((t, c, s, t <= v.t_enter));
+                found = Some((t, c, s, t <= v.t_enter, cell));
                 Flow::Stop
             }
             None => Flow::Continue,
         }
     });
-    if let (Some(hit), Some((mut t, mut c, s, inside))) = (hit, found) {
+    if let (Some(hit), Some((mut t, mut c, s, inside, mut hit_cell))) = (hit, found) {
         if st.refine && inside {
             // The surface was crossed before this cell: after the previous
             // entry's cell (all below iso there), in cells the template
@@ -685,6 +687,7 @@ fn inter_pixel(
                     Some(tg) if tg < t => {
                         t = tg;
                         c = cv;
+                        hit_cell = v.cell;
                         Flow::Stop
                     }
                     _ => Flow::Continue,
@@ -695,7 +698,21 @@ fn inter_pixel(
         px.hit = true;
         px.t = t;
         if matches!(mode, Mode::Surface { .. }) {
-            px.grad = c.gradient(at(ray, t)).to_array();
+            let p = at(ray, t);
+            let cell_grad = c.gradient(p);
+            // The surface mode's normals (integrate/surface.rs).
+            let g = match opts.normals {
+                Normals::Cell => cell_grad,
+                Normals::Smooth => {
+                    let g = smooth_gradient(acc, st.coords, hit_cell, p);
+                    if g.is_finite() && g != DVec3::ZERO {
+                        g
+                    } else {
+                        cell_grad
+                    }
+                }
+            };
+            px.grad = g.to_array();
         }
     }
     px.steps = counts.steps.min(u32::MAX as u64) as u32;

@@ -10,6 +10,8 @@
 //!   a raw stack + sidecar.
 //! - [`corpus`]: named extreme cases for the traversal, in memory, checked
 //!   against an exact oracle by the tests.
+//! - [`normals`]: shading normals against analytic sphere normals
+//!   (docs/TRADEOFFS.md, "Normals").
 //! - [`experiment`]: `cdvol experiment ...`, the paper's Figs. 16-22 and
 //!   Tables 1-2 and the speed/accuracy trade-offs, written under docs/.
 //!
@@ -23,4 +25,5 @@
 
 pub mod corpus;
 pub mod experiment;
+pub mod normals;
 pub mod phantom;

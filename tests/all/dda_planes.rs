@@ -248,6 +248,7 @@ fn planes_through_the_cache_with_uniform_bricks() {
                     early_stop: EARLY_STOP,
                     look: Default::default(),
                     window: Default::default(),
+                    normals: Default::default(),
                 };
                 let (a, sa) = render(&dda, &cam, &o, &NoProgress).unwrap();
                 let (b, sb) = render(&plain, &cam, &o, &NoProgress).unwrap();

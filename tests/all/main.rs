@@ -25,6 +25,7 @@ mod extremes;
 mod formats;
 mod generators;
 mod layout;
+mod normals;
 mod prep;
 mod real_data;
 mod reference;

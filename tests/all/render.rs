@@ -250,6 +250,7 @@ fn same_image_whatever_cache_threads_and_tiles() {
         early_stop: EARLY_STOP,
         look: Default::default(),
         window: Default::default(),
+        normals: Default::default(),
     };
     let (want, ws) = render(&vol, &c, &big, &NoProgress).unwrap();
     // A budget of about two bricks.
@@ -326,6 +327,7 @@ fn corrupt_brick_is_an_error_not_pixels() {
         early_stop: EARLY_STOP,
         look: Default::default(),
         window: Default::default(),
+        normals: Default::default(),
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(
@@ -353,6 +355,7 @@ fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
         early_stop: EARLY_STOP,
         look: Default::default(),
         window: Default::default(),
+        normals: Default::default(),
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(

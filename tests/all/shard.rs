@@ -56,6 +56,7 @@ fn options(mode: Mode, tile: u32) -> RenderOptions {
         early_stop: EARLY_STOP,
         look: Default::default(),
         window: Default::default(),
+        normals: Default::default(),
     }
 }
 

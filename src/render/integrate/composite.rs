@@ -14,6 +14,7 @@ use glam::Vec3;
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::gradient::{vertex_gradients, Normals, VertexGradients};
 use crate::render::lut::TfLut;
 use crate::render::options::CompositeLook;
 use crate::render::shade::{at, AlongRay, CellEval};
@@ -33,10 +34,11 @@ pub(super) fn composite<T: Real>(
         coords: ctx.coords,
         ray,
         lut,
-        look: Look::new(&ctx.opts.look, ray),
+        look: Look::new(&ctx.opts.look, ctx.opts.normals, ray),
         stop: ctx.opts.early_stop,
         c: None,
         ce: None,
+        vg: None,
         col: [0.0; 3],
         alpha: 0.0,
     };
@@ -67,12 +69,13 @@ pub(super) fn composite32<T: Real>(
         ray,
         lut,
         step,
-        look: Look::new(&ctx.opts.look, ray),
+        look: Look::new(&ctx.opts.look, ctx.opts.normals, ray),
         stop: ctx.opts.early_stop as f32,
         c: Trilinear32 { f: [0.0; 8] },
         u: Vec3::ZERO,
         du: Vec3::ZERO,
         inv: Vec3::ZERO,
+        grads: [Vec3::ZERO; 8],
         col: Vec3::ZERO,
         alpha: 0.0,
     };
@@ -84,9 +87,9 @@ pub(super) fn composite32<T: Real>(
 
 /// What the composite samplers do along a run of 1-cells.
 trait Sampler {
-    /// The samples move into 1-cell `cell` with vertex values `f`; the
-    /// next sample is at `t`.
-    fn enter(&mut self, cell: [u32; 3], f: [f32; 8], t: f64);
+    /// The samples move into 1-cell `cell`, whose vertex values (and, for
+    /// shading, gradients) come from `acc`; the next sample is at `t`.
+    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], t: f64);
     /// The sample at `t` (in the cell last entered); `Stop` once opaque.
     fn sample(&mut self, t: f64) -> Flow;
 }
@@ -185,7 +188,7 @@ fn march<T: Real, P: Sampler>(
                     }
                     continue;
                 }
-                s.enter(cell, acc.vertices(cell), t);
+                s.enter(acc, cell, t);
                 entered = true;
             }
             if s.sample(t) == Flow::Stop {
@@ -204,15 +207,20 @@ struct Sampler64<'a> {
     stop: f64,
     c: Option<AlongRay>,
     ce: Option<CellEval>,
+    /// Smooth normals: the cell's vertex gradients.
+    vg: Option<VertexGradients>,
     col: [f64; 3],
     alpha: f64,
 }
 
 impl Sampler for Sampler64<'_> {
     #[inline]
-    fn enter(&mut self, cell: [u32; 3], f: [f32; 8], _t: f64) {
+    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], _t: f64) {
+        let f = acc.vertices(cell);
         self.c = Some(AlongRay::new(self.coords, cell, f, self.ray));
         self.ce = self.look.on.then(|| CellEval::new(self.coords, cell, f));
+        self.vg =
+            (self.look.on && self.look.smooth).then(|| vertex_gradients(acc, self.coords, cell));
     }
 
     #[inline]
@@ -227,7 +235,12 @@ impl Sampler for Sampler64<'_> {
         }
         let [r, g, b, a] = match &self.ce {
             Some(ce) => {
-                let grad = ce.gradient(at(self.ray, t)).as_vec3();
+                let p = at(self.ray, t);
+                let grad = match &self.vg {
+                    Some(vg) => vg.at(p),
+                    None => ce.gradient(p),
+                }
+                .as_vec3();
                 self.look.apply(s.map(|x| x as f32), grad).map(|x| x as f64)
             }
             None => s,
@@ -261,13 +274,20 @@ struct Sampler32<'a> {
     du: Vec3,
     /// The cell's inverse sizes (local coordinates per mm).
     inv: Vec3,
+    /// Smooth normals: the cell's vertex gradients (per mm).
+    grads: [Vec3; 8],
     col: Vec3,
     alpha: f32,
 }
 
 impl Sampler for Sampler32<'_> {
     #[inline(always)]
-    fn enter(&mut self, cell: [u32; 3], f: [f32; 8], t: f64) {
+    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], t: f64) {
+        let f = acc.vertices(cell);
+        if self.look.on && self.look.smooth {
+            let vg = vertex_gradients(acc, self.coords, cell);
+            self.grads = vg.g.map(|g| g.as_vec3());
+        }
         let ray = self.ray;
         for (a, &i) in cell.iter().enumerate() {
             let i = i as usize;
@@ -288,7 +308,12 @@ impl Sampler for Sampler32<'_> {
             return Flow::Continue;
         }
         if self.look.on {
-            s = self.look.apply(s, self.c.gradient(uc) * self.inv);
+            let g = if self.look.smooth {
+                trilinear_vec(&self.grads, uc)
+            } else {
+                self.c.gradient(uc) * self.inv
+            };
+            s = self.look.apply(s, g);
         }
         let w = 1.0 - self.alpha;
         self.col += w * Vec3::new(s[0], s[1], s[2]);
@@ -370,20 +395,33 @@ impl Trilinear32 {
     }
 }
 
+/// Trilinear interpolation of 8 vertex vectors (x fastest) at `u`.
+#[inline(always)]
+fn trilinear_vec(g: &[Vec3; 8], u: Vec3) -> Vec3 {
+    let x00 = g[0].lerp(g[1], u.x);
+    let x10 = g[2].lerp(g[3], u.x);
+    let x01 = g[4].lerp(g[5], u.x);
+    let x11 = g[6].lerp(g[7], u.x);
+    x00.lerp(x10, u.y).lerp(x01.lerp(x11, u.y), u.z)
+}
+
 /// [`CompositeLook`] for one ray: the headlight and whether anything
 /// beyond the transfer function applies.
 struct Look<'a> {
     look: &'a CompositeLook,
     /// Shading or gradient opacity is on.
     on: bool,
+    /// Gradients from the smooth normals (else the cell interpolant's).
+    smooth: bool,
     to_eye: Vec3,
 }
 
 impl<'a> Look<'a> {
-    fn new(look: &'a CompositeLook, ray: &Ray) -> Look<'a> {
+    fn new(look: &'a CompositeLook, normals: Normals, ray: &Ray) -> Look<'a> {
         Look {
             look,
             on: look.shade || !look.gradient_opacity.is_empty(),
+            smooth: normals == Normals::Smooth,
             to_eye: (-ray.dir).as_vec3(),
         }
     }

@@ -1,11 +1,16 @@
 //! Surface mode: the first iso-surface hit (paper section 5.3), shaded by
-//! the interpolant's gradient, with optional shadow rays traced by the
-//! same traversal. [`first_hit`] is shared with the depth and cost modes.
+//! the smooth gradient of [`gradient`](crate::render::gradient) or, with
+//! `--normals cell`, the cell interpolant's own gradient; optional shadow
+//! rays are traced by the same traversal. [`first_hit`] is shared with the
+//! depth and cost modes. Hit refinement (Newton) and the shadow ray's
+//! offset off the surface use the cell interpolant's gradient whatever the
+//! normals, so hits and shadows are the same for both.
 
 use glam::DVec3;
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::gradient::{smooth_gradient, Normals};
 use crate::render::shade::{at, find_hit_with, shade, CellEval, HitMethod};
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
 
@@ -17,6 +22,18 @@ pub(super) fn first_hit<T: Real>(
     hit: HitMethod,
     acc: &mut Accessor,
 ) -> (Option<(f64, CellEval)>, StepCounts) {
+    let (found, s) = first_hit_cell(ctx, ray, t_min, hit, acc);
+    (found.map(|(t, c, _)| (t, c)), s)
+}
+
+/// [`first_hit`] with the hit cell's index.
+fn first_hit_cell<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    t_min: f64,
+    hit: HitMethod,
+    acc: &mut Accessor,
+) -> (Option<(f64, CellEval, [u32; 3])>, StepCounts) {
     let g = ctx.grid;
     let coords = ctx.coords;
     let mut found = None;
@@ -24,7 +41,7 @@ pub(super) fn first_hit<T: Real>(
         let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
         match find_hit_with(ray, v, &c, ctx.iso, hit, &ctx.opts.hit_params) {
             Some(t) => {
-                found = Some((t, c));
+                found = Some((t, c, v.cell));
                 Flow::Stop
             }
             None => Flow::Continue,
@@ -43,13 +60,26 @@ pub(super) fn surface<T: Real>(
     shadows: bool,
     px: &mut Px,
 ) -> StepCounts {
-    let (found, mut counts) = first_hit(ctx, ray, 0.0, hit, acc);
-    let Some((t, c)) = found else {
+    let (found, mut counts) = first_hit_cell(ctx, ray, 0.0, hit, acc);
+    let Some((t, c, cell)) = found else {
         return counts;
     };
     px.hit = true;
     let p = at(ray, t);
     let grad = c.gradient(p);
+    let normal = match ctx.opts.normals {
+        Normals::Cell => grad,
+        Normals::Smooth => {
+            let s = smooth_gradient(acc, ctx.coords, cell, p);
+            // A vertex without its own value (never in a 1-cell) or a
+            // saturated sample: keep the cell's gradient.
+            if s.is_finite() && s != DVec3::ZERO {
+                s
+            } else {
+                grad
+            }
+        }
+    };
     let to_eye = -ray.dir;
     let cam = ctx.camera;
     let to_light = if shadows {
@@ -75,7 +105,7 @@ pub(super) fn surface<T: Real>(
         counts.add(&s2);
         lit = sh.is_none();
     }
-    let v = shade(grad, to_light, to_eye, lit) as f32;
+    let v = shade(normal, to_light, to_eye, lit) as f32;
     px.rgb = [v, v, v];
     px.depth = t as f32;
     counts

@@ -1,0 +1,222 @@
+//! Shading normals against analytic ones (issue 15, docs/TRADEOFFS.md
+//! "Normals"): rays through a sphere scene ([`super::phantom::spheres`]),
+//! the first hit of each (the exact root of the interpolant, so hit error
+//! does not mix into normal error), and at the hit the angle between the
+//! estimated outward normal and the radial direction of the nearest
+//! analytic sphere, for the cell interpolant's gradient and for the smooth
+//! gradient ([`crate::render::gradient`]).
+
+use glam::DVec3;
+
+use crate::classify::Classification;
+use crate::format::reader::PackedVolume;
+use crate::render::cache::{to_f32, Accessor, BrickCache};
+use crate::render::camera::Camera;
+use crate::render::gradient::vertex_gradients;
+use crate::render::shade::{at, find_hit, CellEval, HitMethod};
+use crate::render::traverse::{trace, Flow, Method, TGrid};
+
+use super::phantom::Sphere;
+
+/// Angles (degrees) between estimated and analytic normals, one per hit.
+#[derive(Debug, Clone, Default)]
+pub struct NormalErrors {
+    /// The cell interpolant's gradient.
+    pub cell: Vec<f64>,
+    /// The smooth gradient.
+    pub smooth: Vec<f64>,
+    /// Hits whose smooth gradient used the one-sided rule at some vertex.
+    pub one_sided_hits: u64,
+}
+
+/// Mean, median and 95th percentile of `v` (degrees); zeros when empty.
+pub fn summary(v: &[f64]) -> [f64; 3] {
+    if v.is_empty() {
+        return [0.0; 3];
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let q = |f: f64| s[((s.len() - 1) as f64 * f).round() as usize];
+    [s.iter().sum::<f64>() / s.len() as f64, q(0.5), q(0.95)]
+}
+
+/// Angle in degrees between the outward normal `-grad` and `want`.
+fn angle(grad: DVec3, want: DVec3) -> f64 {
+    let n = -grad.normalize();
+    n.dot(want).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// Casts `size x size` orthographic rays for each orbit view `(azimuth,
+/// elevation)` over `vol` (classified by iso value) and measures both
+/// normals at every hit against `spheres`. `None` when the file is not
+/// classified by an iso value.
+pub fn sphere_normal_errors(
+    vol: &PackedVolume,
+    spheres: &[Sphere],
+    views: &[[f64; 2]],
+    size: u32,
+) -> Option<NormalErrors> {
+    let h = vol.header();
+    let iso = match h.classification {
+        Classification::Iso { iso } => to_f32(iso) as f64,
+        Classification::TransferFunction { .. } => return None,
+    };
+    let grid = TGrid::<f64>::new(&h.axes);
+    let coords: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
+    let cache = BrickCache::new(vol, 256 << 20);
+    let mut acc = Accessor::new(&cache);
+    let mut out = NormalErrors::default();
+    for &[az, el] in views {
+        let cam = Camera::orbit(grid.bounds(), az, el, None, None, size, size).ok()?;
+        for py in 0..size {
+            for px in 0..size {
+                let ray = cam.ray(px, py);
+                let mut found = None;
+                trace(&grid, &ray, 0.0, Method::Fvt, &mut acc, |v, acc| {
+                    let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+                    match find_hit(&ray, v, &c, iso, HitMethod::Exact) {
+                        Some(t) => {
+                            found = Some((t, c, v.cell));
+                            Flow::Stop
+                        }
+                        None => Flow::Continue,
+                    }
+                });
+                let Some((t, c, cell)) = found else {
+                    continue;
+                };
+                let p = at(&ray, t);
+                let Some(s) = spheres.iter().min_by(|a, b| {
+                    let da = (p - DVec3::from_array(a.center)).length() - a.radius;
+                    let db = (p - DVec3::from_array(b.center)).length() - b.radius;
+                    da.abs().total_cmp(&db.abs())
+                }) else {
+                    continue;
+                };
+                let want = (p - DVec3::from_array(s.center)).normalize();
+                let vg = vertex_gradients(&mut acc, coords, cell);
+                out.cell.push(angle(c.gradient(p), want));
+                out.smooth.push(angle(vg.at(p), want));
+                out.one_sided_hits += (vg.one_sided > 0) as u64;
+            }
+        }
+    }
+    Some(out)
+}
+
+/// Angles (degrees) between the smooth normals of two files of the same
+/// samples and iso value (a file with and one without gradient halo) at
+/// the first hits of `size x size` orthographic rays per orbit view, and
+/// how many hits used a one-sided difference in each. The hits are the
+/// same in both files (the same 1-cells and vertex values); `None` when
+/// `a` is not classified by an iso value.
+pub fn compare_smooth(
+    a: &PackedVolume,
+    b: &PackedVolume,
+    views: &[[f64; 2]],
+    size: u32,
+) -> Option<(Vec<f64>, [u64; 2])> {
+    let h = a.header();
+    let iso = match h.classification {
+        Classification::Iso { iso } => to_f32(iso) as f64,
+        Classification::TransferFunction { .. } => return None,
+    };
+    let grid = TGrid::<f64>::new(&h.axes);
+    let coords: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
+    let (ca, cb) = (BrickCache::new(a, 256 << 20), BrickCache::new(b, 256 << 20));
+    let (mut aa, mut ab) = (Accessor::new(&ca), Accessor::new(&cb));
+    let mut out = Vec::new();
+    let mut one_sided = [0, 0];
+    for &[az, el] in views {
+        let cam = Camera::orbit(grid.bounds(), az, el, None, None, size, size).ok()?;
+        for py in 0..size {
+            for px in 0..size {
+                let ray = cam.ray(px, py);
+                let mut found = None;
+                trace(&grid, &ray, 0.0, Method::Fvt, &mut aa, |v, acc| {
+                    let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+                    match find_hit(&ray, v, &c, iso, HitMethod::Exact) {
+                        Some(t) => {
+                            found = Some((t, v.cell));
+                            Flow::Stop
+                        }
+                        None => Flow::Continue,
+                    }
+                });
+                let Some((t, cell)) = found else {
+                    continue;
+                };
+                let p = at(&ray, t);
+                let (ga, gb) = (
+                    vertex_gradients(&mut aa, coords, cell),
+                    vertex_gradients(&mut ab, coords, cell),
+                );
+                one_sided[0] += (ga.one_sided > 0) as u64;
+                one_sided[1] += (gb.one_sided > 0) as u64;
+                out.push(angle(ga.at(p), -gb.at(p).normalize()));
+            }
+        }
+    }
+    Some((out, one_sided))
+}
+
+/// Nanoseconds per hit of the cell gradient (with the 8 vertex values
+/// read, as the surface mode does) and of the smooth gradient, over the
+/// first hits of `size x size` orthographic rays per orbit view, each
+/// evaluated `reps` times in a loop (the cache warm): the cost smooth
+/// normals add per hit, apart from the noise of whole frames. Returns
+/// `(cell ns, smooth ns, hits)`; `None` when `vol` is not classified by an
+/// iso value.
+pub fn time_gradients(
+    vol: &PackedVolume,
+    views: &[[f64; 2]],
+    size: u32,
+    reps: u32,
+) -> Option<(f64, f64, usize)> {
+    let h = vol.header();
+    let iso = match h.classification {
+        Classification::Iso { iso } => to_f32(iso) as f64,
+        Classification::TransferFunction { .. } => return None,
+    };
+    let grid = TGrid::<f64>::new(&h.axes);
+    let coords: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
+    let cache = BrickCache::new(vol, 256 << 20);
+    let mut acc = Accessor::new(&cache);
+    let mut hits = Vec::new();
+    for &[az, el] in views {
+        let cam = Camera::orbit(grid.bounds(), az, el, None, None, size, size).ok()?;
+        for py in 0..size {
+            for px in 0..size {
+                let ray = cam.ray(px, py);
+                trace(&grid, &ray, 0.0, Method::Fvt, &mut acc, |v, acc| {
+                    let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+                    match find_hit(&ray, v, &c, iso, HitMethod::Int) {
+                        Some(t) => {
+                            hits.push((v.cell, at(&ray, t)));
+                            Flow::Stop
+                        }
+                        None => Flow::Continue,
+                    }
+                });
+            }
+        }
+    }
+    let mut sink = DVec3::ZERO;
+    let t0 = std::time::Instant::now();
+    for _ in 0..reps {
+        for &(cell, p) in &hits {
+            sink += CellEval::new(coords, cell, acc.vertices(cell)).gradient(p);
+        }
+    }
+    let cell_ns = t0.elapsed().as_nanos() as f64;
+    let t0 = std::time::Instant::now();
+    for _ in 0..reps {
+        for &(cell, p) in &hits {
+            sink += vertex_gradients(&mut acc, coords, cell).at(p);
+        }
+    }
+    let smooth_ns = t0.elapsed().as_nanos() as f64;
+    std::hint::black_box(sink);
+    let n = (hits.len() as f64 * reps as f64).max(1.0);
+    Some((cell_ns / n, smooth_ns / n, hits.len()))
+}
