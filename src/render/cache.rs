@@ -57,7 +57,16 @@ pub struct RBrick {
     /// fastest (files prepared with `--dda`); empty for uniform bricks and
     /// files without them.
     pub dda: [Vec<u8>; 2],
+    /// Per block of [`BLOCK`]^3 cells (x fastest, `cells.div_ceil(BLOCK)`
+    /// blocks per axis), the largest vertex value of the block's cells,
+    /// NaN ignored (`f32::NEG_INFINITY` if all are NaN). Built only with
+    /// [`Planes::block_max`] and only for bricks with values; empty
+    /// otherwise.
+    pub block_max: Vec<f32>,
 }
+
+/// Cells per edge of a [`RBrick::block_max`] block.
+pub const BLOCK: u32 = 4;
 
 #[derive(Debug)]
 pub enum Codes {
@@ -92,6 +101,22 @@ impl RBrick {
         }
     }
 
+    /// The largest vertex value (NaN ignored) of the [`BLOCK`]^3 block
+    /// holding local cell `l`: an upper bound of every value the
+    /// trilinear interpolant takes in the block's cells.
+    /// `f32::NEG_INFINITY` when the block's vertices are all NaN;
+    /// `f32::INFINITY` (no bound known) for a brick without the plane
+    /// (not built, or a brick without values).
+    #[inline]
+    pub fn block_max(&self, l: [u32; 3]) -> f32 {
+        if self.block_max.is_empty() {
+            return f32::INFINITY;
+        }
+        let nb = self.cells.map(|c| c.div_ceil(BLOCK));
+        let b = ((l[2] / BLOCK * nb[1] + l[1] / BLOCK) * nb[0] + l[0] / BLOCK) as usize;
+        self.block_max[b]
+    }
+
     /// The 8 vertex values of local cell `l`, x fastest.
     #[inline(always)]
     pub fn vertices(&self, l: [u32; 3]) -> [f32; 8] {
@@ -124,6 +149,7 @@ impl RBrick {
             levels: Vec::new(),
             bytes: std::mem::size_of::<RBrick>(),
             dda: [Vec::new(), Vec::new()],
+            block_max: Vec::new(),
         }
     }
 
@@ -170,13 +196,17 @@ impl RBrick {
         if let (true, Codes::Plane(p)) = (planes.octree, &b.codes) {
             b.levels = octree_levels(p, b.cells, h.brick_size.trailing_zeros());
         }
+        if planes.block_max && !b.values.is_empty() {
+            b.block_max = block_maxima(&b.values, b.cells);
+        }
         b.bytes = std::mem::size_of::<RBrick>()
             + b.codes.len()
             + b.values.len() * 4
             + b.octants.len() * 8
             + b.dda[0].len()
             + b.dda[1].len()
-            + b.levels.iter().map(Vec::len).sum::<usize>();
+            + b.levels.iter().map(Vec::len).sum::<usize>()
+            + b.block_max.len() * 4;
         Ok((b, raw.len() as u64))
     }
 
@@ -245,6 +275,41 @@ impl Codes {
             Codes::Plane(p) => p.len(),
         }
     }
+}
+
+/// The [`RBrick::block_max`] plane of a brick with `cells` per axis from
+/// its sample `values` (`cells + 1` per axis, x fastest): per block of
+/// [`BLOCK`]^3 cells, the largest of its vertices' values, NaN ignored.
+pub fn block_maxima(values: &[f32], cells: [u32; 3]) -> Vec<f32> {
+    let [sx, sy, _] = cells.map(|c| c as usize + 1);
+    let nb = cells.map(|c| c.div_ceil(BLOCK) as usize);
+    let bs = BLOCK as usize;
+    let mut out = vec![f32::NEG_INFINITY; nb[0] * nb[1] * nb[2]];
+    // Samples 4b..=4b+4 (clipped) along each axis are the vertices of
+    // block b's cells; the shared face samples count for both blocks.
+    let span = |b: usize, k: usize| b * bs..=(b * bs + bs).min(cells[k] as usize);
+    for bz in 0..nb[2] {
+        for by in 0..nb[1] {
+            for bx in 0..nb[0] {
+                let mut m = f32::NEG_INFINITY;
+                for z in span(bz, 2) {
+                    for y in span(by, 1) {
+                        let row = (z * sy + y) * sx;
+                        for &v in
+                            &values[row + bx * bs..=row + (bx * bs + bs).min(cells[0] as usize)]
+                        {
+                            // NaN compares false: ignored.
+                            if v > m {
+                                m = v;
+                            }
+                        }
+                    }
+                }
+                out[(bz * nb[1] + by) * nb[0] + bx] = m;
+            }
+        }
+    }
+    out
 }
 
 /// Octree levels `1..=lb` of a brick's code plane (`cells` per axis):
@@ -430,6 +495,9 @@ pub struct Planes {
     /// Octree levels inside each brick and, for power-of-two brick sizes,
     /// above the bricks from the index (section 5.1).
     pub octree: bool,
+    /// The largest vertex value per block of [`BLOCK`]^3 cells
+    /// ([`RBrick::block_max`]), for bricks with values.
+    pub block_max: bool,
 }
 
 impl Planes {
@@ -438,6 +506,7 @@ impl Planes {
         octants: false,
         dda: false,
         octree: false,
+        block_max: false,
     };
 
     /// Every plane the file has; no octree.
@@ -445,6 +514,7 @@ impl Planes {
         octants: true,
         dda: true,
         octree: false,
+        block_max: false,
     };
 }
 
@@ -773,6 +843,7 @@ static EMPTY: RBrick = RBrick {
     levels: Vec::new(),
     bytes: 0,
     dda: [Vec::new(), Vec::new()],
+    block_max: Vec::new(),
 };
 
 #[cfg(test)]
@@ -781,6 +852,39 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        /// Against the definition: each cell's 8 vertices, NaN ignored,
+        /// folded into its block's maximum.
+        #[test]
+        fn block_maxima_bound_each_cells_vertices(
+            cells in proptest::array::uniform3(1u32..11),
+            seed in proptest::collection::vec(prop_oneof![
+                3 => -1e3f32..1e3,
+                1 => Just(f32::NAN),
+                1 => Just(f32::INFINITY),
+                1 => Just(f32::NEG_INFINITY),
+            ], 1331),
+        ) {
+            let [sx, sy, sz] = cells.map(|c| c as usize + 1);
+            let values: Vec<f32> = (0..sx * sy * sz).map(|i| seed[i % seed.len()]).collect();
+            let got = super::block_maxima(&values, cells);
+            let nb = cells.map(|c| c.div_ceil(super::BLOCK) as usize);
+            let mut want = vec![f32::NEG_INFINITY; nb[0] * nb[1] * nb[2]];
+            for z in 0..sz - 1 {
+                for y in 0..sy - 1 {
+                    for x in 0..sx - 1 {
+                        let b = ((z / 4) * nb[1] + y / 4) * nb[0] + x / 4;
+                        for d in 0..8 {
+                            let v = values[((z + d / 4) * sy + y + d / 2 % 2) * sx + x + d % 2];
+                            if v > want[b] {
+                                want[b] = v;
+                            }
+                        }
+                    }
+                }
+            }
+            prop_assert_eq!(got, want);
+        }
+
         /// Against a model that keeps (key, bytes) in recency order and
         /// evicts from the front: same contents after every operation,
         /// never above the budget.
