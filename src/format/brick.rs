@@ -56,6 +56,107 @@ pub fn decode_words(
     });
 }
 
+/// Sample class bit of [`decode_samples`]: the word is a code.
+pub const SAMPLE_CODE: u8 = 2;
+/// Sample class bit of [`decode_samples`]: a value word whose rescaled
+/// value is at or above the iso value (never set for NaN).
+pub const SAMPLE_ABOVE: u8 = 1;
+
+/// The renderer's decoder of the sample words, one pass with no
+/// intermediate f64 or `Option` buffers; the same words, codes and
+/// rescaled values as [`decode_words`] with [`Values::Rescaled`] (the same
+/// f64 arithmetic), delivered as:
+/// - `kinds[i]`: [`SAMPLE_CODE`] for a code word, else [`SAMPLE_ABOVE`]
+///   when `iso` is given and the rescaled value is `>= iso` (NaN never
+///   is), else 0;
+/// - `codes[i]`: the code, saturated to 254, or 0 for a value word;
+/// - with `values = Some((out, map))`: `out[i] = map(rescaled value)` for
+///   a value word and NaN for a code word (`out` cleared and refilled).
+///
+/// `kinds` and `codes` are cleared and refilled, so callers can keep them
+/// as scratch.
+pub fn decode_samples<F: Fn(f64) -> f32>(
+    h: &Header,
+    raw: &[u8],
+    n: usize,
+    iso: Option<f64>,
+    kinds: &mut Vec<u8>,
+    codes: &mut Vec<u8>,
+    values: Option<(&mut Vec<f32>, F)>,
+) {
+    kinds.clear();
+    kinds.resize(n, 0);
+    codes.clear();
+    codes.resize(n, 0);
+    let enc = h.codes;
+    let rs = h.rescale;
+    with_word!(h.storage, W => {
+        let size = std::mem::size_of::<W>();
+        let bytes = &raw[..n * size];
+        // Aligned words are read in place; otherwise one at a time.
+        match (bytemuck::try_cast_slice::<u8, W>(bytes), values) {
+            (Ok(words), Some((out, map))) => {
+                out.clear();
+                out.reserve_exact(n);
+                out.extend(words.iter().zip(kinds.iter_mut().zip(codes.iter_mut())).map(
+                    |(&w, (k, c))| sample(w, &enc, rs, iso, k, c, &map),
+                ));
+            }
+            (Ok(words), None) => {
+                for (&w, (k, c)) in words.iter().zip(kinds.iter_mut().zip(codes.iter_mut())) {
+                    sample(w, &enc, rs, iso, k, c, &|_| 0.0);
+                }
+            }
+            (Err(_), values) => {
+                let words = bytes
+                    .chunks_exact(size)
+                    .map(bytemuck::pod_read_unaligned::<W>);
+                let kc = kinds.iter_mut().zip(codes.iter_mut());
+                match values {
+                    Some((out, map)) => {
+                        out.clear();
+                        out.reserve_exact(n);
+                        out.extend(
+                            words.zip(kc).map(|(w, (k, c))| sample(w, &enc, rs, iso, k, c, &map)),
+                        );
+                    }
+                    None => {
+                        for (w, (k, c)) in words.zip(kc) {
+                            sample(w, &enc, rs, iso, k, c, &|_| 0.0);
+                        }
+                    }
+                }
+            }
+        }
+    });
+}
+
+/// One word of [`decode_samples`]: its kind and code written, its mapped
+/// value returned (NaN for a code).
+#[inline(always)]
+fn sample<W: Word>(
+    w: W,
+    enc: &super::CodeEncoding,
+    rs: crate::input::Rescale,
+    iso: Option<f64>,
+    k: &mut u8,
+    c: &mut u8,
+    map: &impl Fn(f64) -> f32,
+) -> f32 {
+    match w.as_code(enc) {
+        Some(code) => {
+            *k = SAMPLE_CODE;
+            *c = code.min(254) as u8;
+            f32::NAN
+        }
+        None => {
+            let v = rs.apply(w.to_raw());
+            *k = iso.is_some_and(|t| v >= t) as u8 * SAMPLE_ABOVE;
+            map(v)
+        }
+    }
+}
+
 /// The octant codes of brick `coords` (anisotropic files, section 4.2.1):
 /// per block of [`crate::dt::ANISO_BLOCK`]^3 cells, x fastest, the 8
 /// codes, stored after the words as 8 planes of one byte per block.

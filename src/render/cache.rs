@@ -10,7 +10,10 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 
 use crate::classify::CellClass;
-use crate::format::brick::{dda_planes, decode_words, octant_codes, Values};
+use crate::classify::Classification;
+use crate::format::brick::{
+    dda_planes, decode_samples, decode_words, octant_codes, Values, SAMPLE_ABOVE,
+};
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
@@ -156,20 +159,151 @@ impl RBrick {
     /// Reads and decodes brick `id` with the format's decoder
     /// ([`crate::format::brick`]), then builds what rendering adds on top:
     /// the dense code plane, f32 values and the planes `planes` asks for.
-    /// Returns the brick and its decompressed payload size.
-    fn decode(vol: &PackedVolume, id: u64, planes: Planes) -> Result<(RBrick, u64), FormatError> {
+    /// Returns the brick and its decompressed payload size. The payload is
+    /// read into per-thread buffers with a per-thread zstd context: no
+    /// allocation per brick but the brick's own planes.
+    pub fn decode(
+        vol: &PackedVolume,
+        id: u64,
+        planes: Planes,
+    ) -> Result<(RBrick, u64), FormatError> {
         let h = vol.header();
-        let Some(raw) = vol.read_payload(id)? else {
-            return Ok((
-                RBrick::uniform(h, id, vol.index()[id as usize].uniform_code),
-                0,
-            ));
+        let e = vol.index()[id as usize];
+        let read = READ.with_borrow_mut(|r| {
+            if r.dctx.is_none() {
+                // Only fails when zstd cannot allocate its context: then
+                // the reader's own path reports that on this brick.
+                r.dctx = zstd::bulk::Decompressor::new().ok();
+            }
+            let ReadScratch { dctx, comp, raw } = r;
+            let Some(dctx) = dctx else {
+                return vol.read_payload(id).map(|p| p.map(|p| *raw = p).is_some());
+            };
+            vol.read_payload_into(id, dctx, comp, raw)
+        })?;
+        if !read {
+            return Ok((RBrick::uniform(h, id, e.uniform_code), 0));
+        }
+        Ok(READ.with_borrow(|r| {
+            let b = RBrick::from_payload(h, id, e.has_no_object(), &r.raw, planes);
+            (b, r.raw.len() as u64)
+        }))
+    }
+
+    /// Brick `id` from its decompressed payload `raw`: the fast path of
+    /// [`RBrick::decode`]. Equal, plane for plane and bit for bit, to
+    /// [`RBrick::from_payload_reference`] (the per-cell rule
+    /// [`Classification::cell_of_words`] over f64 words; a unit test
+    /// checks it on random bricks of every storage type).
+    ///
+    /// For an iso classification, the format's [`decode_samples`] gives
+    /// per sample its code (0 for a value) and two bits, "is a code" and
+    /// "is a value `>= iso`". The rule then reads: the cell's code is the
+    /// code at its minimum corner, unless the OR of its 8 vertices' bits
+    /// is exactly "`>= iso`" (no code, some vertex at or above the iso
+    /// value: a 1-cell). The OR is taken separably (x, then y, then z)
+    /// over whole rows. A brick the index marks as holding no 1-cell needs
+    /// only the corner codes and no values. Transfer functions take the
+    /// reference path.
+    ///
+    /// [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
+    pub fn from_payload(
+        h: &crate::format::Header,
+        id: u64,
+        no_object: bool,
+        raw: &[u8],
+        planes: Planes,
+    ) -> RBrick {
+        let iso = match h.classification {
+            Classification::Iso { iso } => iso,
+            Classification::TransferFunction { .. } => {
+                return RBrick::from_payload_reference(h, id, no_object, raw, planes)
+            }
         };
-        let coords = h.brick_coords(id);
-        let n = h.brick_samples(coords).iter().product::<u64>() as usize;
+        let mut b = RBrick::uniform(h, id, 0);
+        let [sx, sy, sz] = b.cells.map(|c| (c + 1) as usize);
+        let n = sx * sy * sz;
+        let (cx, cy, cz) = (sx - 1, sy - 1, sz - 1);
+        let mut plane = Vec::with_capacity(cx * cy * cz);
+        FAST.with_borrow_mut(|f| {
+            let FastScratch {
+                kinds,
+                codes,
+                or_x,
+                or_xy,
+            } = f;
+            if no_object {
+                decode_samples(h, raw, n, None, kinds, codes, None::<(_, fn(f64) -> f32)>);
+                for z in 0..cz {
+                    for y in 0..cy {
+                        let r = (z * sy + y) * sx;
+                        plane.extend_from_slice(&codes[r..r + cx]);
+                    }
+                }
+                return;
+            }
+            decode_samples(
+                h,
+                raw,
+                n,
+                Some(iso),
+                kinds,
+                codes,
+                Some((&mut b.values, to_f32)),
+            );
+            // OR of the two samples of each x edge, per sample row.
+            or_x.clear();
+            for row in kinds.chunks_exact(sx) {
+                or_x.extend(row.windows(2).map(|w| w[0] | w[1]));
+            }
+            // ... of the four of each xy face, per sample slice.
+            or_xy.clear();
+            for z in 0..sz {
+                let s = &or_x[z * sy * cx..(z + 1) * sy * cx];
+                for y in 0..cy {
+                    let (r0, r1) = (&s[y * cx..(y + 1) * cx], &s[(y + 1) * cx..(y + 2) * cx]);
+                    or_xy.extend(r0.iter().zip(r1).map(|(a, b)| a | b));
+                }
+            }
+            // ... of the eight of each cell; the class.
+            for z in 0..cz {
+                let (s0, s1) = (
+                    &or_xy[z * cy * cx..(z + 1) * cy * cx],
+                    &or_xy[(z + 1) * cy * cx..(z + 2) * cy * cx],
+                );
+                for y in 0..cy {
+                    let corner = &codes[(z * sy + y) * sx..(z * sy + y) * sx + cx];
+                    let (a, b) = (&s0[y * cx..(y + 1) * cx], &s1[y * cx..(y + 1) * cx]);
+                    plane.extend(a.iter().zip(b).zip(corner).map(|((a, b), &c)| {
+                        if a | b == SAMPLE_ABOVE {
+                            OBJECT
+                        } else {
+                            c
+                        }
+                    }));
+                }
+            }
+        });
+        b.codes = Codes::Plane(plane);
+        b.add_planes(h, id, raw, planes);
+        b
+    }
+
+    /// [`RBrick::from_payload`] the way it was first written, kept as the
+    /// reference the fast path is tested against (and the path of
+    /// transfer-function files): [`decode_words`] into f64 values and
+    /// `Option` codes, then [`RBrick::assemble`] cell by cell.
+    #[doc(hidden)]
+    pub fn from_payload_reference(
+        h: &crate::format::Header,
+        id: u64,
+        no_object: bool,
+        raw: &[u8],
+        planes: Planes,
+    ) -> RBrick {
+        let n = h.brick_samples(h.brick_coords(id)).iter().product::<u64>() as usize;
         // A brick without 1-cells needs only its codes: a cell is coded at
         // its minimum corner or has code 0; no values, no classification.
-        let no_object = vol.index()[id as usize].has_no_object();
         let mode = if no_object {
             Values::Skip
         } else {
@@ -180,16 +314,25 @@ impl RBrick {
         // the cache's long-lived buffers (docs/BENCHMARKS.md, "Larger
         // than RAM").
         let mut b = SCRATCH.with_borrow_mut(|(vals, codes)| {
-            decode_words(h, &raw, n, mode, vals, codes);
-            RBrick::assemble(vol, id, no_object, vals, codes)
+            decode_words(h, raw, n, mode, vals, codes);
+            RBrick::assemble(h, id, no_object, vals, codes)
         });
+        b.add_planes(h, id, raw, planes);
+        b
+    }
+
+    /// The planes beside codes and values that `planes` asks for, and the
+    /// brick's byte count.
+    fn add_planes(&mut self, h: &crate::format::Header, id: u64, raw: &[u8], planes: Planes) {
+        let coords = h.brick_coords(id);
+        let b = self;
         if planes.octants {
-            if let Some(o) = octant_codes(h, coords, &raw) {
+            if let Some(o) = octant_codes(h, coords, raw) {
                 b.octants = o.into_iter().map(|c| c.map(|x| x.min(254))).collect();
             }
         }
         if planes.dda {
-            if let Some(d) = dda_planes(h, coords, &raw) {
+            if let Some(d) = dda_planes(h, coords, raw) {
                 b.dda = d;
             }
         }
@@ -207,7 +350,6 @@ impl RBrick {
             + b.dda[1].len()
             + b.levels.iter().map(Vec::len).sum::<usize>()
             + b.block_max.len() * 4;
-        Ok((b, raw.len() as u64))
     }
 
     /// The code plane and f32 values of brick `id` from its decoded words:
@@ -218,13 +360,12 @@ impl RBrick {
     ///
     /// [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
     fn assemble(
-        vol: &PackedVolume,
+        h: &crate::format::Header,
         id: u64,
         no_object: bool,
         vals: &[f64],
         codes: &[Option<u32>],
     ) -> RBrick {
-        let h = vol.header();
         let mut b = RBrick::uniform(h, id, 0);
         let [sx, sy, sz] = b.cells.map(|c| (c + 1) as usize);
         let cls = &h.classification;
@@ -388,7 +529,26 @@ impl BrickPyramid {
 
 type Scratch = (Vec<f64>, Vec<Option<u32>>);
 
+/// Per-thread buffers of [`RBrick::decode`]'s read.
+#[derive(Default)]
+struct ReadScratch {
+    dctx: Option<zstd::bulk::Decompressor<'static>>,
+    comp: Vec<u8>,
+    raw: Vec<u8>,
+}
+
+/// Per-thread buffers of [`RBrick::from_payload`].
+#[derive(Default)]
+struct FastScratch {
+    kinds: Vec<u8>,
+    codes: Vec<u8>,
+    or_x: Vec<u8>,
+    or_xy: Vec<u8>,
+}
+
 thread_local! {
+    static READ: std::cell::RefCell<ReadScratch> = std::cell::RefCell::new(ReadScratch::default());
+    static FAST: std::cell::RefCell<FastScratch> = std::cell::RefCell::new(FastScratch::default());
     static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
