@@ -1008,8 +1008,116 @@ static EMPTY: RBrick = RBrick {
 
 #[cfg(test)]
 mod tests {
-    use super::Lru;
+    use super::{Codes, Lru, Planes, RBrick};
+    use crate::classify::Classification;
+    use crate::format::word::Word;
+    use crate::format::{CodeEncoding, Header};
+    use crate::input::{Dtype, Rescale};
     use proptest::prelude::*;
+
+    /// A one-brick file's header: `dims` samples, words of `storage`.
+    fn header(
+        storage: Dtype,
+        codes: CodeEncoding,
+        rescale: Rescale,
+        iso: f64,
+        dims: [u64; 3],
+    ) -> Header {
+        let axis = |n: u64| crate::grid::Axis::uniform(0.0, 1.0, n as usize).expect("axis");
+        Header {
+            format_version: 1,
+            dims,
+            axes: [axis(dims[0]), axis(dims[1]), axis(dims[2])],
+            dtype: storage,
+            storage,
+            rescale,
+            classification: Classification::Iso { iso },
+            codes,
+            brick_size: 32,
+            bricks: [1, 1, 1],
+            aniso_block: None,
+            dda: false,
+            zstd_level: 3,
+            source: String::new(),
+            notes: Vec::new(),
+            summary: Default::default(),
+        }
+    }
+
+    /// `n` words of type `W` from `pick`: 0..3 a code word (code from the
+    /// low byte), 4 a special value (for floats NaN, +-inf, a foreign
+    /// NaN; for integers the type's ends), else the raw bits.
+    fn words<W: Word>(enc: &CodeEncoding, max: u32, pick: &[(u8, u64)], n: usize) -> Vec<u8> {
+        let size = std::mem::size_of::<W>();
+        let mut out = Vec::with_capacity(n * size);
+        for &(k, bits) in pick.iter().cycle().take(n) {
+            let w: W = match k % 8 {
+                0..=2 => W::code(enc, (bits % (max as u64 + 1)) as u32),
+                3 => W::from_raw(
+                    [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0][bits as usize % 5],
+                ),
+                _ => bytemuck::pod_read_unaligned(&bits.to_le_bytes()[..size]),
+            };
+            out.extend_from_slice(bytemuck::bytes_of(&w));
+        }
+        out
+    }
+
+    proptest! {
+        /// The fast decode equals the reference (decode_words + the
+        /// per-cell rule) on random bricks of every storage type: codes,
+        /// values bit for bit (NaN included), with and without the
+        /// no-1-cell flag, aligned and unaligned payloads. (Checked to
+        /// fail with the class rule mutated.)
+        #[test]
+        fn fast_decode_equals_reference(
+            ty in 0usize..9,
+            samples in proptest::array::uniform3(2u64..8),
+            pick in proptest::collection::vec((any::<u8>(), any::<u64>()), 1..400),
+            base_pick in any::<u64>(),
+            max in 0u32..=254,
+            slope in prop_oneof![Just(1.0), Just(-1.0), Just(0.5), Just(1e30), -4.0f64..4.0],
+            intercept in prop_oneof![Just(0.0), Just(-1024.0), -1e3f64..1e3],
+            iso_pick in 0usize..400,
+            iso_off in prop_oneof![Just(0.0), Just(1e-9), Just(-1e-9), -10.0f64..10.0],
+            no_object in any::<bool>(),
+            offset in 0usize..2,
+        ) {
+            let storage = [Dtype::U8, Dtype::I8, Dtype::U16, Dtype::I16, Dtype::U32,
+                Dtype::I32, Dtype::I64, Dtype::F32, Dtype::F64][ty];
+            let enc = if storage.is_float() {
+                CodeEncoding::NanPayload { max }
+            } else {
+                let (lo, hi) = storage.int_range();
+                let span = (hi as i128 - lo as i128 - max as i128).max(1);
+                let base = (lo as i128 + (base_pick as i128 % span)) as i64;
+                CodeEncoding::IntRange { base, max }
+            };
+            let n = samples.iter().product::<u64>() as usize;
+            let payload = crate::with_word!(storage, W => words::<W>(&enc, max, &pick, n));
+            let rescale = Rescale { slope, intercept };
+            // The iso value near a sample's rescaled value, to hit ties.
+            let probe = header(storage, enc, rescale, 0.0, samples);
+            let (mut vals, mut codes) = (Vec::new(), Vec::new());
+            crate::format::brick::decode_words(&probe, &payload, n, crate::format::brick::Values::Rescaled, &mut vals, &mut codes);
+            let v = vals[iso_pick % n];
+            let iso = if v.is_finite() { v + iso_off } else { iso_off };
+            let h = header(storage, enc, rescale, iso, samples);
+            let mut buf = vec![0u8; offset];
+            buf.extend_from_slice(&payload);
+            let raw = &buf[offset..];
+            let fast = RBrick::from_payload(&h, 0, no_object, raw, Planes::NONE);
+            let slow = RBrick::from_payload_reference(&h, 0, no_object, raw, Planes::NONE);
+            let plane = |b: &RBrick| match &b.codes {
+                Codes::Plane(p) => p.clone(),
+                Codes::Uniform(c) => vec![*c],
+            };
+            prop_assert_eq!(plane(&fast), plane(&slow));
+            let bits = |b: &RBrick| b.values.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+            prop_assert_eq!(bits(&fast), bits(&slow));
+            prop_assert_eq!(fast.bytes, slow.bytes);
+        }
+    }
 
     proptest! {
         /// Against the definition: each cell's 8 vertices, NaN ignored,
