@@ -561,6 +561,10 @@ pub struct CacheCounters {
     pub cache_hits: u64,
     pub cache_misses: u64,
     pub bytes_decompressed: u64,
+    /// Seconds spent in [`RBrick::decode`] (read, zstd, values, codes,
+    /// planes), summed over threads; includes a decode lost to another
+    /// thread's race for the same brick.
+    pub decode_seconds: f64,
 }
 
 impl CacheCounters {
@@ -570,6 +574,7 @@ impl CacheCounters {
         self.cache_hits += o.cache_hits;
         self.cache_misses += o.cache_misses;
         self.bytes_decompressed += o.bytes_decompressed;
+        self.decode_seconds += o.decode_seconds;
     }
 }
 
@@ -779,7 +784,10 @@ impl<'v> BrickCache<'v> {
             c.bricks_skipped += 1;
             RBrick::uniform(self.vol.header(), id, e.uniform_code)
         } else {
-            let (b, raw) = RBrick::decode(self.vol, id, self.planes)?;
+            let t = std::time::Instant::now();
+            let r = RBrick::decode(self.vol, id, self.planes);
+            c.decode_seconds += t.elapsed().as_secs_f64();
+            let (b, raw) = r?;
             c.bytes_decompressed += raw;
             b
         };
