@@ -5,7 +5,7 @@
 //! decoded bricks on it; neither parses words itself.
 
 use super::word::Word;
-use super::Header;
+use super::{CodeEncoding, Header};
 use crate::with_word;
 
 /// What [`decode_words`] makes of the value words.
@@ -88,47 +88,79 @@ pub fn decode_samples<F: Fn(f64) -> f32>(
     kinds.resize(n, 0);
     codes.clear();
     codes.resize(n, 0);
-    let enc = h.codes;
+    // `v >= NaN` is never true: no iso value, no "above" bit.
+    let iso = iso.unwrap_or(f64::NAN);
     let rs = h.rescale;
     with_word!(h.storage, W => {
         let size = std::mem::size_of::<W>();
         let bytes = &raw[..n * size];
-        // Aligned words are read in place; otherwise one at a time.
-        match (bytemuck::try_cast_slice::<u8, W>(bytes), values) {
-            (Ok(words), Some((out, map))) => {
-                out.clear();
-                out.reserve_exact(n);
-                out.extend(words.iter().zip(kinds.iter_mut().zip(codes.iter_mut())).map(
-                    |(&w, (k, c))| sample(w, &enc, rs, iso, k, c, &map),
-                ));
+        // The encoding matched once here, so that the loop's code test
+        // is a constant-folded range or NaN-payload check.
+        match h.codes {
+            CodeEncoding::IntRange { base, max } => {
+                let enc = CodeEncoding::IntRange { base, max };
+                samples_of::<W, F>(bytes, &enc, rs, iso, kinds, codes, values);
             }
-            (Ok(words), None) => {
-                for (&w, (k, c)) in words.iter().zip(kinds.iter_mut().zip(codes.iter_mut())) {
-                    sample(w, &enc, rs, iso, k, c, &|_| 0.0);
+            CodeEncoding::NanPayload { max } => {
+                let enc = CodeEncoding::NanPayload { max };
+                samples_of::<W, F>(bytes, &enc, rs, iso, kinds, codes, values);
+            }
+        }
+    });
+}
+
+/// The loop of [`decode_samples`] over words of type `W`: aligned words
+/// are read in place, others one at a time.
+#[inline(always)]
+fn samples_of<W: Word, F: Fn(f64) -> f32>(
+    bytes: &[u8],
+    enc: &CodeEncoding,
+    rs: crate::input::Rescale,
+    iso: f64,
+    kinds: &mut [u8],
+    codes: &mut [u8],
+    values: Option<(&mut Vec<f32>, F)>,
+) {
+    let n = kinds.len();
+    let kc = kinds.iter_mut().zip(codes.iter_mut());
+    match (bytemuck::try_cast_slice::<u8, W>(bytes), values) {
+        (Ok(words), Some((out, map))) => {
+            out.clear();
+            out.reserve_exact(n);
+            out.extend(
+                words
+                    .iter()
+                    .zip(kc)
+                    .map(|(&w, (k, c))| sample(w, enc, rs, iso, k, c, &map)),
+            );
+        }
+        (Ok(words), None) => {
+            for (&w, (k, c)) in words.iter().zip(kc) {
+                sample(w, enc, rs, iso, k, c, &|_| 0.0);
+            }
+        }
+        (Err(_), values) => {
+            let words = bytes
+                .chunks_exact(std::mem::size_of::<W>())
+                .map(bytemuck::pod_read_unaligned::<W>);
+            match values {
+                Some((out, map)) => {
+                    out.clear();
+                    out.reserve_exact(n);
+                    out.extend(
+                        words
+                            .zip(kc)
+                            .map(|(w, (k, c))| sample(w, enc, rs, iso, k, c, &map)),
+                    );
                 }
-            }
-            (Err(_), values) => {
-                let words = bytes
-                    .chunks_exact(size)
-                    .map(bytemuck::pod_read_unaligned::<W>);
-                let kc = kinds.iter_mut().zip(codes.iter_mut());
-                match values {
-                    Some((out, map)) => {
-                        out.clear();
-                        out.reserve_exact(n);
-                        out.extend(
-                            words.zip(kc).map(|(w, (k, c))| sample(w, &enc, rs, iso, k, c, &map)),
-                        );
-                    }
-                    None => {
-                        for (w, (k, c)) in words.zip(kc) {
-                            sample(w, &enc, rs, iso, k, c, &|_| 0.0);
-                        }
+                None => {
+                    for (w, (k, c)) in words.zip(kc) {
+                        sample(w, enc, rs, iso, k, c, &|_| 0.0);
                     }
                 }
             }
         }
-    });
+    }
 }
 
 /// One word of [`decode_samples`]: its kind and code written, its mapped
@@ -136,9 +168,9 @@ pub fn decode_samples<F: Fn(f64) -> f32>(
 #[inline(always)]
 fn sample<W: Word>(
     w: W,
-    enc: &super::CodeEncoding,
+    enc: &CodeEncoding,
     rs: crate::input::Rescale,
-    iso: Option<f64>,
+    iso: f64,
     k: &mut u8,
     c: &mut u8,
     map: &impl Fn(f64) -> f32,
@@ -151,7 +183,7 @@ fn sample<W: Word>(
         }
         None => {
             let v = rs.apply(w.to_raw());
-            *k = iso.is_some_and(|t| v >= t) as u8 * SAMPLE_ABOVE;
+            *k = (v >= iso) as u8 * SAMPLE_ABOVE;
             map(v)
         }
     }
