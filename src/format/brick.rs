@@ -189,6 +189,113 @@ fn sample<W: Word>(
     }
 }
 
+/// [`decode_samples`] as a lookup table, for 8- and 16-bit words: every
+/// possible word's kind, code and mapped value, computed once by the same
+/// per-word rule, so a table decode gives the same bytes as
+/// [`decode_samples`] with the same `iso` and `map`.
+pub struct SampleTable {
+    key: TableKey,
+    /// Per word (its native-endian bits as the index): the mapped value.
+    values: Vec<f32>,
+    /// Per word: `kind << 8 | code`.
+    kind_code: Vec<u16>,
+}
+
+/// What a [`SampleTable`] was built for (floats as bits).
+type TableKey = (crate::input::Dtype, CodeEncoding, [u64; 3]);
+
+fn table_key(h: &Header, iso: Option<f64>) -> TableKey {
+    let iso = iso.unwrap_or(f64::NAN);
+    (
+        h.storage,
+        h.codes,
+        [h.rescale.slope, h.rescale.intercept, iso].map(f64::to_bits),
+    )
+}
+
+impl SampleTable {
+    /// The table of `h`'s words, for words of at most 16 bits (`None`
+    /// otherwise). The caller keeps using the same `map` with it.
+    pub fn new<F: Fn(f64) -> f32>(h: &Header, iso: Option<f64>, map: F) -> Option<SampleTable> {
+        let size = h.storage.size();
+        if size > 2 {
+            return None;
+        }
+        let len = 1usize << (8 * size);
+        let (mut kinds, mut codes) = (vec![0u8; len], vec![0u8; len]);
+        let mut values = Vec::new();
+        // Every word, in index order: index i's native-endian bytes.
+        let bytes: Vec<u8> = (0..len)
+            .flat_map(|i| {
+                let b = (i as u16).to_ne_bytes();
+                if size == 1 {
+                    vec![b[0]]
+                } else {
+                    b.to_vec()
+                }
+            })
+            .collect();
+        decode_samples(
+            h,
+            &bytes,
+            len,
+            iso,
+            &mut kinds,
+            &mut codes,
+            Some((&mut values, map)),
+        );
+        Some(SampleTable {
+            key: table_key(h, iso),
+            values,
+            kind_code: kinds
+                .iter()
+                .zip(&codes)
+                .map(|(&k, &c)| (k as u16) << 8 | c as u16)
+                .collect(),
+        })
+    }
+
+    /// Whether this table decodes `h`'s words with `iso`.
+    pub fn fits(&self, h: &Header, iso: Option<f64>) -> bool {
+        self.key == table_key(h, iso)
+    }
+
+    /// [`decode_samples`] through the table (which must [`fit`](Self::fits)
+    /// the file `raw` comes from).
+    pub fn decode(
+        &self,
+        raw: &[u8],
+        n: usize,
+        kinds: &mut Vec<u8>,
+        codes: &mut Vec<u8>,
+        values: &mut Vec<f32>,
+    ) {
+        kinds.clear();
+        kinds.resize(n, 0);
+        codes.clear();
+        codes.resize(n, 0);
+        values.clear();
+        values.reserve_exact(n);
+        let kc = kinds.iter_mut().zip(codes.iter_mut());
+        let one = |i: usize, (k, c): (&mut u8, &mut u8)| {
+            let e = self.kind_code[i];
+            *k = (e >> 8) as u8;
+            *c = e as u8;
+            self.values[i]
+        };
+        if self.values.len() == 256 {
+            values.extend(raw[..n].iter().zip(kc).map(|(&b, kc)| one(b as usize, kc)));
+        } else {
+            values.extend(
+                raw[..2 * n]
+                    .chunks_exact(2)
+                    .zip(kc)
+                    .map(|(b, kc)| one(u16::from_ne_bytes([b[0], b[1]]) as usize, kc)),
+            );
+        }
+    }
+}
+
 /// The octant codes of brick `coords` (anisotropic files, section 4.2.1):
 /// per block of [`crate::dt::ANISO_BLOCK`]^3 cells, x fastest, the 8
 /// codes, stored after the words as 8 planes of one byte per block.

@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex};
 use crate::classify::CellClass;
 use crate::classify::Classification;
 use crate::format::brick::{
-    dda_planes, decode_samples, decode_words, octant_codes, Values, SAMPLE_ABOVE,
+    dda_planes, decode_samples, decode_words, octant_codes, SampleTable, Values, SAMPLE_ABOVE,
 };
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
@@ -231,6 +231,7 @@ impl RBrick {
                 codes,
                 or_x,
                 or_xy,
+                table,
             } = f;
             if no_object {
                 decode_samples(h, raw, n, None, kinds, codes, None::<(_, fn(f64) -> f32)>);
@@ -242,15 +243,23 @@ impl RBrick {
                 }
                 return;
             }
-            decode_samples(
-                h,
-                raw,
-                n,
-                Some(iso),
-                kinds,
-                codes,
-                Some((&mut b.values, to_f32)),
-            );
+            // 8- and 16-bit words through a per-thread table of every
+            // word (built once per file and thread), others word by word.
+            if table.as_ref().is_none_or(|t| !t.fits(h, Some(iso))) {
+                *table = SampleTable::new(h, Some(iso), to_f32);
+            }
+            match table {
+                Some(t) => t.decode(raw, n, kinds, codes, &mut b.values),
+                None => decode_samples(
+                    h,
+                    raw,
+                    n,
+                    Some(iso),
+                    kinds,
+                    codes,
+                    Some((&mut b.values, to_f32)),
+                ),
+            }
             // OR of the two samples of each x edge, per sample row.
             or_x.clear();
             for row in kinds.chunks_exact(sx) {
@@ -544,6 +553,7 @@ struct FastScratch {
     codes: Vec<u8>,
     or_x: Vec<u8>,
     or_xy: Vec<u8>,
+    table: Option<SampleTable>,
 }
 
 thread_local! {
