@@ -9,7 +9,9 @@
 //! Bricks are split into those holding 1-cells and those without (the
 //! index's flag: only their codes are built).
 //!
-//! Run: `CDVOL_DECODE_FILE=ph1024.cdv cargo bench --bench decode`; without
+//! Run: `CDVOL_DECODE_FILE=ph1024.cdv cargo bench --bench decode`
+//! (`CDVOL_DECODE_DUMP=PREFIX` also writes the stored frames of each set
+//! to `PREFIX.object.zst` and `PREFIX.no_object.zst` for `zstd -d`); without
 //! the variable, a 256^3 u16 CT phantom (bone at 300 HU) is made in a
 //! temporary directory. Figures go to docs/BENCHMARKS.md.
 
@@ -84,6 +86,13 @@ fn bench(c: &mut Criterion) {
             .iter()
             .map(|&i| vol.read_payload(i).expect("payload").expect("not uniform"))
             .collect();
+        // For `zstd -d` of the same bytes: the stored frames, one after
+        // another (a valid multi-frame stream).
+        if let Some(d) = std::env::var_os("CDVOL_DECODE_DUMP") {
+            let mut p = std::path::PathBuf::from(d).into_os_string();
+            p.push(format!(".{name}.zst"));
+            std::fs::write(&p, comp.concat()).expect("dump");
+        }
         let bytes: u64 = raws.iter().map(|r| r.len() as u64).sum();
         let stored: u64 = comp.iter().map(|r| r.len() as u64).sum();
         eprintln!(
