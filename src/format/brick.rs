@@ -5,7 +5,7 @@
 //! decoded bricks on it; neither parses words itself.
 
 use super::word::Word;
-use super::Header;
+use super::{CodeEncoding, Header};
 use crate::with_word;
 
 /// What [`decode_words`] makes of the value words.
@@ -54,6 +54,246 @@ pub fn decode_words(
             }
         }
     });
+}
+
+/// Sample class bit of [`decode_samples`]: the word is a code.
+pub const SAMPLE_CODE: u8 = 2;
+/// Sample class bit of [`decode_samples`]: a value word whose rescaled
+/// value is at or above the iso value (never set for NaN).
+pub const SAMPLE_ABOVE: u8 = 1;
+
+/// The renderer's decoder of the sample words, one pass with no
+/// intermediate f64 or `Option` buffers; the same words, codes and
+/// rescaled values as [`decode_words`] with [`Values::Rescaled`] (the same
+/// f64 arithmetic), delivered as:
+/// - `kinds[i]`: [`SAMPLE_CODE`] for a code word, else [`SAMPLE_ABOVE`]
+///   when `iso` is given and the rescaled value is `>= iso` (NaN never
+///   is), else 0;
+/// - `codes[i]`: the code, saturated to 254, or 0 for a value word;
+/// - with `values = Some((out, map))`: `out[i] = map(rescaled value)` for
+///   a value word and NaN for a code word (`out` cleared and refilled).
+///
+/// `kinds` and `codes` are cleared and refilled, so callers can keep them
+/// as scratch.
+pub fn decode_samples<F: Fn(f64) -> f32>(
+    h: &Header,
+    raw: &[u8],
+    n: usize,
+    iso: Option<f64>,
+    kinds: &mut Vec<u8>,
+    codes: &mut Vec<u8>,
+    values: Option<(&mut Vec<f32>, F)>,
+) {
+    kinds.clear();
+    kinds.resize(n, 0);
+    codes.clear();
+    codes.resize(n, 0);
+    // `v >= NaN` is never true: no iso value, no "above" bit.
+    let iso = iso.unwrap_or(f64::NAN);
+    let rs = h.rescale;
+    with_word!(h.storage, W => {
+        let size = std::mem::size_of::<W>();
+        let bytes = &raw[..n * size];
+        // The encoding matched once here, so that the loop's code test
+        // is a constant-folded range or NaN-payload check.
+        match h.codes {
+            CodeEncoding::IntRange { base, max } => {
+                let enc = CodeEncoding::IntRange { base, max };
+                samples_of::<W, F>(bytes, &enc, rs, iso, kinds, codes, values);
+            }
+            CodeEncoding::NanPayload { max } => {
+                let enc = CodeEncoding::NanPayload { max };
+                samples_of::<W, F>(bytes, &enc, rs, iso, kinds, codes, values);
+            }
+        }
+    });
+}
+
+/// The loop of [`decode_samples`] over words of type `W`: aligned words
+/// are read in place, others one at a time.
+#[inline(always)]
+fn samples_of<W: Word, F: Fn(f64) -> f32>(
+    bytes: &[u8],
+    enc: &CodeEncoding,
+    rs: crate::input::Rescale,
+    iso: f64,
+    kinds: &mut [u8],
+    codes: &mut [u8],
+    values: Option<(&mut Vec<f32>, F)>,
+) {
+    let n = kinds.len();
+    let kc = kinds.iter_mut().zip(codes.iter_mut());
+    match (bytemuck::try_cast_slice::<u8, W>(bytes), values) {
+        (Ok(words), Some((out, map))) => {
+            out.clear();
+            out.reserve_exact(n);
+            out.extend(
+                words
+                    .iter()
+                    .zip(kc)
+                    .map(|(&w, (k, c))| sample(w, enc, rs, iso, k, c, &map)),
+            );
+        }
+        (Ok(words), None) => {
+            for (&w, (k, c)) in words.iter().zip(kc) {
+                sample(w, enc, rs, iso, k, c, &|_| 0.0);
+            }
+        }
+        (Err(_), values) => {
+            let words = bytes
+                .chunks_exact(std::mem::size_of::<W>())
+                .map(bytemuck::pod_read_unaligned::<W>);
+            match values {
+                Some((out, map)) => {
+                    out.clear();
+                    out.reserve_exact(n);
+                    out.extend(
+                        words
+                            .zip(kc)
+                            .map(|(w, (k, c))| sample(w, enc, rs, iso, k, c, &map)),
+                    );
+                }
+                None => {
+                    for (w, (k, c)) in words.zip(kc) {
+                        sample(w, enc, rs, iso, k, c, &|_| 0.0);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// One word of [`decode_samples`]: its kind and code written, its mapped
+/// value returned (NaN for a code).
+#[inline(always)]
+fn sample<W: Word>(
+    w: W,
+    enc: &CodeEncoding,
+    rs: crate::input::Rescale,
+    iso: f64,
+    k: &mut u8,
+    c: &mut u8,
+    map: &impl Fn(f64) -> f32,
+) -> f32 {
+    match w.as_code(enc) {
+        Some(code) => {
+            *k = SAMPLE_CODE;
+            *c = code.min(254) as u8;
+            f32::NAN
+        }
+        None => {
+            let v = rs.apply(w.to_raw());
+            *k = (v >= iso) as u8 * SAMPLE_ABOVE;
+            map(v)
+        }
+    }
+}
+
+/// [`decode_samples`] as a lookup table, for 8- and 16-bit words: every
+/// possible word's kind, code and mapped value, computed once by the same
+/// per-word rule, so a table decode gives the same bytes as
+/// [`decode_samples`] with the same `iso` and `map`.
+pub struct SampleTable {
+    key: TableKey,
+    /// Per word (its native-endian bits as the index): the mapped value.
+    values: Vec<f32>,
+    /// Per word: `kind << 8 | code`.
+    kind_code: Vec<u16>,
+}
+
+/// What a [`SampleTable`] was built for (floats as bits).
+type TableKey = (crate::input::Dtype, CodeEncoding, [u64; 3]);
+
+fn table_key(h: &Header, iso: Option<f64>) -> TableKey {
+    let iso = iso.unwrap_or(f64::NAN);
+    (
+        h.storage,
+        h.codes,
+        [h.rescale.slope, h.rescale.intercept, iso].map(f64::to_bits),
+    )
+}
+
+impl SampleTable {
+    /// The table of `h`'s words, for words of at most 16 bits (`None`
+    /// otherwise). The caller keeps using the same `map` with it.
+    pub fn new<F: Fn(f64) -> f32>(h: &Header, iso: Option<f64>, map: F) -> Option<SampleTable> {
+        let size = h.storage.size();
+        if size > 2 {
+            return None;
+        }
+        let len = 1usize << (8 * size);
+        let (mut kinds, mut codes) = (vec![0u8; len], vec![0u8; len]);
+        let mut values = Vec::new();
+        // Every word, in index order: index i's native-endian bytes.
+        let bytes: Vec<u8> = (0..len)
+            .flat_map(|i| {
+                let b = (i as u16).to_ne_bytes();
+                if size == 1 {
+                    vec![b[0]]
+                } else {
+                    b.to_vec()
+                }
+            })
+            .collect();
+        decode_samples(
+            h,
+            &bytes,
+            len,
+            iso,
+            &mut kinds,
+            &mut codes,
+            Some((&mut values, map)),
+        );
+        Some(SampleTable {
+            key: table_key(h, iso),
+            values,
+            kind_code: kinds
+                .iter()
+                .zip(&codes)
+                .map(|(&k, &c)| (k as u16) << 8 | c as u16)
+                .collect(),
+        })
+    }
+
+    /// Whether this table decodes `h`'s words with `iso`.
+    pub fn fits(&self, h: &Header, iso: Option<f64>) -> bool {
+        self.key == table_key(h, iso)
+    }
+
+    /// [`decode_samples`] through the table (which must [`fit`](Self::fits)
+    /// the file `raw` comes from).
+    pub fn decode(
+        &self,
+        raw: &[u8],
+        n: usize,
+        kinds: &mut Vec<u8>,
+        codes: &mut Vec<u8>,
+        values: &mut Vec<f32>,
+    ) {
+        kinds.clear();
+        kinds.resize(n, 0);
+        codes.clear();
+        codes.resize(n, 0);
+        values.clear();
+        values.reserve_exact(n);
+        let kc = kinds.iter_mut().zip(codes.iter_mut());
+        let one = |i: usize, (k, c): (&mut u8, &mut u8)| {
+            let e = self.kind_code[i];
+            *k = (e >> 8) as u8;
+            *c = e as u8;
+            self.values[i]
+        };
+        if self.values.len() == 256 {
+            values.extend(raw[..n].iter().zip(kc).map(|(&b, kc)| one(b as usize, kc)));
+        } else {
+            values.extend(
+                raw[..2 * n]
+                    .chunks_exact(2)
+                    .zip(kc)
+                    .map(|(b, kc)| one(u16::from_ne_bytes([b[0], b[1]]) as usize, kc)),
+            );
+        }
+    }
 }
 
 /// The octant codes of brick `coords` (anisotropic files, section 4.2.1):

@@ -259,21 +259,43 @@ impl PackedVolume {
     /// Reads, checks and decompresses the payload bytes of brick `id`
     /// (`None` for a uniform brick).
     pub fn read_payload(&self, id: u64) -> Result<Option<Vec<u8>>, FormatError> {
+        let mut dctx = zstd::bulk::Decompressor::new()
+            .map_err(|x| self.brick_err(id, format!("cannot decompress: {x}")))?;
+        let mut raw = Vec::new();
+        Ok(self
+            .read_payload_into(id, &mut dctx, &mut Vec::new(), &mut raw)?
+            .then_some(raw))
+    }
+
+    /// [`read_payload`](Self::read_payload) into buffers the caller keeps
+    /// (`comp`: the stored bytes, `raw`: the decompressed payload, both
+    /// cleared and refilled) with the caller's decompression context, so
+    /// a reader of many bricks allocates nothing per brick. Returns false
+    /// for a uniform brick (no payload; both buffers left empty).
+    pub fn read_payload_into(
+        &self,
+        id: u64,
+        dctx: &mut zstd::bulk::Decompressor<'_>,
+        comp: &mut Vec<u8>,
+        raw: &mut Vec<u8>,
+    ) -> Result<bool, FormatError> {
         let e = *self.index.get(id as usize).ok_or_else(|| {
             self.brick_err(id, format!("no such brick (file has {})", self.index.len()))
         })?;
+        comp.clear();
+        raw.clear();
         if e.is_uniform() {
-            return Ok(None);
+            return Ok(false);
         }
-        let mut bytes = vec![0u8; e.length as usize];
+        comp.resize(e.length as usize, 0);
         self.file
-            .read_exact_at(&mut bytes, e.offset)
+            .read_exact_at(comp, e.offset)
             .map_err(|source| FormatError::Io {
                 path: self.path.clone(),
                 what: "cannot read brick payload",
                 source,
             })?;
-        let crc = crc32fast::hash(&bytes);
+        let crc = crc32fast::hash(comp);
         if crc != e.crc32 {
             return Err(self.brick_err(
                 id,
@@ -284,7 +306,8 @@ impl PackedVolume {
             ));
         }
         let want = self.header.payload_len(self.header.brick_coords(id)) as usize;
-        let raw = zstd::bulk::decompress(&bytes, want)
+        raw.reserve_exact(want);
+        dctx.decompress_to_buffer(comp.as_slice(), raw)
             .map_err(|x| self.brick_err(id, format!("cannot decompress: {x}")))?;
         if raw.len() != want {
             return Err(self.brick_err(
@@ -292,7 +315,7 @@ impl PackedVolume {
                 format!("payload is {} bytes, expected {want}", raw.len()),
             ));
         }
-        Ok(Some(raw))
+        Ok(true)
     }
 
     /// Reads and decodes brick `id`.

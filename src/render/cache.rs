@@ -10,7 +10,10 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 
 use crate::classify::CellClass;
-use crate::format::brick::{dda_planes, decode_words, octant_codes, Values};
+use crate::classify::Classification;
+use crate::format::brick::{
+    dda_planes, decode_samples, decode_words, octant_codes, SampleTable, Values, SAMPLE_ABOVE,
+};
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
@@ -57,7 +60,16 @@ pub struct RBrick {
     /// fastest (files prepared with `--dda`); empty for uniform bricks and
     /// files without them.
     pub dda: [Vec<u8>; 2],
+    /// Per block of [`BLOCK`]^3 cells (x fastest, `cells.div_ceil(BLOCK)`
+    /// blocks per axis), the largest vertex value of the block's cells,
+    /// NaN ignored (`f32::NEG_INFINITY` if all are NaN). Built only with
+    /// [`Planes::block_max`] and only for bricks with values; empty
+    /// otherwise.
+    pub block_max: Vec<f32>,
 }
+
+/// Cells per edge of a [`RBrick::block_max`] block.
+pub const BLOCK: u32 = 4;
 
 #[derive(Debug)]
 pub enum Codes {
@@ -92,6 +104,22 @@ impl RBrick {
         }
     }
 
+    /// The largest vertex value (NaN ignored) of the [`BLOCK`]^3 block
+    /// holding local cell `l`: an upper bound of every value the
+    /// trilinear interpolant takes in the block's cells.
+    /// `f32::NEG_INFINITY` when the block's vertices are all NaN;
+    /// `f32::INFINITY` (no bound known) for a brick without the plane
+    /// (not built, or a brick without values).
+    #[inline]
+    pub fn block_max(&self, l: [u32; 3]) -> f32 {
+        if self.block_max.is_empty() {
+            return f32::INFINITY;
+        }
+        let nb = self.cells.map(|c| c.div_ceil(BLOCK));
+        let b = ((l[2] / BLOCK * nb[1] + l[1] / BLOCK) * nb[0] + l[0] / BLOCK) as usize;
+        self.block_max[b]
+    }
+
     /// The 8 vertex values of local cell `l`, x fastest.
     #[inline(always)]
     pub fn vertices(&self, l: [u32; 3]) -> [f32; 8] {
@@ -124,26 +152,167 @@ impl RBrick {
             levels: Vec::new(),
             bytes: std::mem::size_of::<RBrick>(),
             dda: [Vec::new(), Vec::new()],
+            block_max: Vec::new(),
         }
     }
 
     /// Reads and decodes brick `id` with the format's decoder
     /// ([`crate::format::brick`]), then builds what rendering adds on top:
     /// the dense code plane, f32 values and the planes `planes` asks for.
-    /// Returns the brick and its decompressed payload size.
-    fn decode(vol: &PackedVolume, id: u64, planes: Planes) -> Result<(RBrick, u64), FormatError> {
+    /// Returns the brick and its decompressed payload size. The payload is
+    /// read into per-thread buffers with a per-thread zstd context: no
+    /// allocation per brick but the brick's own planes.
+    pub fn decode(
+        vol: &PackedVolume,
+        id: u64,
+        planes: Planes,
+    ) -> Result<(RBrick, u64), FormatError> {
         let h = vol.header();
-        let Some(raw) = vol.read_payload(id)? else {
-            return Ok((
-                RBrick::uniform(h, id, vol.index()[id as usize].uniform_code),
-                0,
-            ));
+        let e = vol.index()[id as usize];
+        let read = READ.with_borrow_mut(|r| {
+            if r.dctx.is_none() {
+                // Only fails when zstd cannot allocate its context: then
+                // the reader's own path reports that on this brick.
+                r.dctx = zstd::bulk::Decompressor::new().ok();
+            }
+            let ReadScratch { dctx, comp, raw } = r;
+            let Some(dctx) = dctx else {
+                return vol.read_payload(id).map(|p| p.map(|p| *raw = p).is_some());
+            };
+            vol.read_payload_into(id, dctx, comp, raw)
+        })?;
+        if !read {
+            return Ok((RBrick::uniform(h, id, e.uniform_code), 0));
+        }
+        Ok(READ.with_borrow(|r| {
+            let b = RBrick::from_payload(h, id, e.has_no_object(), &r.raw, planes);
+            (b, r.raw.len() as u64)
+        }))
+    }
+
+    /// Brick `id` from its decompressed payload `raw`: the fast path of
+    /// [`RBrick::decode`]. Equal, plane for plane and bit for bit, to
+    /// [`RBrick::from_payload_reference`] (the per-cell rule
+    /// [`Classification::cell_of_words`] over f64 words; a unit test
+    /// checks it on random bricks of every storage type).
+    ///
+    /// For an iso classification, the format's [`decode_samples`] gives
+    /// per sample its code (0 for a value) and two bits, "is a code" and
+    /// "is a value `>= iso`". The rule then reads: the cell's code is the
+    /// code at its minimum corner, unless the OR of its 8 vertices' bits
+    /// is exactly "`>= iso`" (no code, some vertex at or above the iso
+    /// value: a 1-cell). The OR is taken separably (x, then y, then z)
+    /// over whole rows. A brick the index marks as holding no 1-cell needs
+    /// only the corner codes and no values. Transfer functions take the
+    /// reference path.
+    ///
+    /// [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
+    pub fn from_payload(
+        h: &crate::format::Header,
+        id: u64,
+        no_object: bool,
+        raw: &[u8],
+        planes: Planes,
+    ) -> RBrick {
+        let iso = match h.classification {
+            Classification::Iso { iso } => iso,
+            Classification::TransferFunction { .. } => {
+                return RBrick::from_payload_reference(h, id, no_object, raw, planes)
+            }
         };
-        let coords = h.brick_coords(id);
-        let n = h.brick_samples(coords).iter().product::<u64>() as usize;
+        let mut b = RBrick::uniform(h, id, 0);
+        let [sx, sy, sz] = b.cells.map(|c| (c + 1) as usize);
+        let n = sx * sy * sz;
+        let (cx, cy, cz) = (sx - 1, sy - 1, sz - 1);
+        let mut plane = Vec::with_capacity(cx * cy * cz);
+        FAST.with_borrow_mut(|f| {
+            let FastScratch {
+                kinds,
+                codes,
+                or_x,
+                or_xy,
+                table,
+            } = f;
+            if no_object {
+                decode_samples(h, raw, n, None, kinds, codes, None::<(_, fn(f64) -> f32)>);
+                for z in 0..cz {
+                    for y in 0..cy {
+                        let r = (z * sy + y) * sx;
+                        plane.extend_from_slice(&codes[r..r + cx]);
+                    }
+                }
+                return;
+            }
+            // 8- and 16-bit words through a per-thread table of every
+            // word (built once per file and thread), others word by word.
+            if table.as_ref().is_none_or(|t| !t.fits(h, Some(iso))) {
+                *table = SampleTable::new(h, Some(iso), to_f32);
+            }
+            match table {
+                Some(t) => t.decode(raw, n, kinds, codes, &mut b.values),
+                None => decode_samples(
+                    h,
+                    raw,
+                    n,
+                    Some(iso),
+                    kinds,
+                    codes,
+                    Some((&mut b.values, to_f32)),
+                ),
+            }
+            // OR of the two samples of each x edge, per sample row.
+            or_x.clear();
+            for row in kinds.chunks_exact(sx) {
+                or_x.extend(row.windows(2).map(|w| w[0] | w[1]));
+            }
+            // ... of the four of each xy face, per sample slice.
+            or_xy.clear();
+            for z in 0..sz {
+                let s = &or_x[z * sy * cx..(z + 1) * sy * cx];
+                for y in 0..cy {
+                    let (r0, r1) = (&s[y * cx..(y + 1) * cx], &s[(y + 1) * cx..(y + 2) * cx]);
+                    or_xy.extend(r0.iter().zip(r1).map(|(a, b)| a | b));
+                }
+            }
+            // ... of the eight of each cell; the class.
+            for z in 0..cz {
+                let (s0, s1) = (
+                    &or_xy[z * cy * cx..(z + 1) * cy * cx],
+                    &or_xy[(z + 1) * cy * cx..(z + 2) * cy * cx],
+                );
+                for y in 0..cy {
+                    let corner = &codes[(z * sy + y) * sx..(z * sy + y) * sx + cx];
+                    let (a, b) = (&s0[y * cx..(y + 1) * cx], &s1[y * cx..(y + 1) * cx]);
+                    plane.extend(a.iter().zip(b).zip(corner).map(|((a, b), &c)| {
+                        if a | b == SAMPLE_ABOVE {
+                            OBJECT
+                        } else {
+                            c
+                        }
+                    }));
+                }
+            }
+        });
+        b.codes = Codes::Plane(plane);
+        b.add_planes(h, id, raw, planes);
+        b
+    }
+
+    /// [`RBrick::from_payload`] the way it was first written, kept as the
+    /// reference the fast path is tested against (and the path of
+    /// transfer-function files): [`decode_words`] into f64 values and
+    /// `Option` codes, then [`RBrick::assemble`] cell by cell.
+    #[doc(hidden)]
+    pub fn from_payload_reference(
+        h: &crate::format::Header,
+        id: u64,
+        no_object: bool,
+        raw: &[u8],
+        planes: Planes,
+    ) -> RBrick {
+        let n = h.brick_samples(h.brick_coords(id)).iter().product::<u64>() as usize;
         // A brick without 1-cells needs only its codes: a cell is coded at
         // its minimum corner or has code 0; no values, no classification.
-        let no_object = vol.index()[id as usize].has_no_object();
         let mode = if no_object {
             Values::Skip
         } else {
@@ -154,21 +323,33 @@ impl RBrick {
         // the cache's long-lived buffers (docs/BENCHMARKS.md, "Larger
         // than RAM").
         let mut b = SCRATCH.with_borrow_mut(|(vals, codes)| {
-            decode_words(h, &raw, n, mode, vals, codes);
-            RBrick::assemble(vol, id, no_object, vals, codes)
+            decode_words(h, raw, n, mode, vals, codes);
+            RBrick::assemble(h, id, no_object, vals, codes)
         });
+        b.add_planes(h, id, raw, planes);
+        b
+    }
+
+    /// The planes beside codes and values that `planes` asks for, and the
+    /// brick's byte count.
+    fn add_planes(&mut self, h: &crate::format::Header, id: u64, raw: &[u8], planes: Planes) {
+        let coords = h.brick_coords(id);
+        let b = self;
         if planes.octants {
-            if let Some(o) = octant_codes(h, coords, &raw) {
+            if let Some(o) = octant_codes(h, coords, raw) {
                 b.octants = o.into_iter().map(|c| c.map(|x| x.min(254))).collect();
             }
         }
         if planes.dda {
-            if let Some(d) = dda_planes(h, coords, &raw) {
+            if let Some(d) = dda_planes(h, coords, raw) {
                 b.dda = d;
             }
         }
         if let (true, Codes::Plane(p)) = (planes.octree, &b.codes) {
             b.levels = octree_levels(p, b.cells, h.brick_size.trailing_zeros());
+        }
+        if planes.block_max && !b.values.is_empty() {
+            b.block_max = block_maxima(&b.values, b.cells);
         }
         b.bytes = std::mem::size_of::<RBrick>()
             + b.codes.len()
@@ -176,8 +357,8 @@ impl RBrick {
             + b.octants.len() * 8
             + b.dda[0].len()
             + b.dda[1].len()
-            + b.levels.iter().map(Vec::len).sum::<usize>();
-        Ok((b, raw.len() as u64))
+            + b.levels.iter().map(Vec::len).sum::<usize>()
+            + b.block_max.len() * 4;
     }
 
     /// The code plane and f32 values of brick `id` from its decoded words:
@@ -188,13 +369,12 @@ impl RBrick {
     ///
     /// [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
     fn assemble(
-        vol: &PackedVolume,
+        h: &crate::format::Header,
         id: u64,
         no_object: bool,
         vals: &[f64],
         codes: &[Option<u32>],
     ) -> RBrick {
-        let h = vol.header();
         let mut b = RBrick::uniform(h, id, 0);
         let [sx, sy, sz] = b.cells.map(|c| (c + 1) as usize);
         let cls = &h.classification;
@@ -245,6 +425,41 @@ impl Codes {
             Codes::Plane(p) => p.len(),
         }
     }
+}
+
+/// The [`RBrick::block_max`] plane of a brick with `cells` per axis from
+/// its sample `values` (`cells + 1` per axis, x fastest): per block of
+/// [`BLOCK`]^3 cells, the largest of its vertices' values, NaN ignored.
+pub fn block_maxima(values: &[f32], cells: [u32; 3]) -> Vec<f32> {
+    let [sx, sy, _] = cells.map(|c| c as usize + 1);
+    let nb = cells.map(|c| c.div_ceil(BLOCK) as usize);
+    let bs = BLOCK as usize;
+    let mut out = vec![f32::NEG_INFINITY; nb[0] * nb[1] * nb[2]];
+    // Samples 4b..=4b+4 (clipped) along each axis are the vertices of
+    // block b's cells; the shared face samples count for both blocks.
+    let span = |b: usize, k: usize| b * bs..=(b * bs + bs).min(cells[k] as usize);
+    for bz in 0..nb[2] {
+        for by in 0..nb[1] {
+            for bx in 0..nb[0] {
+                let mut m = f32::NEG_INFINITY;
+                for z in span(bz, 2) {
+                    for y in span(by, 1) {
+                        let row = (z * sy + y) * sx;
+                        for &v in
+                            &values[row + bx * bs..=row + (bx * bs + bs).min(cells[0] as usize)]
+                        {
+                            // NaN compares false: ignored.
+                            if v > m {
+                                m = v;
+                            }
+                        }
+                    }
+                }
+                out[(bz * nb[1] + by) * nb[0] + bx] = m;
+            }
+        }
+    }
+    out
 }
 
 /// Octree levels `1..=lb` of a brick's code plane (`cells` per axis):
@@ -323,7 +538,27 @@ impl BrickPyramid {
 
 type Scratch = (Vec<f64>, Vec<Option<u32>>);
 
+/// Per-thread buffers of [`RBrick::decode`]'s read.
+#[derive(Default)]
+struct ReadScratch {
+    dctx: Option<zstd::bulk::Decompressor<'static>>,
+    comp: Vec<u8>,
+    raw: Vec<u8>,
+}
+
+/// Per-thread buffers of [`RBrick::from_payload`].
+#[derive(Default)]
+struct FastScratch {
+    kinds: Vec<u8>,
+    codes: Vec<u8>,
+    or_x: Vec<u8>,
+    or_xy: Vec<u8>,
+    table: Option<SampleTable>,
+}
+
 thread_local! {
+    static READ: std::cell::RefCell<ReadScratch> = std::cell::RefCell::new(ReadScratch::default());
+    static FAST: std::cell::RefCell<FastScratch> = std::cell::RefCell::new(FastScratch::default());
     static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
@@ -336,6 +571,10 @@ pub struct CacheCounters {
     pub cache_hits: u64,
     pub cache_misses: u64,
     pub bytes_decompressed: u64,
+    /// Seconds spent in [`RBrick::decode`] (read, zstd, values, codes,
+    /// planes), summed over threads; includes a decode lost to another
+    /// thread's race for the same brick.
+    pub decode_seconds: f64,
 }
 
 impl CacheCounters {
@@ -345,6 +584,7 @@ impl CacheCounters {
         self.cache_hits += o.cache_hits;
         self.cache_misses += o.cache_misses;
         self.bytes_decompressed += o.bytes_decompressed;
+        self.decode_seconds += o.decode_seconds;
     }
 }
 
@@ -430,6 +670,9 @@ pub struct Planes {
     /// Octree levels inside each brick and, for power-of-two brick sizes,
     /// above the bricks from the index (section 5.1).
     pub octree: bool,
+    /// The largest vertex value per block of [`BLOCK`]^3 cells
+    /// ([`RBrick::block_max`]), for bricks with values.
+    pub block_max: bool,
 }
 
 impl Planes {
@@ -438,6 +681,7 @@ impl Planes {
         octants: false,
         dda: false,
         octree: false,
+        block_max: false,
     };
 
     /// Every plane the file has; no octree.
@@ -445,6 +689,7 @@ impl Planes {
         octants: true,
         dda: true,
         octree: false,
+        block_max: false,
     };
 }
 
@@ -549,7 +794,10 @@ impl<'v> BrickCache<'v> {
             c.bricks_skipped += 1;
             RBrick::uniform(self.vol.header(), id, e.uniform_code)
         } else {
-            let (b, raw) = RBrick::decode(self.vol, id, self.planes)?;
+            let t = std::time::Instant::now();
+            let r = RBrick::decode(self.vol, id, self.planes);
+            c.decode_seconds += t.elapsed().as_secs_f64();
+            let (b, raw) = r?;
             c.bytes_decompressed += raw;
             b
         };
@@ -773,14 +1021,157 @@ static EMPTY: RBrick = RBrick {
     levels: Vec::new(),
     bytes: 0,
     dda: [Vec::new(), Vec::new()],
+    block_max: Vec::new(),
 };
 
 #[cfg(test)]
 mod tests {
-    use super::Lru;
+    use super::{Codes, Lru, Planes, RBrick};
+    use crate::classify::Classification;
+    use crate::format::word::Word;
+    use crate::format::{CodeEncoding, Header};
+    use crate::input::{Dtype, Rescale};
     use proptest::prelude::*;
 
+    /// A one-brick file's header: `dims` samples, words of `storage`.
+    fn header(
+        storage: Dtype,
+        codes: CodeEncoding,
+        rescale: Rescale,
+        iso: f64,
+        dims: [u64; 3],
+    ) -> Header {
+        let axis = |n: u64| crate::grid::Axis::uniform(0.0, 1.0, n as usize).expect("axis");
+        Header {
+            format_version: 1,
+            dims,
+            axes: [axis(dims[0]), axis(dims[1]), axis(dims[2])],
+            dtype: storage,
+            storage,
+            rescale,
+            classification: Classification::Iso { iso },
+            codes,
+            brick_size: 32,
+            bricks: [1, 1, 1],
+            aniso_block: None,
+            dda: false,
+            gradient_halo: false,
+            zstd_level: 3,
+            source: String::new(),
+            notes: Vec::new(),
+            summary: Default::default(),
+        }
+    }
+
+    /// `n` words of type `W` from `pick`: 0..3 a code word (code from the
+    /// low byte), 4 a special value (for floats NaN, +-inf, a foreign
+    /// NaN; for integers the type's ends), else the raw bits.
+    fn words<W: Word>(enc: &CodeEncoding, max: u32, pick: &[(u8, u64)], n: usize) -> Vec<u8> {
+        let size = std::mem::size_of::<W>();
+        let mut out = Vec::with_capacity(n * size);
+        for &(k, bits) in pick.iter().cycle().take(n) {
+            let w: W = match k % 8 {
+                0..=2 => W::code(enc, (bits % (max as u64 + 1)) as u32),
+                3 => W::from_raw(
+                    [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0][bits as usize % 5],
+                ),
+                _ => bytemuck::pod_read_unaligned(&bits.to_le_bytes()[..size]),
+            };
+            out.extend_from_slice(bytemuck::bytes_of(&w));
+        }
+        out
+    }
+
     proptest! {
+        /// The fast decode equals the reference (decode_words + the
+        /// per-cell rule) on random bricks of every storage type: codes,
+        /// values bit for bit (NaN included), with and without the
+        /// no-1-cell flag, aligned and unaligned payloads. (Checked to
+        /// fail with the class rule mutated.)
+        #[test]
+        fn fast_decode_equals_reference(
+            ty in 0usize..9,
+            samples in proptest::array::uniform3(2u64..8),
+            pick in proptest::collection::vec((any::<u8>(), any::<u64>()), 1..400),
+            base_pick in any::<u64>(),
+            max in 0u32..=254,
+            slope in prop_oneof![Just(1.0), Just(-1.0), Just(0.5), Just(1e30), -4.0f64..4.0],
+            intercept in prop_oneof![Just(0.0), Just(-1024.0), -1e3f64..1e3],
+            iso_pick in 0usize..400,
+            iso_off in prop_oneof![Just(0.0), Just(1e-9), Just(-1e-9), -10.0f64..10.0],
+            no_object in any::<bool>(),
+            offset in 0usize..2,
+        ) {
+            let storage = [Dtype::U8, Dtype::I8, Dtype::U16, Dtype::I16, Dtype::U32,
+                Dtype::I32, Dtype::I64, Dtype::F32, Dtype::F64][ty];
+            let enc = if storage.is_float() {
+                CodeEncoding::NanPayload { max }
+            } else {
+                let (lo, hi) = storage.int_range();
+                let span = (hi as i128 - lo as i128 - max as i128).max(1);
+                let base = (lo as i128 + (base_pick as i128 % span)) as i64;
+                CodeEncoding::IntRange { base, max }
+            };
+            let n = samples.iter().product::<u64>() as usize;
+            let payload = crate::with_word!(storage, W => words::<W>(&enc, max, &pick, n));
+            let rescale = Rescale { slope, intercept };
+            // The iso value near a sample's rescaled value, to hit ties.
+            let probe = header(storage, enc, rescale, 0.0, samples);
+            let (mut vals, mut codes) = (Vec::new(), Vec::new());
+            crate::format::brick::decode_words(&probe, &payload, n, crate::format::brick::Values::Rescaled, &mut vals, &mut codes);
+            let v = vals[iso_pick % n];
+            let iso = if v.is_finite() { v + iso_off } else { iso_off };
+            let h = header(storage, enc, rescale, iso, samples);
+            let mut buf = vec![0u8; offset];
+            buf.extend_from_slice(&payload);
+            let raw = &buf[offset..];
+            let fast = RBrick::from_payload(&h, 0, no_object, raw, Planes::NONE);
+            let slow = RBrick::from_payload_reference(&h, 0, no_object, raw, Planes::NONE);
+            let plane = |b: &RBrick| match &b.codes {
+                Codes::Plane(p) => p.clone(),
+                Codes::Uniform(c) => vec![*c],
+            };
+            prop_assert_eq!(plane(&fast), plane(&slow));
+            let bits = |b: &RBrick| b.values.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+            prop_assert_eq!(bits(&fast), bits(&slow));
+            prop_assert_eq!(fast.bytes, slow.bytes);
+        }
+    }
+
+    proptest! {
+        /// Against the definition: each cell's 8 vertices, NaN ignored,
+        /// folded into its block's maximum.
+        #[test]
+        fn block_maxima_bound_each_cells_vertices(
+            cells in proptest::array::uniform3(1u32..11),
+            seed in proptest::collection::vec(prop_oneof![
+                3 => -1e3f32..1e3,
+                1 => Just(f32::NAN),
+                1 => Just(f32::INFINITY),
+                1 => Just(f32::NEG_INFINITY),
+            ], 1331),
+        ) {
+            let [sx, sy, sz] = cells.map(|c| c as usize + 1);
+            let values: Vec<f32> = (0..sx * sy * sz).map(|i| seed[i % seed.len()]).collect();
+            let got = super::block_maxima(&values, cells);
+            let nb = cells.map(|c| c.div_ceil(super::BLOCK) as usize);
+            let mut want = vec![f32::NEG_INFINITY; nb[0] * nb[1] * nb[2]];
+            for z in 0..sz - 1 {
+                for y in 0..sy - 1 {
+                    for x in 0..sx - 1 {
+                        let b = ((z / 4) * nb[1] + y / 4) * nb[0] + x / 4;
+                        for d in 0..8 {
+                            let v = values[((z + d / 4) * sy + y + d / 2 % 2) * sx + x + d % 2];
+                            if v > want[b] {
+                                want[b] = v;
+                            }
+                        }
+                    }
+                }
+            }
+            prop_assert_eq!(got, want);
+        }
+
         /// Against a model that keeps (key, bytes) in recency order and
         /// evicts from the front: same contents after every operation,
         /// never above the budget.

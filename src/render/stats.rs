@@ -32,6 +32,10 @@ pub struct Stats {
     pub peak_cache_bytes: u64,
     pub bricks_total: u64,
     pub seconds_total: f64,
+    /// Seconds spent decoding bricks (read, zstd, values, codes, planes),
+    /// summed over threads: can exceed `seconds_total` with several.
+    #[serde(default)]
+    pub seconds_decode: f64,
     /// The traversal's stable name ([`Method::name`](super::traverse::Method::name):
     /// `cd`, `cd min_leap=3`, `fvt`, `dda-chamfer no_switch`, ...; the
     /// template renderer prefixes `template `).
@@ -70,6 +74,7 @@ impl Stats {
             peak_cache_bytes: cache.peak_bytes() as u64,
             bricks_total: cache.volume().header().brick_count(),
             seconds_total: t0.elapsed().as_secs_f64(),
+            seconds_decode: cc.decode_seconds,
             traversal: opts.method.name(),
             mode: opts.mode.name().into(),
             width: 0,
@@ -93,5 +98,6 @@ impl Stats {
         self.bytes_decompressed += o.bytes_decompressed;
         self.peak_cache_bytes = self.peak_cache_bytes.max(o.peak_cache_bytes);
         self.seconds_total += o.seconds_total;
+        self.seconds_decode += o.seconds_decode;
     }
 }
