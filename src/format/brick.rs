@@ -296,6 +296,31 @@ impl SampleTable {
     }
 }
 
+impl SampleTable {
+    /// The code of each cell's minimum corner word (0 for a value word),
+    /// cells x fastest, appended to `plane`: all a brick without 1-cells
+    /// needs (its cells are coded at their minimum corner or have code 0).
+    /// `samples` per axis; only the corner words are read.
+    pub fn corner_codes(&self, raw: &[u8], samples: [usize; 3], plane: &mut Vec<u8>) {
+        let [sx, sy, sz] = samples;
+        let size = if self.values.len() == 256 { 1 } else { 2 };
+        for z in 0..sz - 1 {
+            for y in 0..sy - 1 {
+                let row = &raw[(z * sy + y) * sx * size..((z * sy + y) * sx + sx - 1) * size];
+                if size == 1 {
+                    plane.extend(row.iter().map(|&b| self.kind_code[b as usize] as u8));
+                } else {
+                    plane.extend(
+                        row.chunks_exact(2).map(|b| {
+                            self.kind_code[u16::from_ne_bytes([b[0], b[1]]) as usize] as u8
+                        }),
+                    );
+                }
+            }
+        }
+    }
+}
+
 /// The octant codes of brick `coords` (anisotropic files, section 4.2.1):
 /// per block of [`crate::dt::ANISO_BLOCK`]^3 cells, x fastest, the 8
 /// codes, stored after the words as 8 planes of one byte per block.

@@ -202,9 +202,11 @@ impl RBrick {
     /// code at its minimum corner, unless the OR of its 8 vertices' bits
     /// is exactly "`>= iso`" (no code, some vertex at or above the iso
     /// value: a 1-cell). The OR is taken separably (x, then y, then z)
-    /// over whole rows. A brick the index marks as holding no 1-cell needs
-    /// only the corner codes and no values. Transfer functions take the
-    /// reference path.
+    /// over whole rows. 8- and 16-bit words go through a per-thread
+    /// [`SampleTable`]. A brick the index marks as holding no 1-cell needs
+    /// only the corner codes and no values (through the table, only the
+    /// corner words are read). Transfer functions take the reference
+    /// path.
     ///
     /// [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
     pub fn from_payload(
@@ -233,6 +235,13 @@ impl RBrick {
                 or_xy,
                 table,
             } = f;
+            if table.as_ref().is_none_or(|t| !t.fits(h, Some(iso))) {
+                *table = SampleTable::new(h, Some(iso), to_f32);
+            }
+            if let (true, Some(t)) = (no_object, &table) {
+                t.corner_codes(raw, [sx, sy, sz], &mut plane);
+                return;
+            }
             if no_object {
                 decode_samples(h, raw, n, None, kinds, codes, None::<(_, fn(f64) -> f32)>);
                 for z in 0..cz {
@@ -242,11 +251,6 @@ impl RBrick {
                     }
                 }
                 return;
-            }
-            // 8- and 16-bit words through a per-thread table of every
-            // word (built once per file and thread), others word by word.
-            if table.as_ref().is_none_or(|t| !t.fits(h, Some(iso))) {
-                *table = SampleTable::new(h, Some(iso), to_f32);
             }
             match table {
                 Some(t) => t.decode(raw, n, kinds, codes, &mut b.values),
