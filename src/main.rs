@@ -153,7 +153,8 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 println!("wrote {}", f.display());
             }
             println!(
-                "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read ({} reads), {:.2} s",
+                "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read ({} reads), {:.2} s \
+                 (thread seconds: decode {:.2}, traverse {:.2}, sample {:.2})",
                 stats.rays,
                 stats.steps,
                 stats.steps as f64 / stats.rays.max(1) as f64,
@@ -163,7 +164,10 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 stats.bricks_distinct,
                 stats.bricks_total,
                 stats.bricks_read,
-                stats.seconds_total
+                stats.seconds_total,
+                stats.seconds_decode,
+                stats.seconds_traverse,
+                stats.seconds_sample,
             );
         }
         Command::Demo(a) => demo::run(&a.dir, progress)?,

@@ -26,6 +26,7 @@
 
 pub mod cache;
 pub mod camera;
+mod clock;
 mod error;
 pub mod gradient;
 mod integrate;

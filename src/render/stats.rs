@@ -36,6 +36,22 @@ pub struct Stats {
     /// summed over threads: can exceed `seconds_total` with several.
     #[serde(default)]
     pub seconds_decode: f64,
+    /// The tiles' time summed over threads (what `seconds_decode`,
+    /// `seconds_traverse` and `seconds_sample` split; `seconds_total`
+    /// also holds set-up and colouring, and is wall time).
+    #[serde(default)]
+    pub seconds_tiles: f64,
+    /// The traversal's share of `seconds_tiles` without decode, summed over
+    /// threads: cells found, leaps taken. Estimated from one ray in 8
+    /// (render/clock.rs); 0 for the template renderer.
+    #[serde(default)]
+    pub seconds_traverse: f64,
+    /// The sampling and shading share of `seconds_tiles` without decode,
+    /// summed over threads: hit tests, normals, light, MIP maxima, the
+    /// composite's samples along runs of 1-cells. Estimated like
+    /// `seconds_traverse`.
+    #[serde(default)]
+    pub seconds_sample: f64,
     /// The traversal's stable name ([`Method::name`](super::traverse::Method::name):
     /// `cd`, `cd min_leap=3`, `fvt`, `dda-chamfer no_switch`, ...; the
     /// template renderer prefixes `template `).
@@ -75,6 +91,9 @@ impl Stats {
             bricks_total: cache.volume().header().brick_count(),
             seconds_total: t0.elapsed().as_secs_f64(),
             seconds_decode: cc.decode_seconds,
+            seconds_tiles: 0.0,
+            seconds_traverse: 0.0,
+            seconds_sample: 0.0,
             traversal: opts.method.name(),
             mode: opts.mode.name().into(),
             width: 0,
@@ -99,5 +118,8 @@ impl Stats {
         self.peak_cache_bytes = self.peak_cache_bytes.max(o.peak_cache_bytes);
         self.seconds_total += o.seconds_total;
         self.seconds_decode += o.seconds_decode;
+        self.seconds_tiles += o.seconds_tiles;
+        self.seconds_traverse += o.seconds_traverse;
+        self.seconds_sample += o.seconds_sample;
     }
 }

@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 use super::cache::{Accessor, BrickCache, CacheCounters};
 use super::camera::Camera;
+use super::clock::{self, Clock, TileTime};
 use super::error::RenderError;
 use super::integrate::{pixel, Ctx, Px};
 use super::options::{check_render, Precision, RenderOptions};
@@ -91,6 +92,7 @@ pub(crate) fn render_shard(
     let mut hits = 0u64;
     let mut rays = 0u64;
     let mut tiles = Vec::with_capacity(results.len());
+    let mut times = Vec::with_capacity(results.len());
     for r in results {
         if let Some(e) = r.error {
             return Err(e.into());
@@ -99,6 +101,7 @@ pub(crate) fn render_shard(
         cc.add(&r.cache);
         hits += r.hits;
         rays += r.pixels.len() as u64;
+        times.push(r.time);
         tiles.push(TilePx {
             x0: r.x0,
             y0: r.y0,
@@ -108,6 +111,11 @@ pub(crate) fn render_shard(
     }
     let mut stats = Stats::counted(rays, hits, &steps, &cc, cache, opts, t0);
     (stats.width, stats.height) = (w, hgt);
+    (
+        stats.seconds_tiles,
+        stats.seconds_traverse,
+        stats.seconds_sample,
+    ) = clock::split(&times, cc.decode_seconds);
     Ok((tiles, stats))
 }
 
@@ -274,6 +282,7 @@ struct TileOut {
     steps: StepCounts,
     cache: CacheCounters,
     hits: u64,
+    time: TileTime,
     error: Option<FormatError>,
 }
 
@@ -288,16 +297,20 @@ fn render_tile<T: Real>(ctx: &Ctx<T>, cache: &BrickCache, x0: u32, y0: u32, ts: 
     let mut pixels = Vec::with_capacity((w * hh) as usize);
     let mut steps = StepCounts::default();
     let mut hits = 0;
+    let mut clock = Clock::start();
     for y in y0..y0 + hh {
         for x in x0..x0 + w {
             let ray = cam.ray(x, y);
-            let (p, s) = pixel(ctx, &ray, &mut acc);
+            clock.begin_ray(pixels.len() as u32, &acc);
+            let (p, s) = pixel(ctx, &ray, &mut acc, &mut clock);
+            clock.end_ray(&acc);
             steps.add(&s);
             hits += p.hit as u64;
             pixels.push(p);
         }
     }
     TileOut {
+        time: clock.stop(),
         x0,
         y0,
         w,

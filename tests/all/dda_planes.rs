@@ -14,7 +14,7 @@ use cdvol::progress::NoProgress;
 use cdvol::render::cache::{Accessor, BrickCache};
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::{CodeSource, DistKind, Method};
-use cdvol::render::{render, Mode, Precision, RenderOptions, EARLY_STOP};
+use cdvol::render::{render, Mode, RenderOptions};
 use proptest::prelude::*;
 
 const KINDS: [DistKind; 3] = [DistKind::Cityblock, DistKind::Chessboard, DistKind::Chamfer];
@@ -237,18 +237,10 @@ fn planes_through_the_cache_with_uniform_bricks() {
                 },
             ] {
                 let o = RenderOptions {
-                    mode,
-                    method,
                     tile: 8,
                     cache_bytes: 1 << 20,
                     cd_lazy_min: 4,
-                    precision: Default::default(),
-                    hit_params: Default::default(),
-                    sampling: Precision::F32,
-                    early_stop: EARLY_STOP,
-                    look: Default::default(),
-                    window: Default::default(),
-                    normals: Default::default(),
+                    ..RenderOptions::new(mode, method)
                 };
                 let (a, sa) = render(&dda, &cam, &o, &NoProgress).unwrap();
                 let (b, sb) = render(&plain, &cam, &o, &NoProgress).unwrap();

@@ -12,7 +12,7 @@ use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::Method;
-use cdvol::render::{render, render_in, Frame, Mode, Precision, RenderOptions, Stats, EARLY_STOP};
+use cdvol::render::{render, render_in, Frame, Mode, RenderOptions, Stats};
 use cdvol::tools::phantom;
 
 fn run(vol: &PackedVolume, c: &Camera, mode: &Mode, method: Method) -> (Frame, Stats) {
@@ -239,18 +239,10 @@ fn same_image_whatever_cache_threads_and_tiles() {
         shadows: true,
     };
     let big = RenderOptions {
-        mode: mode.clone(),
-        method: Method::Cd { min_leap: 1 },
         tile: 32,
         cache_bytes: 512 << 20,
         cd_lazy_min: 16,
-        precision: Default::default(),
-        hit_params: Default::default(),
-        sampling: Precision::F32,
-        early_stop: EARLY_STOP,
-        look: Default::default(),
-        window: Default::default(),
-        normals: Default::default(),
+        ..RenderOptions::new(mode.clone(), Method::Cd { min_leap: 1 })
     };
     let (want, ws) = render(&vol, &c, &big, &NoProgress).unwrap();
     // A budget of about two bricks.
@@ -316,18 +308,10 @@ fn corrupt_brick_is_an_error_not_pixels() {
     let vol = PackedVolume::open(&path).unwrap();
     let c = orbit(&vol, [0.0, 0.0], None, 32, 32);
     let o = RenderOptions {
-        mode: Mode::Mip,
-        method: Method::Cd { min_leap: 1 },
         tile: 16,
         cache_bytes: 1 << 20,
         cd_lazy_min: 16,
-        precision: Default::default(),
-        hit_params: Default::default(),
-        sampling: Precision::F32,
-        early_stop: EARLY_STOP,
-        look: Default::default(),
-        window: Default::default(),
-        normals: Default::default(),
+        ..RenderOptions::new(Mode::Mip, Method::Cd { min_leap: 1 })
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(
@@ -344,18 +328,10 @@ fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
     let tf = white_tf(&[(-200.0, 0.0), (0.0, 0.1)]);
     let c = orbit(&vol, [0.0, 0.0], None, 16, 16);
     let o = RenderOptions {
-        mode: Mode::Composite { tf, step_mm: 1.0 },
-        method: Method::Fvt,
         tile: 16,
         cache_bytes: 1 << 20,
         cd_lazy_min: 16,
-        precision: Default::default(),
-        hit_params: Default::default(),
-        sampling: Precision::F32,
-        early_stop: EARLY_STOP,
-        look: Default::default(),
-        window: Default::default(),
-        normals: Default::default(),
+        ..RenderOptions::new(Mode::Composite { tf, step_mm: 1.0 }, Method::Fvt)
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
     assert!(
@@ -403,4 +379,42 @@ fn nan_samples_render() {
         Method::Cd { min_leap: 1 },
     );
     assert!(s.hits > 0 && f.rgb.iter().any(|&x| x > 0));
+}
+
+/// `--stats` splits the tiles' time into decode, traversal and sampling
+/// (render/clock.rs): the three add up to the tiles' time, and a scene with
+/// hits spends time in each.
+#[test]
+fn stats_split_the_tiles_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let ct = common::real_ct();
+    let vol = packed(&ct, &dir.path().join("ct.cdv"), 300.0);
+    let c = orbit(&vol, [30.0, 20.0], None, 64, 64);
+    let modes = [
+        Mode::Surface {
+            hit: HitMethod::Int,
+            shadows: true,
+        },
+        Mode::Depth {
+            hit: HitMethod::Newton,
+        },
+        Mode::Mip,
+        Mode::Composite {
+            tf: white_tf(&[(300.0, 0.0), (1500.0, 0.6)]),
+            step_mm: 0.5,
+        },
+    ];
+    for mode in modes {
+        let (_, s) = run(&vol, &c, &mode, Method::Cd { min_leap: 1 });
+        let sum = s.seconds_decode + s.seconds_traverse + s.seconds_sample;
+        assert!(
+            (sum - s.seconds_tiles).abs() <= 1e-9 * s.seconds_tiles.max(1.0),
+            "{mode:?}: decode + traverse + sample = {sum} != tiles {}",
+            s.seconds_tiles
+        );
+        assert!(
+            s.seconds_decode > 0.0 && s.seconds_traverse > 0.0 && s.seconds_sample > 0.0,
+            "{mode:?}: {s:?}"
+        );
+    }
 }

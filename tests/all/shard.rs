@@ -16,10 +16,7 @@ use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::shard::{assemble, Part};
 use cdvol::render::traverse::Method;
-use cdvol::render::{
-    render, render_part, Frame, Mode, Precision, RenderOptions, Shard, ShardLayout, Stats,
-    EARLY_STOP,
-};
+use cdvol::render::{render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats};
 use cdvol::tools::phantom;
 use proptest::prelude::*;
 
@@ -45,18 +42,10 @@ fn phantom(dir: &Path, name: &str) -> (PackedVolume, f64) {
 
 fn options(mode: Mode, tile: u32) -> RenderOptions {
     RenderOptions {
-        mode,
-        method: Method::Cd { min_leap: 1 },
         tile,
         cache_bytes: 16 << 20,
         cd_lazy_min: 4,
-        precision: Default::default(),
-        hit_params: Default::default(),
-        sampling: Precision::F32,
-        early_stop: EARLY_STOP,
-        look: Default::default(),
-        window: Default::default(),
-        normals: Default::default(),
+        ..RenderOptions::new(mode, Method::Cd { min_leap: 1 })
     }
 }
 

@@ -14,6 +14,7 @@ use glam::Vec3;
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::clock::Clock;
 use crate::render::gradient::{vertex_gradients, Normals, VertexGradients};
 use crate::render::lut::TfLut;
 use crate::render::options::CompositeLook;
@@ -26,6 +27,7 @@ pub(super) fn composite<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     acc: &mut Accessor,
+    clock: &mut Clock,
     lut: &TfLut,
     step: f64,
     px: &mut Px,
@@ -42,7 +44,7 @@ pub(super) fn composite<T: Real>(
         col: [0.0; 3],
         alpha: 0.0,
     };
-    let counts = march(ctx, ray, acc, step, &mut s);
+    let counts = march(ctx, ray, acc, clock, step, &mut s);
     px.hit = s.alpha > 0.0;
     px.rgb = s.col.map(|x| x as f32);
     counts
@@ -59,6 +61,7 @@ pub(super) fn composite32<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     acc: &mut Accessor,
+    clock: &mut Clock,
     lut: &TfLut,
     step: f64,
     px: &mut Px,
@@ -79,7 +82,7 @@ pub(super) fn composite32<T: Real>(
         col: Vec3::ZERO,
         alpha: 0.0,
     };
-    let counts = march(ctx, ray, acc, step, &mut s);
+    let counts = march(ctx, ray, acc, clock, step, &mut s);
     px.hit = s.alpha > 0.0;
     px.rgb = s.col.to_array();
     counts
@@ -121,6 +124,7 @@ fn march<T: Real, P: Sampler>(
     ctx: &Ctx<T>,
     ray: &Ray,
     acc: &mut Accessor,
+    clock: &mut Clock,
     step: f64,
     s: &mut P,
 ) -> StepCounts {
@@ -152,48 +156,55 @@ fn march<T: Real, P: Sampler>(
         let Some(v) = first else {
             return counts;
         };
-        let mut cell = v.cell;
-        let mut tn: [f64; 3] = std::array::from_fn(|a| ahead(a, cell[a]));
-        let mut k = first_sample(v.t_enter, step, inv_step).max(k_next);
-        let mut entered = false;
-        loop {
-            let t = k * step;
-            for a in 0..3 {
-                while tn[a] <= t {
-                    if ray.dir[a] > 0.0 {
-                        cell[a] += 1;
-                        if cell[a] >= n[a] {
-                            return counts;
+        // The run marcher is the sampling section (render/clock.rs).
+        clock.enter(acc);
+        let resume = 'run: {
+            let mut cell = v.cell;
+            let mut tn: [f64; 3] = std::array::from_fn(|a| ahead(a, cell[a]));
+            let mut k = first_sample(v.t_enter, step, inv_step).max(k_next);
+            let mut entered = false;
+            loop {
+                let t = k * step;
+                for a in 0..3 {
+                    while tn[a] <= t {
+                        if ray.dir[a] > 0.0 {
+                            cell[a] += 1;
+                            if cell[a] >= n[a] {
+                                break 'run None;
+                            }
+                        } else {
+                            if cell[a] == 0 {
+                                break 'run None;
+                            }
+                            cell[a] -= 1;
                         }
-                    } else {
-                        if cell[a] == 0 {
-                            return counts;
-                        }
-                        cell[a] -= 1;
+                        tn[a] = ahead(a, cell[a]);
+                        counts.steps += 1;
+                        counts.cell_steps += 1;
+                        entered = false;
                     }
-                    tn[a] = ahead(a, cell[a]);
-                    counts.steps += 1;
-                    counts.cell_steps += 1;
-                    entered = false;
+                }
+                k += 1.0;
+                if !entered {
+                    let code = acc.code(cell, None);
+                    if code != OBJECT {
+                        if code >= RESUME_CODE {
+                            break 'run Some((t, k));
+                        }
+                        continue;
+                    }
+                    s.enter(acc, cell, t);
+                    entered = true;
+                }
+                if s.sample(t) == Flow::Stop {
+                    break 'run None;
                 }
             }
-            k += 1.0;
-            if !entered {
-                let code = acc.code(cell, None);
-                if code != OBJECT {
-                    if code >= RESUME_CODE {
-                        t_min = t;
-                        k_next = k;
-                        break;
-                    }
-                    continue;
-                }
-                s.enter(acc, cell, t);
-                entered = true;
-            }
-            if s.sample(t) == Flow::Stop {
-                return counts;
-            }
+        };
+        clock.leave(acc);
+        match resume {
+            Some((t, k)) => (t_min, k_next) = (t, k),
+            None => return counts,
         }
     }
 }

@@ -5,6 +5,7 @@
 use super::surface::first_hit;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::clock::Clock;
 use crate::render::shade::HitMethod;
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
 
@@ -13,12 +14,13 @@ pub(super) fn cost<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     acc: &mut Accessor,
+    clock: &mut Clock,
     px: &mut Px,
 ) -> StepCounts {
     if ctx.iso.is_nan() {
         trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |_, _| Flow::Stop)
     } else {
-        let (found, counts) = first_hit(ctx, ray, 0.0, HitMethod::Int, acc);
+        let (found, counts) = first_hit(ctx, ray, 0.0, HitMethod::Int, acc, clock);
         px.hit = found.is_some();
         counts
     }

@@ -4,6 +4,7 @@
 use super::surface::first_hit;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::clock::Clock;
 use crate::render::shade::HitMethod;
 use crate::render::traverse::{Ray, Real, StepCounts};
 
@@ -12,10 +13,11 @@ pub(super) fn depth<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     acc: &mut Accessor,
+    clock: &mut Clock,
     hit: HitMethod,
     px: &mut Px,
 ) -> StepCounts {
-    let (found, counts) = first_hit(ctx, ray, 0.0, hit, acc);
+    let (found, counts) = first_hit(ctx, ray, 0.0, hit, acc, clock);
     if let Some((t, _)) = found {
         px.hit = true;
         px.depth = t as f32;

@@ -3,26 +3,24 @@
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::clock::Clock;
 use crate::render::shade::{at, CellEval};
-use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
+use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, Visit};
 
 /// Writes the largest value along `ray` into `px.rgb` (uncoloured).
-pub(super) fn mip<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor, px: &mut Px) -> StepCounts {
+pub(super) fn mip<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    acc: &mut Accessor,
+    clock: &mut Clock,
+    px: &mut Px,
+) -> StepCounts {
     let coords = ctx.coords;
     let mut best = f64::NEG_INFINITY;
     let counts = trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |v, acc| {
-        let f = acc.vertices(v.cell);
-        // The interpolant never exceeds the largest vertex value (NaN
-        // vertices give NaN, which max ignores): a cell whose vertices are
-        // all <= best cannot raise it.
-        let top = f.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x));
-        if top as f64 <= best {
-            return Flow::Continue;
-        }
-        let c = CellEval::new(coords, v.cell, f);
-        best = best
-            .max(c.value(at(ray, v.t_enter)))
-            .max(c.value(at(ray, v.t_exit)));
+        clock.enter(acc);
+        raise(&mut best, coords, ray, v, acc);
+        clock.leave(acc);
         Flow::Continue
     });
     if best > f64::NEG_INFINITY {
@@ -30,4 +28,21 @@ pub(super) fn mip<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor, px: &mut
         px.rgb = [best as f32; 3];
     }
     counts
+}
+
+/// Raises `best` to the largest value of the interpolant of `v`'s cell
+/// where the ray enters and leaves it.
+fn raise(best: &mut f64, coords: [&[f64]; 3], ray: &Ray, v: &Visit, acc: &mut Accessor) {
+    let f = acc.vertices(v.cell);
+    // The interpolant never exceeds the largest vertex value (NaN
+    // vertices give NaN, which max ignores): a cell whose vertices are
+    // all <= best cannot raise it.
+    let top = f.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x));
+    if top as f64 <= *best {
+        return;
+    }
+    let c = CellEval::new(coords, v.cell, f);
+    *best = best
+        .max(c.value(at(ray, v.t_enter)))
+        .max(c.value(at(ray, v.t_exit)));
 }

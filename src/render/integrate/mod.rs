@@ -18,6 +18,7 @@ mod surface;
 
 use super::cache::Accessor;
 use super::camera::Camera;
+use super::clock::Clock;
 use super::lut::TfLut;
 use super::options::{Mode, Precision, RenderOptions};
 use super::traverse::{Ray, Real, StepCounts, TGrid};
@@ -80,21 +81,32 @@ impl<'a, T: Real> Ctx<'a, T> {
 }
 
 /// The pixel of `ray`: the mode's integrator, then its step count.
-pub(crate) fn pixel<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (Px, StepCounts) {
+pub(crate) fn pixel<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    acc: &mut Accessor,
+    clock: &mut Clock,
+) -> (Px, StepCounts) {
     let mut px = Px {
         depth: f32::NAN,
         ..Px::default()
     };
     let counts = match &ctx.opts.mode {
-        Mode::Surface { hit, shadows } => surface::surface(ctx, ray, acc, *hit, *shadows, &mut px),
-        Mode::Depth { hit } => depth::depth(ctx, ray, acc, *hit, &mut px),
-        Mode::Mip => mip::mip(ctx, ray, acc, &mut px),
-        Mode::Cost => cost::cost(ctx, ray, acc, &mut px),
+        Mode::Surface { hit, shadows } => {
+            surface::surface(ctx, ray, acc, clock, *hit, *shadows, &mut px)
+        }
+        Mode::Depth { hit } => depth::depth(ctx, ray, acc, clock, *hit, &mut px),
+        Mode::Mip => mip::mip(ctx, ray, acc, clock, &mut px),
+        Mode::Cost => cost::cost(ctx, ray, acc, clock, &mut px),
         Mode::Composite { step_mm, .. } => {
             let lut = ctx.lut.as_ref().expect("composite renders carry a table");
             match ctx.opts.sampling {
-                Precision::F32 => composite::composite32(ctx, ray, acc, lut, *step_mm, &mut px),
-                Precision::F64 => composite::composite(ctx, ray, acc, lut, *step_mm, &mut px),
+                Precision::F32 => {
+                    composite::composite32(ctx, ray, acc, clock, lut, *step_mm, &mut px)
+                }
+                Precision::F64 => {
+                    composite::composite(ctx, ray, acc, clock, lut, *step_mm, &mut px)
+                }
             }
         }
     };

@@ -10,6 +10,7 @@ use glam::DVec3;
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::clock::Clock;
 use crate::render::gradient::{smooth_gradient, Normals};
 use crate::render::shade::{at, find_hit_with, shade, CellEval, HitMethod};
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
@@ -21,8 +22,9 @@ pub(super) fn first_hit<T: Real>(
     t_min: f64,
     hit: HitMethod,
     acc: &mut Accessor,
+    clock: &mut Clock,
 ) -> (Option<(f64, CellEval)>, StepCounts) {
-    let (found, s) = first_hit_cell(ctx, ray, t_min, hit, acc);
+    let (found, s) = first_hit_cell(ctx, ray, t_min, hit, acc, clock);
     (found.map(|(t, c, _)| (t, c)), s)
 }
 
@@ -33,13 +35,17 @@ fn first_hit_cell<T: Real>(
     t_min: f64,
     hit: HitMethod,
     acc: &mut Accessor,
+    clock: &mut Clock,
 ) -> (Option<(f64, CellEval, [u32; 3])>, StepCounts) {
     let g = ctx.grid;
     let coords = ctx.coords;
     let mut found = None;
     let s = trace(g, ray, t_min, ctx.opts.method, acc, |v, acc| {
+        clock.enter(acc);
         let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
-        match find_hit_with(ray, v, &c, ctx.iso, hit, &ctx.opts.hit_params) {
+        let t_hit = find_hit_with(ray, v, &c, ctx.iso, hit, &ctx.opts.hit_params);
+        clock.leave(acc);
+        match t_hit {
             Some(t) => {
                 found = Some((t, c, v.cell));
                 Flow::Stop
@@ -56,15 +62,17 @@ pub(super) fn surface<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     acc: &mut Accessor,
+    clock: &mut Clock,
     hit: HitMethod,
     shadows: bool,
     px: &mut Px,
 ) -> StepCounts {
-    let (found, mut counts) = first_hit_cell(ctx, ray, 0.0, hit, acc);
+    let (found, mut counts) = first_hit_cell(ctx, ray, 0.0, hit, acc, clock);
     let Some((t, c, cell)) = found else {
         return counts;
     };
     px.hit = true;
+    clock.enter(acc);
     let p = at(ray, t);
     let grad = c.gradient(p);
     let normal = match ctx.opts.normals {
@@ -89,6 +97,7 @@ pub(super) fn surface<T: Real>(
     } else {
         to_eye
     };
+    clock.leave(acc);
     let mut lit = true;
     if shadows {
         // Shadow ray from just outside the surface, traced with the same
@@ -101,7 +110,7 @@ pub(super) fn surface<T: Real>(
             origin: p + sign * eps * out + eps * to_light,
             dir: to_light,
         };
-        let (sh, s2) = first_hit(ctx, &sray, 0.0, HitMethod::Int, acc);
+        let (sh, s2) = first_hit(ctx, &sray, 0.0, HitMethod::Int, acc, clock);
         counts.add(&s2);
         lit = sh.is_none();
     }

@@ -1,0 +1,195 @@
+//! Where a render's time goes: the split of the tiles' time into brick
+//! decoding, traversal and sampling/shading that `--stats` reports
+//! (`seconds_decode`, `seconds_traverse`, `seconds_sample`).
+//!
+//! Decoding is timed where it happens (the accessor, every brick). The
+//! other two interleave at the scale of a cell, where reading a clock costs
+//! as much as the work, so they are estimated: one ray in
+//! [`TIMED_EVERY`] is timed whole and in its sampling sections with the
+//! processor's tick counter; the sampled share of those rays' time (decode
+//! taken out of both, and the counter's own cost, calibrated per tile,
+//! taken out of every reading) splits the tiles' time without decode.
+//!
+//! A sampling section is what an integrator does with a cell the
+//! traversal reported: the hit test of surface, depth and cost mode
+//! (cell values, root finding), the shading after a hit (normals, light;
+//! a shadow ray's own traversal stays traversal), MIP's per-cell maximum,
+//! and the composite march along a run of 1-cells (samples, transfer
+//! function, shading, and the cell-by-cell advance between samples; the
+//! traversal's leaps between runs are traversal).
+
+use std::time::Instant;
+
+use super::cache::Accessor;
+
+/// One ray in this many is timed.
+pub const TIMED_EVERY: u32 = 8;
+
+/// The tick counter: the time-stamp counter on x86_64, nanoseconds since
+/// the first call elsewhere. Only ratios of ticks within one tile are used,
+/// and the tile converts them with its own rate.
+#[inline(always)]
+fn ticks() -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: `rdtsc` has no preconditions and exists on every x86_64.
+        unsafe { core::arch::x86_64::_rdtsc() }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        static EPOCH: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
+        EPOCH.get_or_init(Instant::now).elapsed().as_nanos() as u64
+    }
+}
+
+/// The split clock of one tile (one thread at a time).
+pub(crate) struct Clock {
+    /// Whether the current ray is timed.
+    timed: bool,
+    ray_start: u64,
+    ray_decode: f64,
+    section_start: Option<(u64, f64)>,
+    sections: u64,
+    /// Ticks of timed rays and of their sections; readings in them.
+    ray_ticks: u64,
+    sample_ticks: u64,
+    readings_ray: u64,
+    readings_sample: u64,
+    /// Decode seconds inside timed rays and inside their sections.
+    decode_ray: f64,
+    decode_sample: f64,
+    tile_start: (Instant, u64),
+}
+
+/// A tile's time: its whole time and its share per phase, in seconds.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct TileTime {
+    /// The tile's wall time (one thread's).
+    pub(crate) seconds: f64,
+    /// Timed rays: their time and their sampling sections' time, decode
+    /// and the clock's own readings taken out.
+    pub(crate) timed_ray: f64,
+    pub(crate) timed_sample: f64,
+}
+
+impl Clock {
+    /// A clock started now.
+    pub(crate) fn start() -> Clock {
+        Clock {
+            timed: false,
+            ray_start: 0,
+            ray_decode: 0.0,
+            section_start: None,
+            sections: 0,
+            ray_ticks: 0,
+            sample_ticks: 0,
+            readings_ray: 0,
+            readings_sample: 0,
+            decode_ray: 0.0,
+            decode_sample: 0.0,
+            tile_start: (Instant::now(), ticks()),
+        }
+    }
+
+    /// Ray `i` of the tile begins; it is timed when `i` is a multiple of
+    /// [`TIMED_EVERY`].
+    #[inline]
+    pub(crate) fn begin_ray(&mut self, i: u32, acc: &Accessor) {
+        self.timed = i.is_multiple_of(TIMED_EVERY);
+        if self.timed {
+            self.sections = 0;
+            self.ray_decode = acc.counters.decode_seconds;
+            self.ray_start = ticks();
+        }
+    }
+
+    /// The current ray ends.
+    #[inline]
+    pub(crate) fn end_ray(&mut self, acc: &Accessor) {
+        if self.timed {
+            self.ray_ticks += ticks().wrapping_sub(self.ray_start);
+            self.decode_ray += acc.counters.decode_seconds - self.ray_decode;
+            // A ray reads twice, a section twice more inside it.
+            self.readings_ray += 1 + 2 * self.sections;
+            self.readings_sample += self.sections;
+            self.timed = false;
+        }
+    }
+
+    /// A sampling section begins (sections do not nest).
+    #[inline]
+    pub(crate) fn enter(&mut self, acc: &Accessor) {
+        if self.timed {
+            debug_assert!(self.section_start.is_none(), "sections do not nest");
+            self.section_start = Some((ticks(), acc.counters.decode_seconds));
+        }
+    }
+
+    /// The current sampling section ends.
+    #[inline]
+    pub(crate) fn leave(&mut self, acc: &Accessor) {
+        if let Some((k0, d0)) = self.section_start.take() {
+            self.sample_ticks += ticks().wrapping_sub(k0);
+            self.decode_sample += acc.counters.decode_seconds - d0;
+            self.sections += 1;
+        }
+    }
+
+    /// The tile's time, split.
+    pub(crate) fn stop(self) -> TileTime {
+        let (t0, k0) = self.tile_start;
+        let seconds = t0.elapsed().as_secs_f64();
+        let dk = ticks().wrapping_sub(k0);
+        if dk == 0 || seconds <= 0.0 {
+            return TileTime {
+                seconds,
+                ..TileTime::default()
+            };
+        }
+        let per_tick = seconds / dk as f64;
+        let reading = reading_ticks();
+        let net = |t: u64, readings: u64, decode: f64| {
+            (t.saturating_sub(readings * reading) as f64 * per_tick - decode).max(0.0)
+        };
+        TileTime {
+            seconds,
+            timed_ray: net(self.ray_ticks, self.readings_ray, self.decode_ray),
+            timed_sample: net(self.sample_ticks, self.readings_sample, self.decode_sample),
+        }
+    }
+}
+
+/// The cost of one reading of [`ticks`], in ticks (the least of a few
+/// trials of 64 readings; measured once per process).
+fn reading_ticks() -> u64 {
+    static READING: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
+    *READING.get_or_init(|| {
+        (0..8)
+            .map(|_| {
+                let k0 = ticks();
+                let mut last = k0;
+                for _ in 0..64 {
+                    last = std::hint::black_box(ticks());
+                }
+                last.wrapping_sub(k0) / 64
+            })
+            .min()
+            .unwrap_or(0)
+    })
+}
+
+/// The tiles' time split into decode, traversal and sampling, summed over
+/// threads: `(tiles, traverse, sample)` seconds, given the tiles' decode
+/// seconds.
+pub(crate) fn split(times: &[TileTime], decode: f64) -> (f64, f64, f64) {
+    let tiles: f64 = times.iter().map(|t| t.seconds).sum();
+    let ray: f64 = times.iter().map(|t| t.timed_ray).sum();
+    let sample: f64 = times.iter().map(|t| t.timed_sample).sum();
+    let rest = (tiles - decode).max(0.0);
+    let share = if ray > 0.0 {
+        (sample / ray).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (tiles, rest * (1.0 - share), rest * share)
+}
