@@ -585,6 +585,12 @@ pub struct RenderArgs {
     /// cell's own interpolant gradient (cell; docs/TRADEOFFS.md, "Normals").
     #[arg(long, value_enum, default_value = "smooth")]
     pub normals: NormalsArg,
+    /// Iso value of the surface (surface, depth, cost and MIP modes),
+    /// when it is not the file's own: any value inside the file's
+    /// classification, at or above its iso value, renders exactly without
+    /// a new prep.
+    #[arg(long)]
+    pub iso: Option<f64>,
     /// Transfer function (JSON) for --mode composite.
     #[arg(long)]
     pub tf: Option<PathBuf>,
@@ -822,6 +828,7 @@ impl RenderArgs {
                     NormalsArg::Smooth => cdvol::render::Normals::Smooth,
                     NormalsArg::Cell => cdvol::render::Normals::Cell,
                 },
+                iso: self.iso,
             },
             template: self.traversal == TraversalArg::Template,
             output: self.output.clone(),

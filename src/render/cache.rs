@@ -339,6 +339,9 @@ impl RBrick {
     fn add_planes(&mut self, h: &crate::format::Header, id: u64, raw: &[u8], planes: Planes) {
         let coords = h.brick_coords(id);
         let b = self;
+        if let Some(iso) = planes.narrow {
+            super::scene::narrow(b, iso, h.gradient_halo);
+        }
         if planes.octants {
             if let Some(o) = octant_codes(h, coords, raw) {
                 b.octants = o.into_iter().map(|c| c.map(|x| x.min(254))).collect();
@@ -665,7 +668,7 @@ const ENTRY_BYTES: usize = 128;
 /// values. On read, a plane not built answers as if the file had none
 /// (the isotropic code, the chessboard bound, single-cell octree levels),
 /// which is always conservative.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Planes {
     /// The octant codes of anisotropic files (section 4.2.1).
     pub octants: bool,
@@ -677,6 +680,10 @@ pub struct Planes {
     /// The largest vertex value per block of [`BLOCK`]^3 cells
     /// ([`RBrick::block_max`]), for bricks with values.
     pub block_max: bool,
+    /// The scene's iso value when it is narrower than the file's
+    /// classification (`render --iso`): each brick is rewritten for it
+    /// ([`narrow`](super::scene::narrow)) before any other plane is built.
+    pub narrow: Option<f32>,
 }
 
 impl Planes {
@@ -686,6 +693,7 @@ impl Planes {
         dda: false,
         octree: false,
         block_max: false,
+        narrow: None,
     };
 
     /// Every plane the file has; no octree.
@@ -694,12 +702,13 @@ impl Planes {
         dda: true,
         octree: false,
         block_max: false,
+        narrow: None,
     };
 }
 
 /// What a traversal needs of the bricks, as plain data: the cache never
 /// sees the traversal method (the render maps a method to its policy).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BrickPolicy {
     pub planes: Planes,
     /// Whether a brick without 1-cells may stand in unread, as a uniform

@@ -116,6 +116,21 @@ pub fn smooth_gradient(acc: &mut Accessor, coords: [&[f64]; 3], cell: [u32; 3], 
     vertex_gradients(acc, coords, cell).at(p)
 }
 
+/// [`smooth_gradient`] in a scene narrower than the file's classification
+/// (`render --iso`; `narrow` is the scene's iso value, `None` for none):
+/// a sample that a file prepared for the scene would hold as a code is
+/// missing here too, so normals match that file's (module scene).
+#[inline]
+pub(crate) fn smooth_gradient_in(
+    acc: &mut Accessor,
+    coords: [&[f64]; 3],
+    cell: [u32; 3],
+    p: DVec3,
+    narrow: Option<f32>,
+) -> DVec3 {
+    vertex_gradients_in(acc, coords, cell, narrow).at(p)
+}
+
 /// The samples around a cell are held in a 4^3 block whose origin is the
 /// sample at offset (-1, -1, -1) from the cell's minimum corner, x
 /// fastest; of its 64 entries the vertex gradients read 32: the 8 vertices
@@ -154,6 +169,17 @@ pub fn vertex_gradients(
     acc: &mut Accessor,
     coords: [&[f64]; 3],
     cell: [u32; 3],
+) -> VertexGradients {
+    vertex_gradients_in(acc, coords, cell, None)
+}
+
+/// [`vertex_gradients`], in a scene narrower than the file's when
+/// `narrow` holds its iso value ([`smooth_gradient_in`]).
+pub(crate) fn vertex_gradients_in(
+    acc: &mut Accessor,
+    coords: [&[f64]; 3],
+    cell: [u32; 3],
+    narrow: Option<f32>,
 ) -> VertexGradients {
     let n: [usize; 3] = std::array::from_fn(|k| coords[k].len());
     let c: [usize; 3] = cell.map(|x| x as usize);
@@ -212,6 +238,22 @@ pub fn vertex_gradients(
         let sx = b.cells[0] as usize + 1;
         let sy = b.cells[1] as usize + 1;
         f[i] = b.values[(ls[2] * sy + ls[1]) * sx + ls[0]];
+    }
+    if let Some(iso) = narrow {
+        // Only a sample two past the cell can be a code in a file
+        // prepared for the scene and a value in this one: its cell is at
+        // chessboard distance 2 from this 1-cell (module scene). The
+        // bricks' narrowing already removed those inside a brick.
+        for i in CROSS {
+            let o = [i & 3, i >> 2 & 3, i >> 4];
+            if !(o.contains(&3) && f[i].is_finite()) {
+                continue;
+            }
+            let s: [usize; 3] = std::array::from_fn(|k| c[k] + o[k] - 1);
+            if super::scene::scene_code_at_least_1(acc, n, s, iso) {
+                f[i] = f32::NAN;
+            }
+        }
     }
     // Gaps around the cell per axis: h[0] before its minimum corner (NaN
     // at the border), h[1] the cell, h[2] after its maximum corner.

@@ -35,6 +35,7 @@ pub mod lut;
 mod options;
 mod output;
 pub mod policy;
+mod scene;
 pub mod shade;
 pub mod shard;
 mod stats;

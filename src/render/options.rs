@@ -80,6 +80,11 @@ pub struct RenderOptions {
     pub window: Window,
     /// How surface normals are estimated (smooth by default).
     pub normals: Normals,
+    /// The scene's iso value (`render --iso`) for surface, depth, cost and
+    /// MIP, when it is not the file's own: it must lie inside the file's
+    /// classification, the envelope ([`scene_iso`]); `None` renders the
+    /// file's iso value.
+    pub iso: Option<f64>,
 }
 
 /// Default of [`RenderOptions::early_stop`].
@@ -212,6 +217,7 @@ impl RenderOptions {
             look: CompositeLook::default(),
             window: Window::Auto,
             normals: Normals::default(),
+            iso: None,
         }
     }
 }
@@ -274,7 +280,8 @@ pub(crate) fn check_render(
     camera: &Camera,
     opts: &RenderOptions,
 ) -> Result<(), RenderError> {
-    check_mode(vol, &opts.mode)?;
+    check_mode(vol, &opts.mode, opts.iso)?;
+    check_scene_iso(vol, opts)?;
     if opts.tile == 0 {
         return Err(bad("tile", "0".into(), "at least 1".into()));
     }
@@ -331,15 +338,22 @@ pub(crate) fn check_render(
 
 /// Checks that the mode can be rendered exactly from this file's
 /// classification (never render silently wrong).
-pub(crate) fn check_mode(vol: &PackedVolume, mode: &Mode) -> Result<(), RenderError> {
+pub(crate) fn check_mode(
+    vol: &PackedVolume,
+    mode: &Mode,
+    opts_iso: Option<f64>,
+) -> Result<(), RenderError> {
     let h = vol.header();
     let path = vol.path().to_path_buf();
     match (mode, &h.classification) {
-        (Mode::Surface { .. } | Mode::Depth { .. }, Classification::TransferFunction { .. }) => {
+        (Mode::Surface { .. } | Mode::Depth { .. }, Classification::TransferFunction { .. })
+            if opts_iso.is_none() =>
+        {
             Err(RenderError::Incompatible {
                 path,
-                msg: "surface and depth modes need a file classified by an iso value, and this \
-                      one was classified by a transfer function"
+                msg: "surface and depth modes need an iso value, and this file was classified by \
+                      a transfer function: give one with --iso (inside the transfer function's \
+                      support)"
                     .into(),
             })
         }
@@ -388,5 +402,98 @@ pub(crate) fn check_mode(vol: &PackedVolume, mode: &Mode) -> Result<(), RenderEr
             }
         }
         _ => Ok(()),
+    }
+}
+
+/// The iso value a render with `opts` draws surfaces at, as the samplers
+/// compare it ([`to_f32`](super::cache::to_f32) like the stored values):
+/// `opts.iso`, else the file's; NaN for a file classified by a transfer
+/// function without `opts.iso`.
+pub(crate) fn scene_iso(h: &crate::format::Header, opts: &RenderOptions) -> f64 {
+    match (opts.iso, &h.classification) {
+        (Some(v), _) => cache::to_f32(v) as f64,
+        (None, Classification::Iso { iso }) => cache::to_f32(*iso) as f64,
+        (None, _) => f64::NAN,
+    }
+}
+
+/// The iso value the decoded bricks must be narrowed to, when the scene's
+/// 1-cells are fewer than the file's: `opts.iso` above the file's iso, or
+/// any `opts.iso` on a file classified by a transfer function.
+pub(crate) fn narrowing(h: &crate::format::Header, opts: &RenderOptions) -> Option<f32> {
+    let v = opts.iso?;
+    match &h.classification {
+        Classification::Iso { iso } if cache::to_f32(*iso) == cache::to_f32(v) => None,
+        _ => Some(cache::to_f32(v)),
+    }
+}
+
+/// `opts.iso` must lie inside the file's classification (issue 16: codes
+/// computed for a classification are conservative for any narrower one,
+/// and every vertex of a 1-cell keeps its value): at or above the file's
+/// iso value, or where the file's transfer function is non-zero from it
+/// up. Refused otherwise, with the `cdvol prep` command that covers it.
+pub(crate) fn check_scene_iso(vol: &PackedVolume, opts: &RenderOptions) -> Result<(), RenderError> {
+    let Some(v) = opts.iso else {
+        return Ok(());
+    };
+    if !v.is_finite() {
+        return Err(bad("iso", v.to_string(), "a finite value".into()));
+    }
+    if let Mode::Composite { .. } = opts.mode {
+        return Err(bad(
+            "iso",
+            v.to_string(),
+            "no --iso in composite mode: the transfer function (--tf) chooses what it shows".into(),
+        ));
+    }
+    let h = vol.header();
+    let inside = match &h.classification {
+        Classification::Iso { iso } => v >= *iso,
+        Classification::TransferFunction { tf } => {
+            tf.opacity(v) > 0.0 && tf.points.iter().all(|p| p.value < v || p.opacity > 0.0)
+        }
+    };
+    if inside {
+        return Ok(());
+    }
+    let envelope = match &h.classification {
+        Classification::Iso { iso } => format!("values >= {iso} (prepared with --iso {iso})"),
+        Classification::TransferFunction { .. } => {
+            "the values its transfer function gives opacity (prepared with --classify-tf)".into()
+        }
+    };
+    Err(RenderError::Incompatible {
+        path: vol.path().to_path_buf(),
+        msg: format!(
+            "iso value {v} lies outside the file's envelope, {envelope}: cells below it were \
+             leapt over when the file was made. Prepare a file that covers it: cdvol prep \
+             --iso {v} {} -o {}",
+            shell_word(&h.source),
+            shell_word(&envelope_name(vol.path(), v)),
+        ),
+    })
+}
+
+/// `path` with `-iso{v}` before its extension.
+fn envelope_name(path: &std::path::Path, v: f64) -> String {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy())
+        .unwrap_or_default();
+    path.with_file_name(format!("{stem}-iso{v}.cdv"))
+        .display()
+        .to_string()
+}
+
+/// `s` quoted for a POSIX shell when it needs it.
+fn shell_word(s: &str) -> String {
+    if !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || "/._-+,:=@".contains(c))
+    {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', "'\\''"))
     }
 }

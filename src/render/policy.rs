@@ -52,7 +52,10 @@ pub fn brick_policy(method: Method, cd_lazy_min: u8) -> BrickPolicy {
 
 /// The brick cache a render with `opts` uses: its byte budget and the
 /// planes its traversal needs.
+/// A scene narrower than the file's classification (`render --iso`)
+/// rewrites each brick for it ([`Planes::narrow`]).
 pub fn cache_for<'v>(vol: &'v PackedVolume, opts: &RenderOptions) -> BrickCache<'v> {
-    let p = brick_policy(opts.method, opts.cd_lazy_min);
-    BrickCache::with_planes(vol, opts.cache_bytes, p.planes)
+    let mut planes = brick_policy(opts.method, opts.cd_lazy_min).planes;
+    planes.narrow = super::options::narrowing(vol.header(), opts);
+    BrickCache::with_planes(vol, opts.cache_bytes, planes)
 }

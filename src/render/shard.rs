@@ -135,6 +135,9 @@ pub struct OptionsKey {
     pub look: Option<super::CompositeLook>,
     /// Surface and composite: [`Normals::name`](super::Normals::name).
     pub normals: Option<String>,
+    /// The scene's iso value (`render --iso`), when given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iso: Option<f64>,
 }
 
 impl OptionsKey {
@@ -171,6 +174,7 @@ impl OptionsKey {
             look: composite.then(|| o.look.clone()),
             normals: (composite || matches!(o.mode, Mode::Surface { .. }))
                 .then(|| o.normals.name().into()),
+            iso: o.iso,
         }
     }
 }

@@ -153,17 +153,19 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::cache::{self, Accessor, BrickCache, CacheCounters, OBJECT};
+use super::cache::{Accessor, BrickCache, CacheCounters, Planes, OBJECT};
 use super::camera::{Camera, Projection};
 use super::error::RenderError;
-use super::gradient::{smooth_gradient, Normals};
+use super::gradient::{smooth_gradient_in, Normals};
 use super::integrate::Px;
-use super::options::{check_mode, check_tol_and_size, Mode, RenderOptions, MAX_PIXELS};
+use super::options::{
+    check_mode, check_scene_iso, check_tol_and_size, narrowing, scene_iso, Mode, RenderOptions,
+    MAX_PIXELS,
+};
 use super::output::{colour, Colouring, Frame};
 use super::shade::{self, at, find_hit_with, CellEval, HitMethod};
 use super::stats::Stats;
 use super::traverse::{trace, CodeSource, Flow, Method, Ray, StepCounts, TGrid, Visit};
-use crate::classify::Classification;
 use crate::format::reader::PackedVolume;
 use crate::grid::Axis;
 use crate::progress::Progress;
@@ -395,6 +397,9 @@ struct Setup<'a> {
     base: f64,
     /// Intermediate image size (minor[0], minor[1]).
     size: [u32; 2],
+    /// The scene's iso value for smooth normals when narrower than the
+    /// file's and the file has no gradient halo (module scene).
+    narrow: Option<f32>,
     /// Mirrored start index of intermediate pixel 0 per minor axis.
     first: [i64; 2],
 }
@@ -471,7 +476,8 @@ pub fn render_template_with(
     progress: &dyn Progress,
 ) -> Result<(Frame, Stats), RenderError> {
     let t0 = Instant::now();
-    check_mode(vol, &opts.mode)?;
+    check_mode(vol, &opts.mode, opts.iso)?;
+    check_scene_iso(vol, opts)?;
     if let Projection::Persp { .. } = camera.projection {
         return Err(refuse(
             "a perspective camera: templates need parallel rays (an orthographic camera), \
@@ -563,19 +569,25 @@ pub fn render_template_with(
         dir,
         base: if tpl.mirror[m] { hi[m] } else { lo[m] },
         size,
+        narrow: narrowing(hdr, opts).filter(|_| !hdr.gradient_halo),
         first: [
             -(tpl.drift(tpl.minor[0]) as i64),
             -(tpl.drift(tpl.minor[1]) as i64),
         ],
         tpl,
     };
-    let iso = match hdr.classification {
-        Classification::Iso { iso } => cache::to_f32(iso) as f64,
-        _ => f64::NAN,
-    };
+    let iso = scene_iso(hdr, opts);
+    let narrow = narrowing(hdr, opts);
 
     // Intermediate image, rows in parallel.
-    let cache = BrickCache::new(vol, opts.cache_bytes);
+    let cache = BrickCache::with_planes(
+        vol,
+        opts.cache_bytes,
+        Planes {
+            narrow,
+            ..Planes::FILE
+        },
+    );
     progress.begin("template rows", size[1] as u64);
     let rows: Vec<_> = (0..size[1])
         .into_par_iter()
@@ -704,7 +716,7 @@ fn inter_pixel(
             let g = match opts.normals {
                 Normals::Cell => cell_grad,
                 Normals::Smooth => {
-                    let g = smooth_gradient(acc, st.coords, hit_cell, p);
+                    let g = smooth_gradient_in(acc, st.coords, hit_cell, p, st.narrow);
                     if g.is_finite() && g != DVec3::ZERO {
                         g
                     } else {

@@ -41,9 +41,14 @@ pub(crate) struct Ctx<'a, T> {
     pub(crate) coords: [&'a [f64]; 3],
     pub(crate) camera: &'a Camera,
     pub(crate) opts: &'a RenderOptions,
-    /// The file's iso value as stored (NaN for files classified by a
-    /// transfer function).
+    /// The scene's iso value as stored values compare
+    /// ([`scene_iso`](super::options::scene_iso): `--iso` or the file's;
+    /// NaN for files classified by a transfer function without `--iso`).
     pub(crate) iso: f64,
+    /// The iso value smooth normals judge missing samples by when the
+    /// scene is narrower than the file ([`scene_code_at_least_1`](super::scene::scene_code_at_least_1));
+    /// `None` otherwise and in `--gradient-halo` files.
+    pub(crate) narrow: Option<f32>,
     /// The composite mode's transfer function, tabulated for its step.
     pub(crate) lut: Option<TfLut>,
     /// `1 / (S[i + 1] - S[i])` per axis and cell: the samplers' local
@@ -67,10 +72,8 @@ impl<'a, T: Real> Ctx<'a, T> {
             coords,
             camera,
             opts,
-            iso: match h.classification {
-                crate::classify::Classification::Iso { iso } => super::cache::to_f32(iso) as f64,
-                _ => f64::NAN,
-            },
+            iso: super::options::scene_iso(h, opts),
+            narrow: super::options::narrowing(h, opts).filter(|_| !h.gradient_halo),
             lut: match &opts.mode {
                 Mode::Composite { tf, step_mm } => Some(TfLut::new(tf, *step_mm)),
                 _ => None,

@@ -11,7 +11,7 @@ use glam::DVec3;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
-use crate::render::gradient::{smooth_gradient, Normals};
+use crate::render::gradient::{smooth_gradient_in, Normals};
 use crate::render::shade::{at, find_hit_with, shade, CellEval, HitMethod};
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
 
@@ -78,7 +78,7 @@ pub(super) fn surface<T: Real>(
     let normal = match ctx.opts.normals {
         Normals::Cell => grad,
         Normals::Smooth => {
-            let s = smooth_gradient(acc, ctx.coords, cell, p);
+            let s = smooth_gradient_in(acc, ctx.coords, cell, p, ctx.narrow);
             // A vertex without its own value (never in a 1-cell) or a
             // saturated sample: keep the cell's gradient.
             if s.is_finite() && s != DVec3::ZERO {
