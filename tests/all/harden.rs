@@ -137,7 +137,9 @@ fn modes_follow_the_umask() {
         let run = |args: &[&str]| cdvol_umask(mask, args, d);
         run(&["phantom", "ct", "--dims", "24,20,18", "-o", "ct.json"]);
         run(&["phantom", "spheres", "--size", "16", "-o", "sp.json"]);
-        run(&["prep", "ct.json", "-o", "ct.cdv", "--iso", "300", "--brick", "8"]);
+        run(&[
+            "prep", "ct.json", "-o", "ct.cdv", "--iso", "300", "--brick", "8",
+        ]);
         let small = ["--width", "24", "--height", "20"];
         let r = |extra: &[&str]| {
             let mut a = vec!["render", "ct.cdv"];
@@ -155,7 +157,16 @@ fn modes_follow_the_umask() {
         std::fs::create_dir(d.join("in")).unwrap();
         std::fs::copy(d.join("ct.json"), d.join("in/ct.json")).unwrap();
         std::fs::copy(d.join("ct.raw"), d.join("in/ct.raw")).unwrap();
-        run(&["prep-batch", "in", "-o", "out", "--iso", "300", "--brick", "8"]);
+        run(&[
+            "prep-batch",
+            "in",
+            "-o",
+            "out",
+            "--iso",
+            "300",
+            "--brick",
+            "8",
+        ]);
         let files = [
             "ct.json",
             "ct.raw",
@@ -231,7 +242,10 @@ fn an_output_that_is_an_input_is_refused() {
     let cases: Vec<(Command, &str, &str)> = vec![
         {
             let mut c = cdvol();
-            c.args(["prep", "--iso", "300"]).arg(&s).arg("-o").arg(p("s.raw"));
+            c.args(["prep", "--iso", "300"])
+                .arg(&s)
+                .arg("-o")
+                .arg(p("s.raw"));
             (c, "s.json", "s.raw")
         },
         {
@@ -242,7 +256,10 @@ fn an_output_that_is_an_input_is_refused() {
         {
             // Through a symlink to the raw data.
             let mut c = cdvol();
-            c.args(["prep", "--iso", "300"]).arg(&s).arg("-o").arg(p("link.cdv"));
+            c.args(["prep", "--iso", "300"])
+                .arg(&s)
+                .arg("-o")
+                .arg(p("link.cdv"));
             (c, "link.cdv", "s.raw")
         },
         {
@@ -254,7 +271,10 @@ fn an_output_that_is_an_input_is_refused() {
         },
         {
             let mut c = cdvol();
-            c.args(["prep", "--iso", "300"]).arg(&series).arg("-o").arg(&slices[3]);
+            c.args(["prep", "--iso", "300"])
+                .arg(&series)
+                .arg("-o")
+                .arg(&slices[3]);
             (c, "dcm", slices[3].file_name().unwrap().to_str().unwrap())
         },
         {
@@ -281,7 +301,10 @@ fn an_output_that_is_an_input_is_refused() {
         },
         {
             let mut c = cdvol();
-            c.args(["export", "--what", "values"]).arg(&r).arg("-o").arg(&r);
+            c.args(["export", "--what", "values"])
+                .arg(&r)
+                .arg("-o")
+                .arg(&r);
             (c, "r.cdv", "r.cdv")
         },
         {
@@ -343,7 +366,11 @@ fn output_directory_is_checked_before_work() {
     let r = d.join("r.cdv");
     prep(&s, &r);
     let before_render = snapshot(d);
-    let err = refused(render(&r).args(["--mode", "depth", "-o"]).arg(d.join("d.png")));
+    let err = refused(
+        render(&r)
+            .args(["--mode", "depth", "-o"])
+            .arg(d.join("d.png")),
+    );
     has_all(&err, &["d.depth16.png", "is a directory"]);
     assert_eq!(snapshot(d), before_render);
     assert!(partials(d).is_empty(), "{:?}", partials(d));
@@ -371,7 +398,9 @@ fn output_directory_is_checked_before_work() {
 /// normal user; for root, with CAP_DAC_OVERRIDE and CAP_DAC_READ_SEARCH
 /// dropped from the bounding set (setpriv), if that works here.
 fn unprivileged() -> Option<Command> {
-    let uid = std::fs::metadata("/proc/self").map(|m| m.uid()).unwrap_or(0);
+    let uid = std::fs::metadata("/proc/self")
+        .map(|m| m.uid())
+        .unwrap_or(0);
     if uid != 0 {
         return Some(cdvol());
     }
@@ -432,7 +461,10 @@ fn special_files_are_refused_without_hanging() {
     let out = d.join("o.cdv");
     let prep_of = |input: &Path| {
         let mut c = cdvol();
-        c.args(["prep", "--iso", "300"]).arg(input).arg("-o").arg(&out);
+        c.args(["prep", "--iso", "300"])
+            .arg(input)
+            .arg("-o")
+            .arg(&out);
         c
     };
     for (mut c, name) in [
@@ -538,7 +570,13 @@ fn batch_walk_survives_symlink_loops() {
     assert_eq!(names, ["a/vol.json", "ext/ext.json"], "{rows:#?}");
     let cdvs = std::fs::read_dir(&out)
         .unwrap()
-        .filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "cdv"))
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "cdv")
+        })
         .count();
     assert_eq!(cdvs, 2);
 }
@@ -560,9 +598,12 @@ fn batch_unreadable_entries_fail_alone() {
     phantom(&input.join("open"), "vol");
     phantom(&input.join("locked"), "hidden");
     phantom(&input, "secret");
-    std::fs::set_permissions(input.join("secret.json"), std::fs::Permissions::from_mode(0))
-        .unwrap();
-    std::fs::set_permissions(input.join("locked"), std::fs::Permissions::from_mode(0)).unwrap();
+    std::fs::set_permissions(
+        input.join("secret.json"),
+        std::fs::Permissions::from_mode(0o000),
+    )
+    .unwrap();
+    std::fs::set_permissions(input.join("locked"), std::fs::Permissions::from_mode(0o000)).unwrap();
     let out = d.join("out");
     let o = run(
         c.args(["prep-batch", "-q", "--iso", "300", "--brick", "8"])
@@ -571,8 +612,7 @@ fn batch_unreadable_entries_fail_alone() {
             .arg(&out),
         Duration::from_secs(60),
     );
-    std::fs::set_permissions(input.join("locked"), std::fs::Permissions::from_mode(0o755))
-        .unwrap();
+    std::fs::set_permissions(input.join("locked"), std::fs::Permissions::from_mode(0o755)).unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{stderr}");
     has_all(&stderr, &["2 of 3 inputs failed"]);
@@ -586,9 +626,15 @@ fn batch_unreadable_entries_fail_alone() {
     };
     assert_eq!(row("open/vol.json")["status"], "done");
     assert_eq!(row("locked")["status"], "failed");
-    has_all(row("locked")["error"].as_str().unwrap(), &["locked", "cannot list"]);
+    has_all(
+        row("locked")["error"].as_str().unwrap(),
+        &["locked", "cannot list"],
+    );
     assert_eq!(row("secret.json")["status"], "failed");
-    has_all(row("secret.json")["error"].as_str().unwrap(), &["secret.json"]);
+    has_all(
+        row("secret.json")["error"].as_str().unwrap(),
+        &["secret.json"],
+    );
 }
 
 // ---------------------------------------------------------------------------
@@ -690,8 +736,12 @@ fn multi_file_outputs_are_committed_as_a_set() {
     let s = phantom(d, "s");
     let r = d.join("r.cdv");
     prep(&s, &r);
-    ok(render(&r).args(["--mode", "depth", "-o"]).arg(d.join("d.png")));
-    ok(render(&r).args(["--frames", "3", "-o"]).arg(d.join("t.png")));
+    ok(render(&r)
+        .args(["--mode", "depth", "-o"])
+        .arg(d.join("d.png")));
+    ok(render(&r)
+        .args(["--frames", "3", "-o"])
+        .arg(d.join("t.png")));
     // The last member becomes something a file cannot replace.
     for n in ["d.depth16.png", "t.0002.png"] {
         std::fs::remove_file(d.join(n)).unwrap();
