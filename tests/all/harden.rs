@@ -655,29 +655,45 @@ fn killed_runs_leave_no_stale_partial() {
         .arg(&big));
     let out = d.join("out");
     std::fs::create_dir(&out).unwrap();
-    let mut child = cdvol()
-        .args(["-q", "prep", "--iso", "300", "--brick", "8"])
-        .arg(&big)
-        .arg("-o")
-        .arg(out.join("big.cdv"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    while partials(&out).is_empty() {
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "prep finished before its partial file was seen"
-        );
-        assert!(t0.elapsed() < Duration::from_secs(30), "no partial file");
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    child.kill().unwrap(); // SIGKILL
-    child.wait().unwrap();
-    let stale = partials(&out);
-    assert_eq!(stale.len(), 1, "{stale:?}");
-    let stale = stale[0].clone();
+    // Kill prep while its partial file is there: one that stays across
+    // two looks 20 ms apart (the output check's probe file lives for
+    // microseconds). If prep finishes first, try again.
+    let (stale, pid) = (0..5)
+        .find_map(|_| {
+            let mut child = cdvol()
+                .args(["-q", "prep", "--iso", "300", "--brick", "8"])
+                .arg(&big)
+                .arg("-o")
+                .arg(out.join("big.cdv"))
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap();
+            let t0 = Instant::now();
+            loop {
+                let seen = partials(&out);
+                if !seen.is_empty() {
+                    std::thread::sleep(Duration::from_millis(20));
+                    if partials(&out) == seen {
+                        break;
+                    }
+                }
+                if child.try_wait().unwrap().is_some() {
+                    break;
+                }
+                assert!(t0.elapsed() < Duration::from_secs(30), "no partial file");
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            child.kill().unwrap(); // SIGKILL (or nothing, if it is done)
+            child.wait().unwrap();
+            let _ = std::fs::remove_file(out.join("big.cdv"));
+            match partials(&out).as_slice() {
+                [one] => Some((one.clone(), child.id())),
+                [] => None,
+                more => panic!("{more:?}"),
+            }
+        })
+        .expect("prep was never caught with its partial file");
     let write_into = |name: &str| {
         ok(cdvol()
             .args(["-q", "phantom", "ct", "--dims", "8,8,8", "-o"])
@@ -706,11 +722,7 @@ fn killed_runs_leave_no_stale_partial() {
     let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
         .map(|h| h.trim().to_string())
         .unwrap_or_default();
-    let live = stale.replacen(
-        &format!("-{}-", child.id()),
-        &format!("-{}-", std::process::id()),
-        1,
-    );
+    let live = stale.replacen(&format!("-{pid}-"), &format!("-{}-", std::process::id()), 1);
     assert_ne!(live, stale, "the partial's name holds its pid");
     let elsewhere = stale.replacen(&host, "another-host", 1);
     assert_ne!(elsewhere, stale, "the partial's name holds the host");
