@@ -48,6 +48,10 @@ pub struct BatchInput {
     pub files: Vec<PathBuf>,
     /// Path relative to the batch directory (plus the series), for names.
     pub name: String,
+    /// Why the walk could not take this entry (a directory that cannot be
+    /// listed, a file that cannot be read, a FIFO with a volume's name):
+    /// it fails as one input, the batch goes on.
+    pub error: Option<String>,
 }
 
 /// A row of the summary.
@@ -65,11 +69,14 @@ pub struct BatchRow {
     pub error: Option<String>,
 }
 
-/// Finds the inputs under `dir`, sorted by name.
+/// Finds the inputs under `dir`, sorted by name. The walk
+/// (fsutil::walk) visits each directory once by device and inode, so
+/// symlink loops add nothing; an entry it cannot read becomes an input
+/// that fails with the reason; special files are never opened.
 pub fn find_inputs(dir: &Path) -> Result<Vec<BatchInput>, InputError> {
     let mut out = Vec::new();
     let mut dicom = Vec::new();
-    walk(dir, dir, &mut out, &mut dicom)?;
+    walk(dir, &mut out, &mut dicom)?;
     // DICOM files by series, wherever they are: a series is one input,
     // named after the deepest directory holding all its files.
     let mut series: std::collections::BTreeMap<String, Vec<PathBuf>> = Default::default();
@@ -107,6 +114,7 @@ pub fn find_inputs(dir: &Path) -> Result<Vec<BatchInput>, InputError> {
             series: Some(uid),
             files,
             name,
+            error: None,
         });
     }
     out.sort_by(|a, b| a.name.cmp(&b.name));
@@ -120,57 +128,94 @@ fn rel(root: &Path, p: &Path) -> String {
         .into_owned()
 }
 
+/// Whether a file's name says it is a volume (a `.json` still has to be
+/// a sidecar).
+fn volume_name(p: &Path) -> bool {
+    let lower = p
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    [".nrrd", ".nhdr", ".nii", ".nii.gz", ".json"]
+        .iter()
+        .any(|e| lower.ends_with(e))
+}
+
 fn walk(
     root: &Path,
-    dir: &Path,
     out: &mut Vec<BatchInput>,
     dicom: &mut Vec<PathBuf>,
 ) -> Result<(), InputError> {
-    let io = |source| InputError::Io {
-        path: dir.to_path_buf(),
+    let w = crate::fsutil::walk(root).map_err(|source| InputError::Io {
+        path: root.to_path_buf(),
         what: "cannot list the directory",
         source,
+    })?;
+    let failed = |p: &Path, msg: String| BatchInput {
+        name: rel(root, p),
+        path: p.to_path_buf(),
+        series: None,
+        files: Vec::new(),
+        error: Some(format!("{}: {msg}", p.display())),
     };
-    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(io)?
-        .map(|e| e.map(|e| e.path()).map_err(io))
-        .collect::<Result<_, _>>()?;
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            walk(root, &p, out, dicom)?;
-            continue;
+    for (p, e) in &w.unlistable {
+        out.push(failed(p, format!("cannot list the directory: {e}")));
+    }
+    // A dangling symlink is an input only if named like one.
+    for (p, e) in &w.unreadable {
+        if volume_name(p) || e.kind() != std::io::ErrorKind::NotFound {
+            out.push(failed(p, format!("cannot read: {e}")));
         }
-        let lower = p
-            .file_name()
-            .map(|n| n.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
-        let volume = lower.ends_with(".nrrd")
-            || lower.ends_with(".nhdr")
-            || lower.ends_with(".nii")
-            || lower.ends_with(".nii.gz")
-            || (lower.ends_with(".json") && is_sidecar(&p));
-        if volume {
-            out.push(BatchInput {
-                name: rel(root, &p),
-                path: p,
-                series: None,
-                files: Vec::new(),
-            });
-        } else if crate::input::dicom::looks_dicom(&p) {
-            dicom.push(p);
+    }
+    // Special files are never opened: one named like a volume fails, any
+    // other cannot be a DICOM file and is left out.
+    for (p, kind) in &w.special {
+        if volume_name(p) {
+            out.push(failed(p, format!("{kind}, not a regular file")));
+        }
+    }
+    for p in w.files {
+        let lower = p.to_string_lossy().to_ascii_lowercase();
+        if volume_name(&p) {
+            if !lower.ends_with(".json") {
+                out.push(BatchInput {
+                    name: rel(root, &p),
+                    path: p,
+                    series: None,
+                    files: Vec::new(),
+                    error: None,
+                });
+                continue;
+            }
+            match is_sidecar(&p) {
+                Ok(true) => out.push(BatchInput {
+                    name: rel(root, &p),
+                    path: p,
+                    series: None,
+                    files: Vec::new(),
+                    error: None,
+                }),
+                Ok(false) => {}
+                Err(e) => out.push(failed(&p, format!("cannot read: {e}"))),
+            }
+        } else {
+            match crate::input::dicom::sniff(&p) {
+                Ok(true) => dicom.push(p),
+                Ok(false) => {}
+                Err(e) => out.push(failed(&p, format!("cannot read: {e}"))),
+            }
         }
     }
     Ok(())
 }
 
 /// A JSON object with `dims`: a raw-stack sidecar (other JSON, such as a
-/// sphere list or render statistics, is not an input).
-fn is_sidecar(p: &Path) -> bool {
-    std::fs::read(p)
+/// sphere list or render statistics, is not an input). An error if the
+/// file cannot be read.
+fn is_sidecar(p: &Path) -> std::io::Result<bool> {
+    let b = crate::fsutil::read_regular(p)?;
+    Ok(serde_json::from_slice::<serde_json::Value>(&b)
         .ok()
-        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
-        .is_some_and(|v| v.get("dims").is_some())
+        .is_some_and(|v| v.get("dims").is_some()))
 }
 
 /// The output files of `inputs` in `out_dir`: each input's name with
@@ -310,6 +355,11 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
         row.rectilinear = Some(h.axes.iter().any(|a| !a.is_uniform()));
         row.output_bytes = Some(vol.file_len());
     };
+    if let Some(e) = &input.error {
+        row.status = "failed".into();
+        row.error = Some(e.clone());
+        return row;
+    }
     if up_to_date(&out, input) {
         if let Ok(v) = PackedVolume::open(&out) {
             describe(&mut row, &v);
@@ -349,6 +399,7 @@ mod tests {
             series: None,
             files: Vec::new(),
             name: name.into(),
+            error: None,
         };
         let names = [
             "b/vol.nrrd",

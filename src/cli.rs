@@ -863,7 +863,9 @@ fn render_flag(field: &str) -> Option<&'static str> {
 pub fn render_error(e: JobError) -> anyhow::Error {
     let flag = match &e {
         JobError::Render(RenderError::Option { field, .. }) => render_flag(field),
-        JobError::NoFrames | JobError::TurntableLookAt { .. } => Some("--frames"),
+        JobError::NoFrames | JobError::TooManyFrames { .. } | JobError::TurntableLookAt { .. } => {
+            Some("--frames")
+        }
         JobError::TemplateShard => Some("--traversal template"),
         JobError::PartName { .. } => Some("--shard"),
         JobError::Camera(c) => Some(match c {

@@ -145,8 +145,7 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
         ],
     };
     let tf_path = dir.join("head-tf.json");
-    std::fs::write(&tf_path, serde_json::to_vec_pretty(&tf)?)
-        .with_context(|| format!("{}: cannot write", tf_path.display()))?;
+    cdvol::fsutil::write_atomic(&tf_path, &serde_json::to_vec_pretty(&tf)?)?;
     let tf_packed = dir.join("head-tf.cdv");
     let opts = PrepOptions::new(Classification::TransferFunction { tf: tf.clone() });
     let r = prep_file(&head, &tf_packed, &opts, progress)?;

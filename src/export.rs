@@ -16,6 +16,7 @@ use rayon::prelude::*;
 
 use crate::format::reader::{Brick, CellClass, PackedVolume, Sample};
 use crate::format::FormatError;
+use crate::fsutil::{FileSet, OutputError, WriteError};
 use crate::input::sidecar::{AxisSpec, SidecarOut};
 use crate::input::{Dtype, Endian};
 use crate::progress::Progress;
@@ -34,6 +35,11 @@ pub enum ExportWhat {
 pub enum ExportError {
     #[error(transparent)]
     Format(#[from] FormatError),
+    /// An output cannot be written, or is the packed file read.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    #[error(transparent)]
+    Write(#[from] WriteError),
     #[error("{}: {what}: {source}", path.display())]
     Io {
         path: PathBuf,
@@ -43,7 +49,9 @@ pub enum ExportError {
 }
 
 /// Writes `what` of `vol` as `<out_json stem>.raw` plus the sidecar
-/// `out_json`. Returns the raw file's path.
+/// `out_json`, committed together (fsutil::FileSet). Both are checked
+/// before any work: neither may be the packed file read. Returns the raw
+/// file's path.
 pub fn export(
     vol: &PackedVolume,
     what: ExportWhat,
@@ -68,17 +76,19 @@ pub fn export(
             source: std::io::Error::from(std::io::ErrorKind::InvalidInput),
         });
     }
+    crate::fsutil::check_outputs(
+        &[raw_path.clone(), out_json.to_path_buf()],
+        &[vol.path().to_path_buf()],
+        None,
+    )?;
     let io = |path: &Path, what| {
         let path = path.to_path_buf();
         move |source| ExportError::Io { path, what, source }
     };
-    let tmp = tempfile::Builder::new()
-        .prefix(".cdvol-partial-")
-        .tempfile_in(&dir)
-        .map_err(io(
-            &raw_path,
-            "cannot create a temporary file beside the output",
-        ))?;
+    let tmp = crate::fsutil::temp_beside(&raw_path).map_err(io(
+        &raw_path,
+        "cannot create a temporary file beside the output",
+    ))?;
     let mut w = BufWriter::with_capacity(1 << 20, tmp);
 
     let [nx, ny, nz] = h.dims.map(|d| d as usize);
@@ -157,11 +167,9 @@ pub fn export(
         what: "cannot flush",
         source: e.into_error(),
     })?;
-    tmp.persist(&raw_path).map_err(|e| ExportError::Io {
-        path: raw_path.clone(),
-        what: "cannot rename into place",
-        source: e.error,
-    })?;
+    // Both files are renamed into place together, after both are written.
+    let mut set = FileSet::new();
+    set.add(tmp, &raw_path);
 
     // The sidecar.
     let (dims, dtype, axes): ([usize; 3], &'static str, [Vec<f64>; 3]) = match what {
@@ -206,23 +214,13 @@ pub fn export(
         origin,
         rescale: (what == ExportWhat::Values).then_some(h.rescale),
     };
-    let tmp = tempfile::Builder::new()
-        .prefix(".cdvol-partial-")
-        .tempfile_in(&dir)
-        .map_err(io(
-            out_json,
-            "cannot create a temporary file beside the output",
-        ))?;
-    serde_json::to_writer_pretty(tmp.as_file(), &side).map_err(|e| ExportError::Io {
+    let json = serde_json::to_vec_pretty(&side).map_err(|e| ExportError::Io {
         path: out_json.to_path_buf(),
         what: "cannot write sidecar",
         source: e.into(),
     })?;
-    tmp.persist(out_json).map_err(|e| ExportError::Io {
-        path: out_json.to_path_buf(),
-        what: "cannot rename into place",
-        source: e.error,
-    })?;
+    set.add_bytes(out_json, &json)?;
+    set.commit()?;
     Ok(raw_path)
 }
 

@@ -15,6 +15,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use cdvol::export::export;
 use cdvol::format::reader::PackedVolume;
+use cdvol::fsutil::check_outputs;
 use cdvol::info::Info;
 use cdvol::prep::{prep, PrepReport};
 use cdvol::progress::{NoProgress, Progress};
@@ -97,6 +98,15 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
     match cmd {
         Command::Prep(a) => {
             let opts = a.settings.to_options()?;
+            // The transfer function is an input too (prep checks the
+            // volume's own files).
+            if let Some(tf) = &a.settings.classify_tf {
+                check_outputs(
+                    std::slice::from_ref(&a.output),
+                    std::slice::from_ref(tf),
+                    None,
+                )?;
+            }
             let src =
                 cdvol::input::open_with(&a.input, a.series.as_deref()).map_err(cli::input_error)?;
             for line in src.report() {
@@ -147,6 +157,12 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
         Command::Render(a) => {
             let vol = PackedVolume::open(&a.file)?;
             let job = a.job()?;
+            // The transfer function is an input too (the job checks the
+            // packed file).
+            if let Some(tf) = &a.tf {
+                let outputs = job.outputs().map_err(cli::render_error)?;
+                check_outputs(&outputs, std::slice::from_ref(tf), None)?;
+            }
             let (files, stats) =
                 cdvol::render::job::run(&vol, &job, progress).map_err(cli::render_error)?;
             for f in files {
@@ -172,18 +188,31 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
         }
         Command::Demo(a) => demo::run(&a.dir, progress)?,
         Command::Assemble(a) => {
+            // Outputs first (none may be a part), then the depth mode's
+            // companions once the parts say which mode they are.
+            let outputs = |depth| -> Result<Vec<_>> {
+                let mut v = cdvol::render::image_files(&a.output, depth)?;
+                v.extend(a.stats.iter().cloned());
+                Ok(v)
+            };
+            check_outputs(&outputs(false)?, &a.parts, None)?;
             let parts = a
                 .parts
                 .iter()
                 .map(|p| cdvol::render::shard::Part::read(p))
                 .collect::<Result<Vec<_>, _>>()?;
             let (frame, stats) = cdvol::render::shard::assemble(&parts, &a.parts)?;
-            for f in cdvol::render::save(&frame, &a.output)? {
-                println!("wrote {}", f.display());
+            if frame.depth.is_some() {
+                check_outputs(&outputs(true)?, &a.parts, None)?;
             }
+            // The image (and depth files) and the statistics as one set.
+            let mut set = cdvol::fsutil::FileSet::new();
+            cdvol::render::stage(&frame, &a.output, &mut set)?;
             if let Some(p) = &a.stats {
-                write_json(p, &stats)?;
-                println!("wrote {}", p.display());
+                set.add_bytes(p, &serde_json::to_vec_pretty(&stats)?)?;
+            }
+            for f in set.commit()? {
+                println!("wrote {}", f.display());
             }
         }
         Command::Experiment(cli::ExperimentCmd::Tradeoffs(a)) => {
@@ -213,6 +242,21 @@ fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<()> {
 fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
     let opts = a.settings.to_options()?;
     let inputs = cdvol::batch::find_inputs(&a.input)?;
+    // The summary must not replace an input (the output directory may be
+    // the input directory); the packed files are checked by each prep.
+    std::fs::create_dir_all(&a.output).map_err(|source| cdvol::batch::BatchError::OutputDir {
+        path: a.output.clone(),
+        source,
+    })?;
+    let mut read: Vec<std::path::PathBuf> = Vec::new();
+    for i in &inputs {
+        read.push(i.path.clone());
+        read.extend(i.files.iter().cloned());
+    }
+    if let Some(tf) = &a.settings.classify_tf {
+        read.push(tf.clone());
+    }
+    check_outputs(&[a.summary_path()], &read, None)?;
     if inputs.is_empty() {
         bail!(
             "{}: no volumes found (DICOM series, .nrrd, .nhdr, .nii, .nii.gz, raw-stack .json)",

@@ -115,6 +115,9 @@ pub enum PrepError {
     Input(#[from] InputError),
     #[error(transparent)]
     Format(#[from] FormatError),
+    /// The output cannot be written, or is one of the input's files.
+    #[error(transparent)]
+    Output(#[from] crate::fsutil::OutputError),
     #[error("{}: {what}: {source}", path.display())]
     Io {
         path: PathBuf,
@@ -131,7 +134,9 @@ pub enum PrepError {
     },
 }
 
-/// Prepares `src` into the packed file `out`.
+/// Prepares `src` into the packed file `out`. Before any work, `out` is
+/// checked ([`crate::fsutil::check_outputs`]): not one of the files `src`
+/// reads, not a directory, in a directory that can be written.
 pub fn prep(
     src: &dyn SliceSource,
     out: &Path,
@@ -140,8 +145,9 @@ pub fn prep(
 ) -> Result<PrepReport, PrepError> {
     let t0 = Instant::now();
     opts.check()?;
-    let b = opts.brick_size;
     let meta = src.meta().clone();
+    crate::fsutil::check_outputs(&[out.to_path_buf()], &src.files(), Some(&meta.origin_desc))?;
+    let b = opts.brick_size;
     let [nx, ny, nz] = meta.dims();
     let [ncx, ncy, ncz] = meta.grid.cells();
     let n_cells_slice = ncx * ncy;

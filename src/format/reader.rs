@@ -89,7 +89,7 @@ impl PackedVolume {
     /// Opens and checks a packed file.
     pub fn open(path: &Path) -> Result<PackedVolume, FormatError> {
         let p = || path.to_path_buf();
-        let f = File::open(path).map_err(|source| FormatError::Io {
+        let f = crate::fsutil::open_regular(path).map_err(|source| FormatError::Io {
             path: p(),
             what: "cannot open packed file",
             source,

@@ -1,6 +1,8 @@
 //! Writes a packed file: payloads appended as they come, the trailer at
 //! the end, into a temporary file beside the target that is renamed only
-//! when complete. A failure or a crash leaves the target untouched.
+//! when complete. A failure or a crash leaves the target untouched
+//! (fsutil: the file's mode follows the umask, and a crash's partial
+//! file is cleaned by a later write).
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -25,13 +27,7 @@ impl PackedWriter {
             what,
             source,
         };
-        let dir = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        let tmp = tempfile::Builder::new()
-            .prefix(".cdvol-partial-")
-            .tempfile_in(dir)
+        let tmp = crate::fsutil::temp_beside(target)
             .map_err(|e| io("cannot create a temporary file beside the output", e))?;
         let mut w = BufWriter::with_capacity(1 << 20, tmp);
         let mut pre = [0u8; PREAMBLE_LEN as usize];

@@ -67,35 +67,39 @@ fn err(path: &Path, tag: &str, msg: impl Into<String>) -> InputError {
     InputError::field(path, tag, msg)
 }
 
-/// Whether the file has the DICOM magic after a 128-byte preamble.
+/// Whether the file has the DICOM magic after a 128-byte preamble (never
+/// true of a FIFO, socket or device, which are not opened).
 pub fn looks_dicom(path: &Path) -> bool {
-    use std::io::Read;
-    let mut b = [0u8; 132];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut b))
-        .is_ok()
-        && &b[128..132] == b"DICM"
+    sniff(path).unwrap_or(false)
 }
 
+/// [`looks_dicom`], with the error when the file cannot be opened or
+/// read (a file shorter than the magic is simply not DICOM).
+pub fn sniff(path: &Path) -> std::io::Result<bool> {
+    use std::io::Read;
+    let mut b = [0u8; 132];
+    match crate::fsutil::open_regular(path)?.read_exact(&mut b) {
+        Ok(()) => Ok(&b[128..132] == b"DICM"),
+        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => Ok(false),
+        Err(e) => Err(e),
+    }
+}
+
+/// The regular files under `dir`, each once (fsutil::walk: symlink loops
+/// add nothing). Special files are left out (they cannot be DICOM files
+/// and are never opened); a subdirectory that cannot be listed is an
+/// error, since the series could be incomplete.
 fn files_under(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), InputError> {
-    let rd = std::fs::read_dir(dir).map_err(|source| InputError::Io {
-        path: dir.to_path_buf(),
+    let io = |path: &Path, source| InputError::Io {
+        path: path.to_path_buf(),
         what: "cannot list the directory",
         source,
-    })?;
-    for e in rd {
-        let e = e.map_err(|source| InputError::Io {
-            path: dir.to_path_buf(),
-            what: "cannot list the directory",
-            source,
-        })?;
-        let p = e.path();
-        if p.is_dir() {
-            files_under(&p, out)?;
-        } else {
-            out.push(p);
-        }
+    };
+    let w = crate::fsutil::walk(dir).map_err(|e| io(dir, e))?;
+    if let Some((p, e)) = w.unlistable.into_iter().next() {
+        return Err(io(&p, e));
     }
+    out.extend(w.files);
     Ok(())
 }
 
@@ -445,6 +449,10 @@ fn spacing_report(slices: &[SliceInfo], z: &[f64]) -> Vec<String> {
 impl SliceSource for DicomSource {
     fn meta(&self) -> &VolumeMeta {
         &self.meta
+    }
+
+    fn files(&self) -> Vec<PathBuf> {
+        self.files.clone()
     }
 
     fn report(&self) -> Vec<String> {

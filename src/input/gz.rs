@@ -74,7 +74,7 @@ impl GzSource {
 
     fn start(&self) -> Result<Stream, InputError> {
         let l = &self.layout;
-        let mut f = File::open(&l.file).map_err(|source| InputError::Io {
+        let mut f = crate::fsutil::open_regular(&l.file).map_err(|source| InputError::Io {
             path: l.file.clone(),
             what: "cannot open gzip data file",
             source,
@@ -123,6 +123,14 @@ impl GzSource {
 impl SliceSource for GzSource {
     fn meta(&self) -> &VolumeMeta {
         &self.meta
+    }
+
+    fn files(&self) -> Vec<PathBuf> {
+        let mut v = vec![self.layout.header.clone()];
+        if self.layout.file != self.layout.header {
+            v.push(self.layout.file.clone());
+        }
+        v
     }
 
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {

@@ -151,7 +151,8 @@ impl VolumeMeta {
 
 /// Opens any supported input by its name: a directory of DICOM files (one
 /// series), a raw-stack sidecar (`.json`), NRRD (`.nrrd`, `.nhdr`) or
-/// NIfTI-1 (`.nii`, `.nii.gz`).
+/// NIfTI-1 (`.nii`, `.nii.gz`). Anything else that is not a regular file
+/// (a FIFO, socket or device) is refused without being opened.
 pub fn open(path: &std::path::Path) -> Result<Box<dyn SliceSource>, InputError> {
     open_with(path, None)
 }
@@ -161,9 +162,20 @@ pub fn open_with(
     path: &std::path::Path,
     series: Option<&str>,
 ) -> Result<Box<dyn SliceSource>, InputError> {
-    if path.is_dir() {
+    // By type before anything is opened: a FIFO would block the open.
+    let m = std::fs::metadata(path).map_err(|source| InputError::Io {
+        path: path.to_path_buf(),
+        what: "cannot open the input",
+        source,
+    })?;
+    if m.is_dir() {
         return Ok(Box::new(dicom::open_dir(path, series)?));
     }
+    crate::fsutil::check_regular(path).map_err(|source| InputError::Io {
+        path: path.to_path_buf(),
+        what: "expected a volume file or a DICOM directory",
+        source,
+    })?;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
@@ -191,6 +203,11 @@ pub trait SliceSource: Send + Sync {
     fn report(&self) -> Vec<String> {
         Vec::new()
     }
+
+    /// Every file the source reads: the header or sidecar, then the data
+    /// files it names (or a DICOM series' slices). Prep refuses an output
+    /// that is one of them.
+    fn files(&self) -> Vec<PathBuf>;
 }
 
 /// Errors while reading an input volume. Each names the file and, where

@@ -23,6 +23,12 @@ use crate::grid::{Axis, Grid};
 /// Opens a `.nii` or `.nii.gz` file as a slice source.
 pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
     let bad = |field: &str, msg: String| InputError::field(path, field, msg);
+    // The nifti crate opens the file itself: check its type first.
+    crate::fsutil::check_regular(path).map_err(|source| InputError::Io {
+        path: path.to_path_buf(),
+        what: "cannot open NIfTI file",
+        source,
+    })?;
     let h = NiftiHeader::from_file(path).map_err(|e| bad("header", format!("{e}")))?;
     if &h.magic != b"n+1\0" {
         return Err(bad(

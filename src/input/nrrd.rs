@@ -84,7 +84,7 @@ pub fn parse(path: &Path) -> Result<NrrdHeader, InputError> {
         }
     };
     let bad = |field: &str, msg: String| InputError::field(path, field, msg);
-    let f = std::fs::File::open(path).map_err(io("cannot open NRRD header"))?;
+    let f = crate::fsutil::open_regular(path).map_err(io("cannot open NRRD header"))?;
     let mut r = BufReader::new(f);
     let mut fields: BTreeMap<String, String> = BTreeMap::new();
     let mut consumed = 0u64;

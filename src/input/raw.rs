@@ -1,7 +1,6 @@
 //! Raw stacks: one file, or one file per z slice, memory-mapped and read
 //! slice by slice. The only `unsafe` of the input side lives here.
 
-use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use memmap2::Mmap;
@@ -88,7 +87,8 @@ impl RawSource {
                     source,
                 }
             };
-            let f = File::open(&file).map_err(data_err("cannot open data file"))?;
+            let f =
+                crate::fsutil::open_regular(&file).map_err(data_err("cannot open data file"))?;
             let len = f
                 .metadata()
                 .map_err(data_err("cannot stat data file"))?
@@ -145,6 +145,15 @@ impl RawSource {
 impl SliceSource for RawSource {
     fn meta(&self) -> &VolumeMeta {
         &self.meta
+    }
+
+    fn files(&self) -> Vec<PathBuf> {
+        let mut v = vec![self.sidecar.path.clone()];
+        match &self.sidecar.data {
+            DataFiles::One(f) => v.push(f.clone()),
+            DataFiles::PerSlice(list) => v.extend(list.iter().cloned()),
+        }
+        v
     }
 
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {

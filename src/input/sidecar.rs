@@ -83,7 +83,7 @@ const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
 
 /// Reads and checks a sidecar. Data files are not opened here.
 pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
-    let text = std::fs::read_to_string(path).map_err(|source| InputError::Io {
+    let text = crate::fsutil::read_regular_to_string(path).map_err(|source| InputError::Io {
         path: path.to_path_buf(),
         what: "cannot read sidecar",
         source,

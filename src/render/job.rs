@@ -10,15 +10,16 @@ use std::path::{Path, PathBuf};
 use super::cache::BrickCache;
 use super::camera::{Camera, CameraError, Projection};
 use super::error::RenderError;
+use super::options::Mode;
 use super::options::RenderOptions;
-use super::output::{save, SaveError};
+use super::output::{image_files, stage, SaveError};
 use super::shard::{render_part, PartError};
 use super::stats::Stats;
 use super::template::render_template;
 use super::tiles::{render, render_in, Shard};
 use super::traverse::TGrid;
 use crate::format::reader::PackedVolume;
-use crate::fsutil::{write_atomic, WriteError};
+use crate::fsutil::{FileSet, OutputError, WriteError};
 use crate::progress::Progress;
 
 /// Where the camera stands.
@@ -127,6 +128,13 @@ pub enum JobError {
     },
     #[error("frames 0, expected at least 1")]
     NoFrames,
+    /// More frames than a turntable may have ([`MAX_FRAMES`]).
+    #[error("frames {frames}, expected at most {MAX_FRAMES}")]
+    TooManyFrames { frames: u32 },
+    /// An output cannot be written or is the packed file read (checked
+    /// before any ray).
+    #[error(transparent)]
+    Output(#[from] OutputError),
     /// Turntables orbit the volume; an exact eye cannot turn.
     #[error("frames {frames}: a turntable orbits the volume, so its view must be an orbit, not eye, target and up")]
     TurntableLookAt { frames: u32 },
@@ -139,8 +147,43 @@ pub enum JobError {
     Threads(#[from] rayon::ThreadPoolBuildError),
 }
 
+/// Most frames of a turntable (all are committed together at the end).
+pub const MAX_FRAMES: u32 = 100_000;
+
+impl RenderJob {
+    /// Every file the job writes: the image (with the depth mode's
+    /// companions), the part file of a shard, or each frame of a
+    /// turntable (those of its shard), then the statistics.
+    pub fn outputs(&self) -> Result<Vec<PathBuf>, JobError> {
+        if self.frames > MAX_FRAMES {
+            return Err(JobError::TooManyFrames {
+                frames: self.frames,
+            });
+        }
+        let depth = matches!(self.options.mode, Mode::Depth { .. });
+        let mut v = Vec::new();
+        if self.frames > 1 {
+            for f in 0..self.frames {
+                if self.shard.is_none_or(|s| f % s.n == s.k) {
+                    v.extend(image_files(&numbered(&self.output, f), depth)?);
+                }
+            }
+        } else if self.shard.is_some() {
+            v.push(self.output.clone());
+        } else {
+            v.extend(image_files(&self.output, depth)?);
+        }
+        v.extend(self.stats.iter().cloned());
+        Ok(v)
+    }
+}
+
 /// Runs `job` on `vol`: the files written, and the statistics (summed
-/// over the frames of a turntable).
+/// over the frames of a turntable). Every output is checked before any
+/// ray ([`RenderJob::outputs`], fsutil::check_outputs: none may be the
+/// packed file read, a directory, or in a directory that cannot be
+/// written), and all of a job's files are committed together after the
+/// last one is written: a failure replaces none of them.
 pub fn run(
     vol: &PackedVolume,
     job: &RenderJob,
@@ -157,6 +200,15 @@ pub fn run(
     if job.frames == 0 {
         return Err(JobError::NoFrames);
     }
+    if job.frames == 1
+        && job.shard.is_some()
+        && job.output.extension().is_none_or(|e| e != "cdvpart")
+    {
+        return Err(JobError::PartName {
+            path: job.output.clone(),
+        });
+    }
+    crate::fsutil::check_outputs(&job.outputs()?, &[vol.path().to_path_buf()], None)?;
     let work = || {
         if job.frames > 1 {
             turntable(vol, job, bounds, progress)
@@ -198,12 +250,12 @@ fn image(
     progress: &dyn Progress,
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
     let (frame, stats) = render_one(vol, None, camera, job, progress)?;
-    let mut files = save(&frame, &job.output)?;
+    let mut set = FileSet::new();
+    stage(&frame, &job.output, &mut set)?;
     if let Some(p) = &job.stats {
-        write_json(p, &stats)?;
-        files.push(p.clone());
+        add_json(&mut set, p, &stats)?;
     }
-    Ok((files, stats))
+    Ok((set.commit()?, stats))
 }
 
 /// One shard of a single image, as a part file.
@@ -214,19 +266,13 @@ fn part(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
-    if job.output.extension().is_none_or(|e| e != "cdvpart") {
-        return Err(JobError::PartName {
-            path: job.output.clone(),
-        });
-    }
     let part = render_part(vol, camera, &job.options, shard, progress)?;
-    part.write(&job.output)?;
-    let mut files = vec![job.output.clone()];
+    let mut set = FileSet::new();
+    set.add_bytes(&job.output, &part.to_bytes(&job.output)?)?;
     if let Some(p) = &job.stats {
-        write_json(p, &part.stats)?;
-        files.push(p.clone());
+        add_json(&mut set, p, &part.stats)?;
     }
-    Ok((files, part.stats))
+    Ok((set.commit()?, part.stats))
 }
 
 /// A turntable: frame `f` at azimuth `orbit_deg * f / frames` past the
@@ -238,7 +284,7 @@ fn turntable(
     bounds: ([f64; 3], [f64; 3]),
     progress: &dyn Progress,
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
-    let (mut files, mut total, mut per_frame) = (Vec::new(), Stats::default(), Vec::new());
+    let (mut set, mut total, mut per_frame) = (FileSet::new(), Stats::default(), Vec::new());
     let cache = super::policy::cache_for(vol, &job.options);
     for f in 0..job.frames {
         if job.shard.is_some_and(|s| f % s.n != s.k) {
@@ -248,7 +294,7 @@ fn turntable(
             .camera
             .place(bounds, job.orbit_deg * f as f64 / job.frames as f64)?;
         let (frame, stats) = render_one(vol, Some(&cache), &cam, job, progress)?;
-        files.extend(save(&frame, &numbered(&job.output, f))?);
+        stage(&frame, &numbered(&job.output, f), &mut set)?;
         total.merge(&stats);
         per_frame.push(stats);
     }
@@ -258,10 +304,9 @@ fn turntable(
     }
     total.bricks_total = vol.header().brick_count();
     if let Some(p) = &job.stats {
-        write_json(p, &per_frame)?;
-        files.push(p.clone());
+        add_json(&mut set, p, &per_frame)?;
     }
-    Ok((files, total))
+    Ok((set.commit()?, total))
 }
 
 /// `out.png` -> `out.0007.png`: frame `f` of a turntable.
@@ -274,11 +319,11 @@ pub fn numbered(path: &Path, f: u32) -> PathBuf {
     path.with_file_name(format!("{stem}.{f:04}.{ext}"))
 }
 
-/// Writes `value` as pretty JSON to `p` (temporary file, renamed).
-fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<(), JobError> {
+/// Adds `value` as pretty JSON for `p` to `set`.
+fn add_json(set: &mut FileSet, p: &Path, value: &impl serde::Serialize) -> Result<(), JobError> {
     let bytes = serde_json::to_vec_pretty(value).map_err(|source| JobError::StatsJson {
         path: p.to_path_buf(),
         source,
     })?;
-    Ok(write_atomic(p, &bytes)?)
+    Ok(set.add_bytes(p, &bytes)?)
 }

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::integrate::Px;
 use super::options::{Mode, RenderOptions, Window};
 use crate::format::reader::PackedVolume;
-use crate::fsutil::{write_atomic, WriteError};
+use crate::fsutil::{FileSet, WriteError};
 
 /// How pixels become colours: the only part of the mode colouring needs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -207,10 +207,41 @@ pub enum SaveError {
     Write(#[from] WriteError),
 }
 
-/// Writes `frame` as PNG to `path` (temporary file beside it, renamed when
-/// complete); the depth mode also writes `path` with `.f32` (raw
-/// little-endian f32, NaN = miss) and a 16-bit PNG `*.depth16.png`.
+/// The files [`save`] writes for an image at `path`: the PNG and, in the
+/// depth mode (`depth`), `path` with `.f32` and `.depth16.png`. A depth
+/// image may not be named `*.f32`.
+pub fn image_files(path: &Path, depth: bool) -> Result<Vec<PathBuf>, SaveError> {
+    if !depth {
+        return Ok(vec![path.to_path_buf()]);
+    }
+    if path.extension().is_some_and(|e| e == "f32") {
+        return Err(SaveError::F32Name {
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(vec![
+        path.to_path_buf(),
+        path.with_extension("f32"),
+        path.with_extension("depth16.png"),
+    ])
+}
+
+/// Writes `frame` as PNG to `path`; the depth mode also writes `path`
+/// with `.f32` (raw little-endian f32, NaN = miss) and a 16-bit PNG
+/// `*.depth16.png` ([`image_files`]). The files are committed as one set
+/// (fsutil::FileSet): all are written to temporary files first, then
+/// renamed, so a failure replaces none of an older set.
 pub fn save(frame: &Frame, path: &Path) -> Result<Vec<PathBuf>, SaveError> {
+    let mut set = FileSet::new();
+    let files = stage(frame, path, &mut set)?;
+    set.commit()?;
+    Ok(files)
+}
+
+/// [`save`] into `set`: the files are written to temporary files and
+/// renamed when the caller commits the set (a turntable commits all its
+/// frames at once).
+pub fn stage(frame: &Frame, path: &Path, set: &mut FileSet) -> Result<Vec<PathBuf>, SaveError> {
     let png = |img: image::DynamicImage, to: &Path| -> Result<Vec<u8>, SaveError> {
         let mut buf = std::io::Cursor::new(Vec::new());
         img.write_to(&mut buf, image::ImageFormat::Png)
@@ -228,19 +259,13 @@ pub fn save(frame: &Frame, path: &Path) -> Result<Vec<PathBuf>, SaveError> {
         found,
         expected: frame.width as usize * frame.height as usize * per_px,
     };
-    if frame.depth.is_some() && path.extension().is_some_and(|e| e == "f32") {
-        return Err(SaveError::F32Name {
-            path: path.to_path_buf(),
-        });
-    }
+    let files = image_files(path, frame.depth.is_some())?;
     let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
         .ok_or_else(|| size("rgb", frame.rgb.len(), 3))?;
-    write_atomic(path, &png(image::DynamicImage::ImageRgb8(rgb), path)?)?;
-    let mut out = vec![path.to_path_buf()];
+    set.add_bytes(path, &png(image::DynamicImage::ImageRgb8(rgb), path)?)?;
     if let Some(d) = &frame.depth {
         let raw: Vec<u8> = d.iter().flat_map(|x| x.to_le_bytes()).collect();
-        let f32_path = path.with_extension("f32");
-        write_atomic(&f32_path, &raw)?;
+        set.add_bytes(&files[1], &raw)?;
         let (lo, hi) = d
             .iter()
             .filter(|x| x.is_finite())
@@ -263,10 +288,8 @@ pub fn save(frame: &Frame, path: &Path) -> Result<Vec<PathBuf>, SaveError> {
             px16,
         )
         .ok_or_else(|| size("depth", d.len(), 1))?;
-        let p16 = path.with_extension("depth16.png");
-        write_atomic(&p16, &png(image::DynamicImage::ImageLuma16(img), &p16)?)?;
-        out.push(f32_path);
-        out.push(p16);
+        let p16 = &files[2];
+        set.add_bytes(p16, &png(image::DynamicImage::ImageLuma16(img), p16)?)?;
     }
-    Ok(out)
+    Ok(files)
 }

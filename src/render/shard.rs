@@ -320,6 +320,11 @@ impl Part {
     /// Writes the part to `path` (temporary file beside it, renamed when
     /// complete).
     pub fn write(&self, path: &Path) -> Result<(), PartError> {
+        Ok(write_atomic(path, &self.to_bytes(path)?)?)
+    }
+
+    /// The bytes of the part file (`path` names it in errors).
+    pub fn to_bytes(&self, path: &Path) -> Result<Vec<u8>, PartError> {
         let header = PartHeader {
             key: self.key.clone(),
             shard: self.shard,
@@ -350,13 +355,14 @@ impl Part {
         }
         let crc = crc32fast::hash(&b);
         b.extend_from_slice(&crc.to_le_bytes());
-        Ok(write_atomic(path, &b)?)
+        Ok(b)
     }
 
     /// Reads and checks a part file.
     pub fn read(path: &Path) -> Result<Part, PartError> {
         let p = || path.to_path_buf();
-        let b = std::fs::read(path).map_err(|source| PartError::Read { path: p(), source })?;
+        let b = crate::fsutil::read_regular(path)
+            .map_err(|source| PartError::Read { path: p(), source })?;
         if b.len() < 20 || &b[..8] != MAGIC {
             return Err(PartError::Magic { path: p() });
         }

@@ -19,7 +19,8 @@
 //!   boundaries are partial-volume ramps about 1.5 sample spacings wide.
 //!
 //! Both write to temporary files beside the target and rename them into
-//! place at the end, so a failure leaves nothing partial behind. Slices are
+//! place together at the end (fsutil::FileSet), so a failure leaves
+//! nothing partial behind. Slices are
 //! computed in batches, rows in parallel (rayon), and written sequentially.
 
 use std::io::{BufWriter, Write};
@@ -28,6 +29,8 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use tempfile::NamedTempFile;
+
+use crate::fsutil::{FileSet, OutputError, WriteError};
 
 use crate::grid::{Axis, AxisError, MAX_SAMPLES_PER_AXIS};
 use crate::input::sidecar::{AxisSpec, SidecarOut};
@@ -75,6 +78,12 @@ pub enum PhantomError {
         path: PathBuf,
         source: serde_json::Error,
     },
+    /// An output cannot be written (checked before any work).
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    /// The finished files could not be renamed into place.
+    #[error(transparent)]
+    Write(#[from] WriteError),
 }
 
 impl PhantomError {
@@ -348,7 +357,7 @@ pub fn spheres(
     let axes = [ax_x, ax_y, ax_z];
     let dims = [n; 3];
     check_slice_size("size", dims, 2)?;
-    let out = Outputs::of(out_json)?;
+    let out = Outputs::of(out_json, true)?;
 
     // The box, the radius and the centres.
     let lens: [f64; 3] = [0, 1, 2].map(|k| axes[k].coords()[n - 1]);
@@ -465,7 +474,7 @@ pub fn spheres(
         per_axis: per,
         seed: opts.seed,
     };
-    let list_tmp = write_json(&out.dir, &out.spheres, &list, "cannot write sphere list")?;
+    let list_tmp = write_json(&out.spheres, &list, "cannot write sphere list")?;
     let side = SidecarOut {
         data: out.raw_name.clone(),
         dims,
@@ -478,10 +487,12 @@ pub fn spheres(
         origin: [0.0; 3],
         rescale: None,
     };
-    let side_tmp = write_json(&out.dir, &out.json, &side, "cannot write sidecar")?;
-    persist(raw_tmp, &out.raw)?;
-    persist(list_tmp, &out.spheres)?;
-    persist(side_tmp, &out.json)?;
+    let side_tmp = write_json(&out.json, &side, "cannot write sidecar")?;
+    let mut set = FileSet::new();
+    set.add(raw_tmp, &out.raw);
+    set.add(list_tmp, &out.spheres);
+    set.add(side_tmp, &out.json);
+    set.commit()?;
     Ok(SpheresInfo {
         iso: SPHERES_ISO,
         spheres,
@@ -766,7 +777,7 @@ pub fn ct(
             format!("{}, expected a positive finite factor", opts.z_scale),
         ));
     }
-    let out = Outputs::of(out_json)?;
+    let out = Outputs::of(out_json, false)?;
     let [nx, ny, nz] = dims;
 
     let sx = 0.9 * 256.0 / nx as f64;
@@ -937,9 +948,11 @@ pub fn ct(
         origin: [0.0; 3],
         rescale,
     };
-    let side_tmp = write_json(&out.dir, &out.json, &side, "cannot write sidecar")?;
-    persist(raw_tmp, &out.raw)?;
-    persist(side_tmp, &out.json)?;
+    let side_tmp = write_json(&out.json, &side, "cannot write sidecar")?;
+    let mut set = FileSet::new();
+    set.add(raw_tmp, &out.raw);
+    set.add(side_tmp, &out.json);
+    set.commit()?;
     Ok(CtInfo {
         raw_path: out.raw,
         bytes,
@@ -952,7 +965,6 @@ pub fn ct(
 
 /// The files a generator writes, derived from the sidecar path.
 struct Outputs {
-    dir: PathBuf,
     json: PathBuf,
     raw_name: String,
     raw: PathBuf,
@@ -960,7 +972,10 @@ struct Outputs {
 }
 
 impl Outputs {
-    fn of(out_json: &Path) -> Result<Outputs, PhantomError> {
+    /// The files of a generator writing the sidecar `out_json` (and the
+    /// sphere list with `spheres`), checked before any work
+    /// (fsutil::check_outputs).
+    fn of(out_json: &Path, spheres: bool) -> Result<Outputs, PhantomError> {
         let stem = out_json
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
@@ -994,13 +1009,18 @@ impl Outputs {
             source,
         })?;
         let raw_name = format!("{stem}.raw");
-        Ok(Outputs {
+        let out = Outputs {
             raw: dir.join(&raw_name),
             spheres: dir.join(format!("{stem}.spheres.json")),
             json: out_json.to_path_buf(),
             raw_name,
-            dir,
-        })
+        };
+        let mut files = vec![out.json.clone(), out.raw.clone()];
+        if spheres {
+            files.push(out.spheres.clone());
+        }
+        crate::fsutil::check_outputs(&files, &[], None)?;
+        Ok(out)
     }
 }
 
@@ -1026,33 +1046,20 @@ fn check_slice_size(
     }
 }
 
-fn tmp_beside(dir: &Path, target: &Path) -> Result<NamedTempFile, PhantomError> {
-    tempfile::Builder::new()
-        .prefix(".cdvol-partial-")
-        .tempfile_in(dir)
-        .map_err(|source| PhantomError::Io {
-            path: target.to_path_buf(),
-            what: "cannot create a temporary file beside the output",
-            source,
-        })
-}
-
-fn persist(tmp: NamedTempFile, target: &Path) -> Result<(), PhantomError> {
-    tmp.persist(target).map_err(|e| PhantomError::Io {
+fn tmp_beside(target: &Path) -> Result<NamedTempFile, PhantomError> {
+    crate::fsutil::temp_beside(target).map_err(|source| PhantomError::Io {
         path: target.to_path_buf(),
-        what: "cannot rename into place",
-        source: e.error,
-    })?;
-    Ok(())
+        what: "cannot create a temporary file beside the output",
+        source,
+    })
 }
 
 fn write_json<T: Serialize>(
-    dir: &Path,
     target: &Path,
     value: &T,
     what: &'static str,
 ) -> Result<NamedTempFile, PhantomError> {
-    let tmp = tmp_beside(dir, target)?;
+    let tmp = tmp_beside(target)?;
     let io = |source| PhantomError::Io {
         path: target.to_path_buf(),
         what,
@@ -1086,7 +1093,7 @@ where
     let row_bytes = nx * sample_bytes;
     let slice_bytes = row_bytes * ny;
     let batch = (BATCH_BYTES / slice_bytes).clamp(1, BATCH_SLICES).min(nz);
-    let tmp = tmp_beside(&out.dir, &out.raw)?;
+    let tmp = tmp_beside(&out.raw)?;
     let mut w = BufWriter::with_capacity(1 << 20, tmp);
     let mut buf = vec![0u8; batch * slice_bytes];
     let io = |what| {

@@ -24,6 +24,7 @@ mod experiments;
 mod extremes;
 mod formats;
 mod generators;
+mod harden;
 mod layout;
 mod normals;
 mod prep;
