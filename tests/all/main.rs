@@ -31,6 +31,7 @@ mod prep;
 mod real_data;
 mod reference;
 mod render;
+mod scene;
 mod shard;
 mod template;
 mod traverse;

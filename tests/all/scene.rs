@@ -1,0 +1,255 @@
+//! Render-time classification (`render --iso`, issue 16): a file prepared
+//! at iso E renders any iso V >= E exactly. Surface and depth images are
+//! byte-identical to those of a file prepared at V, for every traversal,
+//! both normals, shadows, on the real CT and the phantoms, plain, halo and
+//! transfer-function files; outside the envelope it is refused with the
+//! prep command that covers it.
+
+use std::path::Path;
+
+use crate::common::{self, cdvol, fails, ok, orbit, packed_with, same_frame, white_tf};
+
+use cdvol::classify::Classification;
+use cdvol::format::reader::PackedVolume;
+use cdvol::prep::{prep, PrepOptions};
+use cdvol::progress::NoProgress;
+use cdvol::render::shade::HitMethod;
+use cdvol::render::traverse::Method;
+use cdvol::render::{render, Mode, Normals, RenderOptions};
+use cdvol::tools::phantom;
+
+/// The modes whose images must match: surface (both normals, with and
+/// without shadows) and depth.
+fn modes() -> Vec<(Mode, Normals)> {
+    let surface = |shadows| Mode::Surface {
+        hit: HitMethod::Int,
+        shadows,
+    };
+    vec![
+        (surface(false), Normals::Smooth),
+        (surface(true), Normals::Smooth),
+        (surface(false), Normals::Cell),
+        (
+            Mode::Depth {
+                hit: HitMethod::Newton,
+            },
+            Normals::Smooth,
+        ),
+    ]
+}
+
+/// Renders `envelope` at scene iso `v` and `own` (prepared at `v`) with
+/// each traversal, mode and view, and requires the same bytes. Returns
+/// the CD steps of each (envelope, own), summed.
+fn same_as_own(envelope: &PackedVolume, own: &PackedVolume, v: f64, what: &str) -> (u64, u64) {
+    let mut steps = (0, 0);
+    for view in [[30.0, 20.0], [200.0, -40.0], [90.0, 0.0]] {
+        let cam = orbit(own, view, None, 48, 48);
+        for method in [Method::Fvt, Method::Cd { min_leap: 1 }] {
+            for (mode, normals) in modes() {
+                let base = RenderOptions {
+                    tile: 16,
+                    cache_bytes: 64 << 20,
+                    cd_lazy_min: 4,
+                    normals,
+                    ..RenderOptions::new(mode.clone(), method)
+                };
+                let (want, sw) = render(own, &cam, &base, &NoProgress).unwrap();
+                let o = RenderOptions {
+                    iso: Some(v),
+                    ..base.clone()
+                };
+                let (got, sg) = render(envelope, &cam, &o, &NoProgress).unwrap();
+                assert!(
+                    same_frame(&got, &want),
+                    "{what}: iso {v} from the envelope differs from a file prepared at {v} \
+                     ({mode:?}, {normals:?}, {method:?}, view {view:?})"
+                );
+                assert!(sw.hits > 0, "{what}: the scene at {v} shows nothing");
+                if method != Method::Fvt {
+                    steps.0 += sg.steps;
+                    steps.1 += sw.steps;
+                }
+            }
+        }
+    }
+    steps
+}
+
+fn ct_phantom(dir: &Path) -> std::path::PathBuf {
+    let side = dir.join("head.json");
+    phantom::ct(
+        &side,
+        &phantom::CtOptions {
+            dims: [56, 52, 40],
+            seed: 5,
+            ..Default::default()
+        },
+        &NoProgress,
+    )
+    .unwrap();
+    side
+}
+
+#[test]
+fn iso_inside_the_envelope_matches_a_file_prepared_for_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ct = common::real_ct();
+    let head = ct_phantom(d);
+    for (name, input, envelope_iso, isos) in [
+        ("real CT", &ct, 300.0, &[300.0, 500.0, 1000.0][..]),
+        ("CT phantom", &head, -200.0, &[0.0, 400.0][..]),
+    ] {
+        for halo in [false, true] {
+            let env = packed_with(
+                input,
+                &d.join(format!("env{halo}.cdv")),
+                envelope_iso,
+                |o| o.gradient_halo = halo,
+            );
+            for &v in isos {
+                let own = packed_with(input, &d.join(format!("own{halo}{v}.cdv")), v, |o| {
+                    o.gradient_halo = halo
+                });
+                same_as_own(&env, &own, v, &format!("{name}, halo {halo}"));
+            }
+        }
+    }
+}
+
+#[test]
+fn iso_on_sphere_phantoms_and_rectilinear_grids() {
+    let dir = tempfile::tempdir().unwrap();
+    for (n, spacing) in [(2, "1"), (5, "0.8,1,0.5:2")] {
+        let side = dir.path().join(format!("s{n}.json"));
+        let info = phantom::spheres(
+            &side,
+            &phantom::SpheresOptions {
+                size: 40,
+                per_axis: n,
+                seed: 3,
+                spacing: phantom::parse_spacing3(spacing).unwrap(),
+            },
+            &NoProgress,
+        )
+        .unwrap();
+        // The spheres are a distance field: an envelope well below the
+        // surface, and scenes up to it and past it.
+        let env = packed_with(&side, &dir.path().join("env.cdv"), info.iso * 0.5, |_| {});
+        for v in [info.iso * 0.75, info.iso] {
+            let own = packed_with(&side, &dir.path().join(format!("own{v}.cdv")), v, |_| {});
+            let (e, o) = same_as_own(&env, &own, v, &format!("spheres N={n}"));
+            // Tightened codes still leap: far fewer steps than single
+            // cells would take, if more than the scene's own codes.
+            assert!(
+                e >= o,
+                "N={n} iso {v}: {e} steps from the envelope, {o} own"
+            );
+        }
+    }
+}
+
+/// A file classified by a transfer function renders surfaces at any iso
+/// where the function is non-zero from there up.
+#[test]
+fn iso_inside_a_transfer_function_envelope() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = ct_phantom(dir.path());
+    let tf = white_tf(&[(-300.0, 0.0), (-250.0, 0.1), (2000.0, 0.9)]);
+    let src = cdvol::input::open(&head).unwrap();
+    let mut o = PrepOptions::new(Classification::TransferFunction { tf });
+    o.brick_size = 16;
+    let out = dir.path().join("tf.cdv");
+    prep(src.as_ref(), &out, &o, &NoProgress).unwrap();
+    let env = PackedVolume::open(&out).unwrap();
+    for v in [-250.0, 100.0] {
+        let own = packed_with(&head, &dir.path().join(format!("own{v}.cdv")), v, |_| {});
+        same_as_own(&env, &own, v, "transfer-function file");
+    }
+    // At -300 the function is zero: a cell reaching only -300 was 0-cell.
+    let cam = orbit(&env, [30.0, 20.0], None, 16, 16);
+    let o = RenderOptions {
+        iso: Some(-300.0),
+        ..RenderOptions::new(
+            Mode::Surface {
+                hit: HitMethod::Int,
+                shadows: false,
+            },
+            Method::Cd { min_leap: 1 },
+        )
+    };
+    let e = render(&env, &cam, &o, &NoProgress).unwrap_err().to_string();
+    assert!(e.contains("outside the file's envelope"), "{e}");
+}
+
+#[test]
+fn iso_outside_the_envelope_is_refused_with_the_prep_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = ct_phantom(dir.path());
+    let cdv = dir.path().join("head.cdv");
+    ok(cdvol()
+        .args(["prep", "-q", "--iso", "300"])
+        .arg(&head)
+        .arg("-o")
+        .arg(&cdv));
+    let png = dir.path().join("x.png");
+    // Below the envelope: refused, nothing written, the command named.
+    let e = fails(
+        cdvol()
+            .args([
+                "render", "-q", "--iso", "250", "--width", "16", "--height", "16",
+            ])
+            .arg(&cdv)
+            .arg("-o")
+            .arg(&png),
+    );
+    let want = format!("cdvol prep --iso 250 {}", head.display());
+    assert!(e.contains(&want), "{e}");
+    assert!(!png.exists());
+    // Composite takes its transfer function, not an iso value.
+    let tf = dir.path().join("tf.json");
+    std::fs::write(
+        &tf,
+        r#"{"points": [{"value": 300, "opacity": 0}, {"value": 900, "opacity": 0.5}]}"#,
+    )
+    .unwrap();
+    let e = fails(
+        cdvol()
+            .args([
+                "render",
+                "-q",
+                "--iso",
+                "400",
+                "--mode",
+                "composite",
+                "--tf",
+            ])
+            .arg(&tf)
+            .arg(&cdv)
+            .arg("-o")
+            .arg(&png),
+    );
+    assert!(e.contains("iso") && e.contains("composite"), "{e}");
+    // Inside: written, and the same bytes as a file prepared there.
+    ok(cdvol()
+        .args([
+            "render", "-q", "--iso", "600", "--width", "40", "--height", "40",
+        ])
+        .arg(&cdv)
+        .arg("-o")
+        .arg(&png));
+    let own = dir.path().join("own.cdv");
+    ok(cdvol()
+        .args(["prep", "-q", "--iso", "600"])
+        .arg(&head)
+        .arg("-o")
+        .arg(&own));
+    let png2 = dir.path().join("y.png");
+    ok(cdvol()
+        .args(["render", "-q", "--width", "40", "--height", "40"])
+        .arg(&own)
+        .arg("-o")
+        .arg(&png2));
+    assert_eq!(std::fs::read(&png).unwrap(), std::fs::read(&png2).unwrap());
+}
