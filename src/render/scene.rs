@@ -55,7 +55,7 @@ pub(crate) fn narrow(b: &mut RBrick, iso: f32, halo: bool) {
     let (sx, sy) = (cx + 1, cy + 1);
     // NaN compares false: never above.
     let above: Vec<bool> = b.values.iter().map(|&v| v >= iso).collect();
-    let mut any = false;
+    let (mut any, mut demoted) = (false, 0usize);
     for z in 0..cz {
         for y in 0..cy {
             for x in 0..cx {
@@ -77,9 +77,16 @@ pub(crate) fn narrow(b: &mut RBrick, iso: f32, halo: bool) {
                     any = true;
                 } else {
                     plane[i] = 0;
+                    demoted += 1;
                 }
             }
         }
+    }
+    if demoted == 0 {
+        // The scene's 1-cells here are the file's: its codes and values
+        // stand (a code 0 inside the brick still has a scene 1-cell
+        // next to it, as [`scene_code_at_least_1`] relies on).
+        return;
     }
     let local = local_distances(plane, b.cells);
     let min_embedded = if halo { 2 } else { 1 };
@@ -103,10 +110,14 @@ pub(crate) fn narrow(b: &mut RBrick, iso: f32, halo: bool) {
     }
 }
 
+/// The largest distance [`local_distances`] gives: every value then stays
+/// below 255 after adding one, so its sweeps need no saturation.
+pub(crate) const FAR: u8 = 254;
+
 /// The chessboard distance of every cell of a brick (`cells` per axis, x
 /// fastest; `plane[i] == OBJECT` marks a 1-cell) to the nearest 1-cell,
 /// counting every cell outside the brick as a 1-cell: 0 for a 1-cell, 1
-/// on the brick's outer layer, saturating at 255.
+/// on the brick's outer layer, at most [`FAR`].
 ///
 /// Two raster passes with the 3x3x3 mask of unit weights (Rosenfeld and
 /// Pfaltz's sequential chessboard transform in 3D), exact for the
@@ -123,40 +134,58 @@ pub(crate) fn local_distances(plane: &[u8], cells: [u32; 3]) -> Vec<u8> {
             let row = &plane[(z * cy + y) * cx..(z * cy + y + 1) * cx];
             let o = at(1, y + 1, z + 1);
             for (dst, &c) in d[o..o + cx].iter_mut().zip(row) {
-                *dst = if c == OBJECT { 0 } else { u8::MAX };
+                *dst = if c == OBJECT { 0 } else { FAR };
             }
         }
     }
-    let mut eroded = vec![0u8; px * py];
-    let mut prev_row = vec![0u8; px];
+    // Per pass and slice: the slice before it (in the pass's order),
+    // eroded over its 3x3 neighbourhoods; per row, the row before it
+    // eroded over x, merged with that into `cand`, then the sweep along
+    // x, which alone carries a dependency from cell to cell.
+    let mut ex = vec![0u8; px * py];
+    let mut exy = vec![0u8; px * py];
+    let mut prev = vec![0u8; px];
+    let mut cand = vec![0u8; px];
     for forward in [true, false] {
         for zi in 0..cz {
             let z = if forward { 1 + zi } else { cz - zi };
             let zn = if forward { z - 1 } else { z + 1 };
-            // The slice before, eroded along x (along y below, per row).
-            for y in 0..py {
-                erode3(
-                    &d[at(0, y, zn)..at(0, y, zn) + px],
-                    &mut eroded[y * px..(y + 1) * px],
+            let slice = &d[at(0, 0, zn)..at(0, 0, zn) + px * py];
+            for (src, dst) in slice.chunks_exact(px).zip(ex.chunks_exact_mut(px)) {
+                erode3(src, dst);
+            }
+            for y in 1..=cy {
+                let (a, b, c) = (
+                    &ex[(y - 1) * px..y * px],
+                    &ex[y * px..(y + 1) * px],
+                    &ex[(y + 1) * px..(y + 2) * px],
                 );
+                for (o, ((&a, &b), &c)) in exy[y * px..(y + 1) * px]
+                    .iter_mut()
+                    .zip(a.iter().zip(b).zip(c))
+                {
+                    *o = a.min(b).min(c);
+                }
             }
             for yi in 0..cy {
                 let y = if forward { 1 + yi } else { cy - yi };
                 let yn = if forward { y - 1 } else { y + 1 };
-                erode3(&d[at(0, yn, z)..at(0, yn, z) + px], &mut prev_row);
-                let o = at(0, y, z);
-                for xi in 0..cx {
-                    let x = if forward { 1 + xi } else { cx - xi };
-                    let cur = d[o + x];
-                    if cur == 0 {
-                        continue;
+                erode3(&d[at(0, yn, z)..at(0, yn, z) + px], &mut prev);
+                for (o, (&a, &b)) in cand
+                    .iter_mut()
+                    .zip(exy[y * px..(y + 1) * px].iter().zip(&prev))
+                {
+                    *o = a.min(b) + 1;
+                }
+                let row = &mut d[at(0, y, z)..at(0, y, z) + px];
+                if forward {
+                    for x in 1..=cx {
+                        row[x] = row[x].min(cand[x]).min(row[x - 1] + 1);
                     }
-                    let xn = if forward { x - 1 } else { x + 1 };
-                    let slice = eroded[(y - 1) * px + x]
-                        .min(eroded[y * px + x])
-                        .min(eroded[(y + 1) * px + x]);
-                    let m = slice.min(prev_row[x]).min(d[o + xn]);
-                    d[o + x] = cur.min(m.saturating_add(1));
+                } else {
+                    for x in (1..=cx).rev() {
+                        row[x] = row[x].min(cand[x]).min(row[x + 1] + 1);
+                    }
                 }
             }
         }
@@ -263,7 +292,7 @@ mod tests {
                             best = best.min(d);
                         }
                     }
-                    out[(z * c[1] + y) * c[0] + x] = best.min(255) as u8;
+                    out[(z * c[1] + y) * c[0] + x] = best.min(254) as u8;
                 }
             }
         }
