@@ -538,7 +538,8 @@ pub enum PrecisionArg {
 pub struct RenderArgs {
     /// Packed file from `cdvol prep`.
     pub file: PathBuf,
-    /// Output PNG.
+    /// Output image: PNG, TIFF or JPEG by the extension (.png, .tif,
+    /// .tiff, .jpg, .jpeg); the depth mode writes PNG.
     #[arg(short, long)]
     pub output: PathBuf,
     #[arg(long, value_enum, default_value = "surface")]

@@ -1,7 +1,8 @@
 //! Image output, the last stage of a render: pixels (before colouring,
 //! from the integrators or from part files) become an RGB8 [`Frame`] by
-//! the mode's [`Colouring`], and [`save`] writes it as PNG (plus raw f32
-//! and 16-bit PNG depth in the depth mode). A single-process render and
+//! the mode's [`Colouring`], and [`save`] writes it as PNG, TIFF or JPEG
+//! by the output's extension (plus raw f32 and 16-bit PNG depth in the
+//! depth mode). A single-process render and
 //! an assembled sharded one colour through the same [`colour`], so their
 //! bytes are the same.
 
@@ -197,8 +198,21 @@ pub enum SaveError {
         found: usize,
         expected: usize,
     },
-    /// PNG encoding failed.
-    #[error("{}: cannot encode PNG: {source}", path.display())]
+    /// The output's extension names no format [`save`] writes.
+    #[error(
+        "{}: extension {found:?}: expected .png, .tif, .tiff, .jpg or .jpeg (the format \
+         follows the extension)",
+        path.display()
+    )]
+    Extension { path: PathBuf, found: String },
+    /// A depth image must be PNG (its 16-bit and f32 companions are).
+    #[error(
+        "{}: the depth mode writes a PNG (and .f32 and .depth16.png beside it); use a .png name",
+        path.display()
+    )]
+    DepthFormat { path: PathBuf },
+    /// Image encoding failed.
+    #[error("{}: cannot encode the image: {source}", path.display())]
     Encode {
         path: PathBuf,
         source: image::ImageError,
@@ -207,17 +221,41 @@ pub enum SaveError {
     Write(#[from] WriteError),
 }
 
-/// The files [`save`] writes for an image at `path`: the PNG and, in the
+/// The format of an image at `path`, from its extension (case ignored):
+/// PNG, TIFF or JPEG; any other is refused, so `-o x.jpg` never holds PNG
+/// bytes.
+pub fn image_format(path: &Path) -> Result<image::ImageFormat, SaveError> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "png" => Ok(image::ImageFormat::Png),
+        "tif" | "tiff" => Ok(image::ImageFormat::Tiff),
+        "jpg" | "jpeg" => Ok(image::ImageFormat::Jpeg),
+        _ => Err(SaveError::Extension {
+            path: path.to_path_buf(),
+            found: ext,
+        }),
+    }
+}
+
+/// The files [`save`] writes for an image at `path`: the image and, in the
 /// depth mode (`depth`), `path` with `.f32` and `.depth16.png`. A depth
 /// image may not be named `*.f32`.
 pub fn image_files(path: &Path, depth: bool) -> Result<Vec<PathBuf>, SaveError> {
-    if !depth {
-        return Ok(vec![path.to_path_buf()]);
-    }
-    if path.extension().is_some_and(|e| e == "f32") {
+    if depth && path.extension().is_some_and(|e| e == "f32") {
         return Err(SaveError::F32Name {
             path: path.to_path_buf(),
         });
+    }
+    if image_format(path)? != image::ImageFormat::Png && depth {
+        return Err(SaveError::DepthFormat {
+            path: path.to_path_buf(),
+        });
+    }
+    if !depth {
+        return Ok(vec![path.to_path_buf()]);
     }
     Ok(vec![
         path.to_path_buf(),
@@ -226,7 +264,8 @@ pub fn image_files(path: &Path, depth: bool) -> Result<Vec<PathBuf>, SaveError> 
     ])
 }
 
-/// Writes `frame` as PNG to `path`; the depth mode also writes `path`
+/// Writes `frame` to `path` as PNG, TIFF or JPEG by its extension
+/// ([`image_format`]; 8-bit RGB); the depth mode (PNG only) also writes `path`
 /// with `.f32` (raw little-endian f32, NaN = miss) and a 16-bit PNG
 /// `*.depth16.png` ([`image_files`]). The files are committed as one set
 /// (fsutil::FileSet): all are written to temporary files first, then
@@ -242,9 +281,9 @@ pub fn save(frame: &Frame, path: &Path) -> Result<Vec<PathBuf>, SaveError> {
 /// renamed when the caller commits the set (a turntable commits all its
 /// frames at once).
 pub fn stage(frame: &Frame, path: &Path, set: &mut FileSet) -> Result<Vec<PathBuf>, SaveError> {
-    let png = |img: image::DynamicImage, to: &Path| -> Result<Vec<u8>, SaveError> {
+    let encode = |img: image::DynamicImage, to: &Path| -> Result<Vec<u8>, SaveError> {
         let mut buf = std::io::Cursor::new(Vec::new());
-        img.write_to(&mut buf, image::ImageFormat::Png)
+        img.write_to(&mut buf, image_format(to)?)
             .map_err(|source| SaveError::Encode {
                 path: to.to_path_buf(),
                 source,
@@ -262,7 +301,7 @@ pub fn stage(frame: &Frame, path: &Path, set: &mut FileSet) -> Result<Vec<PathBu
     let files = image_files(path, frame.depth.is_some())?;
     let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
         .ok_or_else(|| size("rgb", frame.rgb.len(), 3))?;
-    set.add_bytes(path, &png(image::DynamicImage::ImageRgb8(rgb), path)?)?;
+    set.add_bytes(path, &encode(image::DynamicImage::ImageRgb8(rgb), path)?)?;
     if let Some(d) = &frame.depth {
         let raw: Vec<u8> = d.iter().flat_map(|x| x.to_le_bytes()).collect();
         set.add_bytes(&files[1], &raw)?;
@@ -289,7 +328,7 @@ pub fn stage(frame: &Frame, path: &Path, set: &mut FileSet) -> Result<Vec<PathBu
         )
         .ok_or_else(|| size("depth", d.len(), 1))?;
         let p16 = &files[2];
-        set.add_bytes(p16, &png(image::DynamicImage::ImageLuma16(img), p16)?)?;
+        set.add_bytes(p16, &encode(image::DynamicImage::ImageLuma16(img), p16)?)?;
     }
     Ok(files)
 }

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::common::{assert_same_volume, gz, packed, try_packed};
+use crate::common::{self, assert_same_volume, gz, packed, try_packed};
 use cdvol::format::reader::PackedVolume;
 
 const DIMS: [usize; 3] = [37, 30, 26];
@@ -324,4 +324,67 @@ fn cli_prep_reads_nrrd() {
         got.header().summary.one_cells,
         want.header().summary.one_cells
     );
+}
+
+/// The image format follows `-o`'s extension; an unknown one is refused
+/// before any work and writes nothing (issue 16: `-o x.jpg` used to hold
+/// PNG bytes).
+#[test]
+fn render_output_format_follows_the_extension() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = dir.path().join("head.json");
+    common::ok(
+        common::cdvol()
+            .args(["phantom", "ct", "-q", "--dims", "24,24,16", "-o"])
+            .arg(&head),
+    );
+    let cdv = dir.path().join("head.cdv");
+    common::ok(
+        common::cdvol()
+            .args(["prep", "-q", "--iso", "300"])
+            .arg(&head)
+            .arg("-o")
+            .arg(&cdv),
+    );
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut c = common::cdvol();
+        c.args(["render", "-q", "--width", "20", "--height", "16"])
+            .args(extra)
+            .arg(&cdv)
+            .arg("-o")
+            .arg(&out);
+        (c, out)
+    };
+    for (name, magic) in [
+        ("a.png", &b"\x89PNG"[..]),
+        ("a.TIF", &b"II*\0"[..]),
+        ("a.tiff", &b"II*\0"[..]),
+        ("a.jpg", &b"\xff\xd8\xff"[..]),
+    ] {
+        let (mut c, out) = render(name, &[]);
+        common::ok(&mut c);
+        let bytes = std::fs::read(&out).unwrap();
+        assert!(bytes.starts_with(magic), "{name}: {:?}", &bytes[..4]);
+        let img = image::open(&out).unwrap();
+        assert_eq!((img.width(), img.height()), (20, 16), "{name}");
+    }
+    for (name, extra, want) in [
+        (
+            "a.bmp",
+            &[][..],
+            "expected .png, .tif, .tiff, .jpg or .jpeg",
+        ),
+        ("noext", &[][..], "expected .png"),
+        (
+            "d.tiff",
+            &["--mode", "depth"][..],
+            "depth mode writes a PNG",
+        ),
+    ] {
+        let (mut c, out) = render(name, extra);
+        let e = common::fails(&mut c);
+        assert!(e.contains(want) && e.contains(name), "{name}: {e}");
+        assert!(!out.exists(), "{name} was written");
+    }
 }
