@@ -640,7 +640,12 @@ pub struct RenderArgs {
     /// Perspective field of view in degrees.
     #[arg(long, default_value_t = 40.0)]
     pub fov: f64,
-    /// Orbit view: azimuth and elevation in degrees around the volume centre.
+    /// Orbit view: azimuth and elevation in degrees around the volume centre,
+    /// in the file's sample axes (x = columns, y = rows, z = slices; the
+    /// patient orientation of DICOM, NIfTI and NRRD is not applied). Azimuth
+    /// turns about +z: 0 puts the eye on the -y side looking towards +y, 90
+    /// on the +x side looking towards -x. Elevation lifts the eye towards +z,
+    /// looking down; +z is up in the image (default 0,0).
     #[arg(long, value_parser = parse_pair, allow_hyphen_values = true)]
     pub view: Option<[f64; 2]>,
     /// Exact camera: eye, target and up in mm (all three needed).
