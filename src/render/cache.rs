@@ -682,7 +682,7 @@ pub struct Planes {
     pub block_max: bool,
     /// The scene's iso value when it is narrower than the file's
     /// classification (`render --iso`): each brick is rewritten for it
-    /// ([`narrow`](super::scene::narrow)) before any other plane is built.
+    /// (render/scene.rs) before any other plane is built.
     pub narrow: Option<f32>,
 }
 

@@ -21,7 +21,8 @@ pub const MAX_PIXELS: u64 = 1 << 28;
 /// What a pixel shows.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Mode {
-    /// Shaded iso-surface at the file's iso value.
+    /// Shaded iso-surface at the scene's iso value ([`RenderOptions::iso`],
+    /// else the file's).
     Surface { hit: HitMethod, shadows: bool },
     /// Maximum of the interpolant at the 1-cells' face samples.
     Mip,
@@ -82,7 +83,7 @@ pub struct RenderOptions {
     pub normals: Normals,
     /// The scene's iso value (`render --iso`) for surface, depth, cost and
     /// MIP, when it is not the file's own: it must lie inside the file's
-    /// classification, the envelope ([`scene_iso`]); `None` renders the
+    /// classification, the envelope (render/scene.rs); `None` renders the
     /// file's iso value.
     pub iso: Option<f64>,
 }

@@ -33,6 +33,11 @@
 //!    outside a brick is judged by [`scene_code_at_least_1`] when
 //!    normals need it.
 //!
+//! Values compare with the iso value in f32, as the hit test does
+//! ([`to_f32`](super::cache::to_f32)): the classes are those of a file
+//! prepared at V whenever V and the data are exact in f32 (every integer
+//! value of 8-, 12- and 16-bit data).
+//!
 //! Surface and depth images are then byte-identical to those from a file
 //! prepared at the scene's iso value (tests/all/scene.rs); cost maps differ
 //! by design, since they show the steps.
