@@ -53,6 +53,7 @@ pub mod info;
 pub mod input;
 pub mod memory;
 pub mod prep;
+pub mod presets;
 pub mod progress;
 pub mod render;
 #[cfg(feature = "tools")]
