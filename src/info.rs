@@ -280,11 +280,7 @@ fn value_histogram_text(o: &mut String, h: &ValueHistogram) {
         o,
         "percentiles  {} ({})",
         ps.join(" "),
-        if h.exact {
-            "exact"
-        } else {
-            "within one bin"
-        }
+        if h.exact { "exact" } else { "within one bin" }
     );
     let _ = writeln!(
         o,

@@ -107,7 +107,10 @@ pub enum PresetError {
 const FILES: &[(&str, &str)] = &[
     ("ct-bone", include_str!("../presets/ct-bone.json")),
     ("ct-skin", include_str!("../presets/ct-skin.json")),
-    ("ct-soft-tissue", include_str!("../presets/ct-soft-tissue.json")),
+    (
+        "ct-soft-tissue",
+        include_str!("../presets/ct-soft-tissue.json"),
+    ),
     ("ct-muscle", include_str!("../presets/ct-muscle.json")),
     ("ct-lung", include_str!("../presets/ct-lung.json")),
     ("ct-vessels", include_str!("../presets/ct-vessels.json")),
@@ -205,7 +208,9 @@ fn curve_at(c: &[Vec<f64>], x: f64) -> Vec<f64> {
 impl Preset {
     /// The classification prep uses for `--preset`: this transfer function.
     pub fn classification(&self) -> Classification {
-        Classification::TransferFunction { tf: self.tf.clone() }
+        Classification::TransferFunction {
+            tf: self.tf.clone(),
+        }
     }
 
     /// The hull of values with non-zero opacity ([`TransferFunction::support`]).
@@ -232,7 +237,11 @@ impl Preset {
                 .chars()
                 .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-');
         if !name_ok {
-            return bad("name", self.name.clone(), "lower-case letters, digits and -");
+            return bad(
+                "name",
+                self.name.clone(),
+                "lower-case letters, digits and -",
+            );
         }
         if let Err(e) = self.tf.check() {
             return bad(&format!("tf.{}", e.field), e.found, e.expected);
@@ -263,7 +272,11 @@ impl Preset {
         }
         for k in need {
             if self.sources.get(k).is_none_or(|s| s.trim().is_empty()) {
-                return bad(&format!("sources.{k}"), "missing".into(), "where it comes from");
+                return bad(
+                    &format!("sources.{k}"),
+                    "missing".into(),
+                    "where it comes from",
+                );
             }
         }
         if let Some(c) = &self.source_curves {
@@ -346,7 +359,10 @@ mod tests {
     #[test]
     fn unknown_names_list_the_known_ones() {
         let e = get("ct-bones").unwrap_err().to_string();
-        assert!(e.contains("\"ct-bones\"") && e.contains("ct-bone, ct-skin"), "{e}");
+        assert!(
+            e.contains("\"ct-bones\"") && e.contains("ct-bone, ct-skin"),
+            "{e}"
+        );
         assert_eq!(get("CT-Bone").unwrap().name, "ct-bone");
     }
 
@@ -359,7 +375,11 @@ mod tests {
         assert!(e.contains("tf.points"), "{e}");
         let mut p = get("ct-mip").unwrap();
         p.sources.remove("window");
-        assert!(p.check().unwrap_err().to_string().contains("sources.window"));
+        assert!(p
+            .check()
+            .unwrap_err()
+            .to_string()
+            .contains("sources.window"));
     }
 
     #[test]

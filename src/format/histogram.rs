@@ -86,7 +86,11 @@ impl ValueHistogram {
             return bad("lo", self.lo.to_string(), "a finite number");
         }
         if !(self.bin_width > 0.0 && self.bin_width.is_finite()) {
-            return bad("bin_width", self.bin_width.to_string(), "a finite number > 0");
+            return bad(
+                "bin_width",
+                self.bin_width.to_string(),
+                "a finite number > 0",
+            );
         }
         if self.counts.len() > MAX_BINS {
             return bad(
@@ -95,16 +99,9 @@ impl ValueHistogram {
                 "at most 4096 bins",
             );
         }
-        let sum = self
-            .counts
-            .iter()
-            .try_fold(0u64, |s, &c| s.checked_add(c));
+        let sum = self.counts.iter().try_fold(0u64, |s, &c| s.checked_add(c));
         if sum != Some(self.samples) {
-            return bad(
-                "samples",
-                self.samples.to_string(),
-                "the sum of `counts`",
-            );
+            return bad("samples", self.samples.to_string(), "the sum of `counts`");
         }
         for p in &self.percentiles {
             if !(p[0].is_finite() && p[1].is_finite()) {
@@ -229,7 +226,10 @@ impl HistogramBuilder {
                     (x.0, x.1 + y.1, x.2 + y.2)
                 },
             );
-        self.counts.iter_mut().zip(&counts).for_each(|(s, &c)| *s += c);
+        self.counts
+            .iter_mut()
+            .zip(&counts)
+            .for_each(|(s, &c)| *s += c);
         self.nan += nan;
         self.infinite += inf;
     }
@@ -410,7 +410,11 @@ mod tests {
         assert_eq!(h.bin_width, 1.0);
         assert_eq!(h.lo, -1024.5);
         assert_eq!(h.nan, 1);
-        let mut all: Vec<f64> = slices.concat().into_iter().filter(|v| !v.is_nan()).collect();
+        let mut all: Vec<f64> = slices
+            .concat()
+            .into_iter()
+            .filter(|v| !v.is_nan())
+            .collect();
         all.sort_by(f64::total_cmp);
         assert_eq!(h.samples, all.len() as u64);
         for (i, &c) in h.counts.iter().enumerate() {
@@ -426,12 +430,15 @@ mod tests {
     #[test]
     fn wide_integers_merge_bins_exactly() {
         let v: Vec<f64> = (0..20000).map(|i| (i * 7 % 10000) as f64).collect();
-        let h = build(Dtype::U16, &[v.clone()], Rescale::IDENTITY);
+        let h = build(Dtype::U16, std::slice::from_ref(&v), Rescale::IDENTITY);
         assert!(!h.exact);
         assert!(h.counts.len() <= MAX_BINS);
         // Bin edges between integers: each bin's count is exact.
         for (i, &c) in h.counts.iter().enumerate() {
-            let (a, b) = (h.lo + i as f64 * h.bin_width, h.lo + (i + 1) as f64 * h.bin_width);
+            let (a, b) = (
+                h.lo + i as f64 * h.bin_width,
+                h.lo + (i + 1) as f64 * h.bin_width,
+            );
             assert_eq!(c, v.iter().filter(|&&x| x >= a && x < b).count() as u64);
         }
         let mut s = v.clone();
@@ -448,7 +455,7 @@ mod tests {
             slope: -2.0,
             intercept: 10.0,
         };
-        let h = build(Dtype::U8, &[v.clone()], r);
+        let h = build(Dtype::U8, std::slice::from_ref(&v), r);
         // Rescaled: 10, 8, 8, 0.
         assert_eq!((h.min, h.max), (Some(0.0), Some(10.0)));
         assert_eq!(h.lo, -1.0);
@@ -464,7 +471,11 @@ mod tests {
         slices.push(vec![f64::INFINITY, -1e4, f64::NAN]);
         let h = build(Dtype::F32, &slices, Rescale::IDENTITY);
         assert_eq!((h.nan, h.infinite), (1, 1));
-        let mut all: Vec<f64> = slices.concat().into_iter().filter(|v| v.is_finite()).collect();
+        let mut all: Vec<f64> = slices
+            .concat()
+            .into_iter()
+            .filter(|v| v.is_finite())
+            .collect();
         all.sort_by(f64::total_cmp);
         assert_eq!(h.samples, all.len() as u64);
         assert!(h.counts.len() <= MAX_BINS);
@@ -473,7 +484,10 @@ mod tests {
             assert_eq!(c, all.iter().filter(|&&x| bin(x) == i).count() as u64);
         }
         for (q, &pm) in h.percentiles.iter().zip(&PERCENTILES_PER_MILLE) {
-            assert!((q[1] - nearest_rank(&all, pm)).abs() <= h.bin_width, "{q:?}");
+            assert!(
+                (q[1] - nearest_rank(&all, pm)).abs() <= h.bin_width,
+                "{q:?}"
+            );
         }
         // The width is at most 4x what the range needs.
         assert!(h.bin_width <= 4.0 * (1e4 + 1e3) / MAX_BINS as f64);

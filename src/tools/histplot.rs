@@ -162,10 +162,9 @@ fn x_range(h: &ValueHistogram, cls: &Classification) -> (f64, f64) {
     let span = (b - a).max(h.bin_width);
     let marks: Vec<f64> = match cls {
         Classification::Iso { iso } => vec![*iso],
-        Classification::TransferFunction { tf } => tf
-            .support()
-            .map(|(p, q)| vec![p, q])
-            .unwrap_or_default(),
+        Classification::TransferFunction { tf } => {
+            tf.support().map(|(p, q)| vec![p, q]).unwrap_or_default()
+        }
     };
     for m in marks.into_iter().filter(|m| m.is_finite()) {
         if m < a && m >= h.lo - span {
@@ -251,9 +250,11 @@ fn draw<DB: DrawingBackend>(
         .collect();
     if !pcts.is_empty() {
         chart
-            .draw_series(pcts.iter().map(|&(_, v)| {
-                PathElement::new(vec![(v, ymin), (v, ymax)], grey.stroke_width(1))
-            }))
+            .draw_series(
+                pcts.iter().map(|&(_, v)| {
+                    PathElement::new(vec![(v, ymin), (v, ymax)], grey.stroke_width(1))
+                }),
+            )
             .map_err(e)?
             .label(format!(
                 "percentiles {}",
@@ -272,11 +273,9 @@ fn draw<DB: DrawingBackend>(
             let label = format!("this file: iso {}", num(*iso));
             let inside = *iso >= x0 && *iso <= x1;
             chart
-                .draw_series(
-                    inside.then(|| {
-                        PathElement::new(vec![(*iso, ymin), (*iso, ymax)], red.stroke_width(2))
-                    }),
-                )
+                .draw_series(inside.then(|| {
+                    PathElement::new(vec![(*iso, ymin), (*iso, ymax)], red.stroke_width(2))
+                }))
                 .map_err(e)?
                 .label(if inside {
                     label
@@ -289,11 +288,15 @@ fn draw<DB: DrawingBackend>(
         }
         Classification::TransferFunction { tf } => {
             let support = tf.support();
-            let band = support.map(|(a, b)| (a.max(x0), b.min(x1))).filter(|(a, b)| a < b);
+            let band = support
+                .map(|(a, b)| (a.max(x0), b.min(x1)))
+                .filter(|(a, b)| a < b);
             chart
-                .draw_series(band.map(|(a, b)| {
-                    Rectangle::new([(a, ymin), (b, ymax)], red.mix(0.15).filled())
-                }))
+                .draw_series(
+                    band.map(|(a, b)| {
+                        Rectangle::new([(a, ymin), (b, ymax)], red.mix(0.15).filled())
+                    }),
+                )
                 .map_err(e)?
                 .label(match support {
                     Some((a, b)) => format!(

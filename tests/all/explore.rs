@@ -37,8 +37,7 @@ fn u16_phantom(dir: &Path) -> (PathBuf, Vec<f64>) {
     .unwrap();
     // The rescale from the sidecar, the samples from the raw file: no
     // library code between them and the oracle.
-    let side: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let side: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let slope = side["rescale"]["slope"].as_f64().unwrap_or(1.0);
     let intercept = side["rescale"]["intercept"].as_f64().unwrap_or(0.0);
     assert!(
@@ -63,7 +62,9 @@ fn histogram_counts_every_raw_sample_in_rescaled_units() {
     assert_eq!(h.nan, 0);
     let (lo, hi) = hu
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
     assert_eq!((h.min, h.max), (Some(lo), Some(hi)));
     // The phantom spans fewer than 4096 integers: one bin per value.
     assert!(h.exact && h.bin_width == 1.0, "{} {}", h.exact, h.bin_width);
@@ -80,6 +81,32 @@ fn histogram_counts_every_raw_sample_in_rescaled_units() {
         assert_eq!(p[0], pm as f64 / 10.0);
         assert_eq!(p[1], nearest_rank(&sorted, pm), "percentile {}", p[0]);
     }
+}
+
+#[test]
+fn integer_percentiles_are_exact_nearest_ranks() {
+    // 1001 distinct values in shuffled order: every rank is a different
+    // value, so an off-by-one rank shows.
+    let dir = tempfile::tempdir().unwrap();
+    let dims = [11usize, 13, 7];
+    let values: Vec<f64> = (0..1001u64)
+        .map(|i| ((i * 7919) % 1001) as f64 - 500.0)
+        .collect();
+    let json = write_stack(dir.path(), "d", dims, "i16", &values, ["1", "1", "1"], "");
+    let vol = packed(&json, &dir.path().join("d.cdv"), 0.0);
+    let h = vol.header().summary.histogram.clone().unwrap();
+    assert!(h.exact);
+    assert_eq!(h.counts, vec![1u64; 1001]);
+    let mut sorted = values.clone();
+    sorted.sort_by(f64::total_cmp);
+    let got: Vec<f64> = h.percentiles.iter().map(|p| p[1]).collect();
+    let want: Vec<f64> = PER_MILLE
+        .iter()
+        .map(|&pm| nearest_rank(&sorted, pm))
+        .collect();
+    assert_eq!(got, want);
+    // Nearest rank: p0.1 of 1001 values is the 2nd smallest.
+    assert_eq!(got[0], -499.0);
 }
 
 #[test]
@@ -157,10 +184,7 @@ fn files_without_a_histogram_still_read() {
     packed(&json, &file, 300.0);
     // An older file: no `histogram` key in the summary.
     let old = rewrite_header(&std::fs::read(&file).unwrap(), |h| {
-        let removed = h["summary"]
-            .as_object_mut()
-            .unwrap()
-            .remove("histogram");
+        let removed = h["summary"].as_object_mut().unwrap().remove("histogram");
         assert!(removed.is_some());
     });
     let old_file = dir.path().join("old.cdv");
@@ -204,7 +228,10 @@ fn histogram_plots_png_and_svg_and_refuses_other_extensions() {
     // The bars (blue) and the iso line (red) are drawn.
     let has = |f: &dyn Fn(&image::Rgb<u8>) -> bool| img.pixels().any(f);
     assert!(has(&|p| p[2] > 150 && p[0] < 80), "no bars");
-    assert!(has(&|p| p[0] > 180 && p[1] < 60 && p[2] < 60), "no iso line");
+    assert!(
+        has(&|p| p[0] > 180 && p[1] < 60 && p[2] < 60),
+        "no iso line"
+    );
     let svg = dir.path().join("h.svg");
     ok(cdvol().arg("histogram").arg(&file).arg("-o").arg(&svg));
     let text = std::fs::read_to_string(&svg).unwrap();
@@ -260,7 +287,10 @@ fn prep_warns_when_the_iso_selects_no_cells_or_nearly_all() {
         );
     }
     let info = ok(cdvol().arg("info").arg(dir.path().join("empty.cdv")));
-    assert!(info.contains("warning      iso 5000 selects no cells"), "{info}");
+    assert!(
+        info.contains("warning      iso 5000 selects no cells"),
+        "{info}"
+    );
     // Nearly every cell: below the air.
     let out = cdvol()
         .args(["prep", "--iso", "-2000"])
@@ -271,7 +301,10 @@ fn prep_warns_when_the_iso_selects_no_cells_or_nearly_all() {
         .unwrap();
     assert!(out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("iso -2000 selects 100.0 % of the cells"), "{err}");
+    assert!(
+        err.contains("iso -2000 selects 100.0 % of the cells"),
+        "{err}"
+    );
     // A sensible iso: no warning.
     let out = cdvol()
         .args(["prep", "--iso", "300"])
@@ -308,7 +341,11 @@ fn prep_batch_reports_inputs_whose_classification_is_empty() {
         .arg(&out)
         .output()
         .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let rows: Vec<serde_json::Value> =
         serde_json::from_slice(&std::fs::read(out.join("batch.json")).unwrap()).unwrap();
     let row = |name: &str| {
@@ -318,13 +355,19 @@ fn prep_batch_reports_inputs_whose_classification_is_empty() {
             .clone()
     };
     assert!(row("ct.json")["warning"].is_null(), "{rows:?}");
-    let w = row("mr.json")["warning"].as_str().unwrap_or_default().to_string();
+    let w = row("mr.json")["warning"]
+        .as_str()
+        .unwrap_or_default()
+        .to_string();
     assert!(
         w.contains("iso 300 selects no cells") && w.contains("0 .. 130"),
         "{w}"
     );
     let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(stdout.contains("warning: mr.json: iso 300 selects no cells"), "{stdout}");
+    assert!(
+        stdout.contains("warning: mr.json: iso 300 selects no cells"),
+        "{stdout}"
+    );
 }
 
 #[test]
@@ -374,7 +417,10 @@ fn prep_preset_equals_classify_tf_with_the_same_function() {
         .arg(&ct)
         .arg("-o")
         .arg(&b));
-    let (va, vb) = (PackedVolume::open(&a).unwrap(), PackedVolume::open(&b).unwrap());
+    let (va, vb) = (
+        PackedVolume::open(&a).unwrap(),
+        PackedVolume::open(&b).unwrap(),
+    );
     assert_eq!(va.header().classification, vb.header().classification);
     assert_eq!(
         va.header().classification,
