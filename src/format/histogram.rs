@@ -92,6 +92,13 @@ impl ValueHistogram {
                 "a finite number > 0",
             );
         }
+        if !self.hi().is_finite() {
+            return bad(
+                "bin_width",
+                self.bin_width.to_string(),
+                "a width whose last bin edge is finite",
+            );
+        }
         if self.counts.len() > MAX_BINS {
             return bad(
                 "counts",
