@@ -67,6 +67,9 @@ pub struct BatchRow {
     /// `done`, `skipped` (up to date), or `failed`.
     pub status: String,
     pub error: Option<String>,
+    /// The classification selected no cells or nearly all of them
+    /// ([`crate::prep::selection_warning`]).
+    pub warning: Option<String>,
 }
 
 /// Finds the inputs under `dir`, sorted by name. The walk
@@ -347,6 +350,7 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
         output_bytes: None,
         status: "done".into(),
         error: None,
+        warning: None,
     };
     let describe = |row: &mut BatchRow, vol: &PackedVolume| {
         let h = vol.header();
@@ -354,6 +358,7 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
         row.slices = Some(h.dims[2]);
         row.rectilinear = Some(h.axes.iter().any(|a| !a.is_uniform()));
         row.output_bytes = Some(vol.file_len());
+        row.warning = crate::prep::selection_warning(h).map(|w| w.to_string());
     };
     if let Some(e) = &input.error {
         row.status = "failed".into();

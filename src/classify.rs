@@ -135,6 +135,26 @@ impl TransferFunction {
         a.opacity + f * (b.opacity - a.opacity)
     }
 
+    /// The hull of the values where the opacity is non-zero: from the
+    /// point before the first point with opacity > 0 to the point after
+    /// the last one, infinite at an end whose point has opacity > 0 (the
+    /// function is constant beyond its ends). `None` when the opacity is
+    /// zero everywhere.
+    pub fn support(&self) -> Option<(f64, f64)> {
+        let p = &self.points;
+        let first = p.iter().position(|q| q.opacity > 0.0)?;
+        let last = p.iter().rposition(|q| q.opacity > 0.0)?;
+        let lo = match first {
+            0 => f64::NEG_INFINITY,
+            i => p[i - 1].value,
+        };
+        let hi = match p.get(last + 1) {
+            Some(q) => q.value,
+            None => f64::INFINITY,
+        };
+        Some((lo, hi))
+    }
+
     /// True when the opacity is non-zero anywhere on `[lo, hi]`. A
     /// piecewise-linear function is largest at an end of the interval or
     /// at a control point inside it, so checking those is exact.

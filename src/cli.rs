@@ -37,6 +37,12 @@ pub enum Command {
     PrepBatch(PrepBatchArgs),
     /// Describe a packed file.
     Info(InfoArgs),
+    /// Plot a packed file's value histogram (PNG or SVG, by the
+    /// extension of -o) with the presets' value ranges and the file's
+    /// classification marked.
+    Histogram(HistogramArgs),
+    /// List the named transfer-function presets (`prep --preset NAME`).
+    Presets(PresetsArgs),
     /// Write values, codes or classes of a packed file as raw + sidecar.
     Export(ExportArgs),
     /// Generate test volumes.
@@ -210,14 +216,18 @@ pub struct PrepSettings {
     #[arg(
         long,
         value_name = "T",
-        conflicts_with = "classify_tf",
+        conflicts_with_all = ["classify_tf", "preset"],
         allow_negative_numbers = true
     )]
     pub iso: Option<f64>,
     /// Transfer function (JSON): a cell is a 1-cell when its opacity is
     /// non-zero anywhere between the min and max of its vertex values.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", conflicts_with = "preset")]
     pub classify_tf: Option<PathBuf>,
+    /// A named preset's transfer function (`cdvol presets` lists them),
+    /// as --classify-tf with that function.
+    #[arg(long, value_name = "NAME")]
+    pub preset: Option<String>,
     /// Cells per brick edge (multiple of 4).
     #[arg(long, default_value_t = 32)]
     pub brick: usize,
@@ -245,18 +255,25 @@ impl PrepSettings {
     /// The checked prep options; errors name the flags.
     pub fn to_options(&self) -> anyhow::Result<cdvol::prep::PrepOptions> {
         use cdvol::classify::{Classification, TransferFunction};
-        let classification = match (self.iso, &self.classify_tf) {
-            (Some(iso), None) => {
+        let classification = match (self.iso, &self.classify_tf, &self.preset) {
+            (Some(iso), None, None) => {
                 if !iso.is_finite() {
                     anyhow::bail!("option --iso: {iso}, expected a finite number");
                 }
                 Classification::Iso { iso }
             }
-            (None, Some(tf)) => Classification::TransferFunction {
+            (None, Some(tf), None) => Classification::TransferFunction {
                 tf: TransferFunction::load(tf)?,
             },
+            (None, None, Some(name)) => cdvol::presets::get(name)
+                .map_err(|e| anyhow::anyhow!("option --preset: {e}"))?
+                .classification(),
+            (None, None, None) => anyhow::bail!(
+                "prep needs --iso T, --classify-tf FILE or --preset NAME to decide which cells \
+                 are objects"
+            ),
             _ => anyhow::bail!(
-                "prep needs --iso T or --classify-tf FILE to decide which cells are objects"
+                "--iso, --classify-tf and --preset each choose the classification: give one"
             ),
         };
         let opts = cdvol::prep::PrepOptions {
@@ -353,6 +370,61 @@ pub struct InfoArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct HistogramArgs {
+    /// Packed file from `cdvol prep`.
+    pub file: PathBuf,
+    /// Output plot: .png or .svg.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Presets whose value ranges are marked: `auto` (the CT presets when
+    /// the data reach below -500, as HU air does, else the MR ones),
+    /// `all`, `none`, `ct`, `mr`, or names separated by commas.
+    #[arg(long, default_value = "auto")]
+    pub presets: String,
+    #[arg(long, default_value_t = 1000)]
+    pub width: u32,
+    #[arg(long, default_value_t = 700)]
+    pub height: u32,
+}
+
+impl HistogramArgs {
+    /// The presets `--presets` names, for data whose smallest value is
+    /// `min`.
+    pub fn presets(&self, min: Option<f64>) -> anyhow::Result<Vec<cdvol::presets::Preset>> {
+        use cdvol::presets::{all, get, Modality};
+        let of = |m: Modality| all().iter().filter(|p| p.modality == m).cloned().collect();
+        Ok(match self.presets.trim().to_ascii_lowercase().as_str() {
+            "auto" => {
+                if min.is_some_and(|v| v < -500.0) {
+                    of(Modality::Ct)
+                } else {
+                    of(Modality::Mr)
+                }
+            }
+            "all" => all().to_vec(),
+            "none" | "" => Vec::new(),
+            "ct" => of(Modality::Ct),
+            "mr" => of(Modality::Mr),
+            list => list
+                .split(',')
+                .map(|n| get(n).map_err(|e| anyhow::anyhow!("option --presets: {e}")))
+                .collect::<anyhow::Result<_>>()?,
+        })
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct PresetsArgs {
+    /// Print JSON (every field, the sources too) instead of a table.
+    #[arg(long, conflicts_with = "tf")]
+    pub json: bool,
+    /// Print only this preset's transfer function, as a --classify-tf /
+    /// --tf file.
+    #[arg(long, value_name = "NAME")]
+    pub tf: Option<String>,
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug)]

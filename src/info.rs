@@ -2,6 +2,7 @@
 
 use serde::Serialize;
 
+use crate::format::histogram::ValueHistogram;
 use crate::format::reader::PackedVolume;
 use crate::format::{CodeEncoding, Header};
 
@@ -50,6 +51,11 @@ pub struct Info {
     pub raw_min: Option<f64>,
     pub raw_max: Option<f64>,
     pub nan_samples: u64,
+    /// Histogram and percentiles of the rescaled values (files prepared
+    /// before it was recorded have none).
+    pub histogram: Option<ValueHistogram>,
+    /// The classification selected no cells or nearly all of them.
+    pub selection_warning: Option<String>,
 }
 
 impl Info {
@@ -101,6 +107,8 @@ impl Info {
             raw_min: s.raw_min,
             raw_max: s.raw_max,
             nan_samples: s.nan_samples,
+            histogram: s.histogram.clone(),
+            selection_warning: crate::prep::selection_warning(h).map(|w| w.to_string()),
         }
     }
 
@@ -181,6 +189,12 @@ impl Info {
                 self.nan_samples
             );
         }
+        if let Some(w) = &self.selection_warning {
+            let _ = writeln!(o, "warning      {w}");
+        }
+        if let Some(h) = &self.histogram {
+            value_histogram_text(&mut o, h);
+        }
         let _ = writeln!(
             o,
             "code histogram (0-cells per code range; --json has every code)"
@@ -218,5 +232,85 @@ impl Info {
             );
         }
         o
+    }
+}
+
+/// Rows of the text histogram of values.
+const VALUE_ROWS: usize = 16;
+
+/// A number for a table: integers without decimals, others with up to 3
+/// significant decimals.
+fn num(v: f64) -> String {
+    if v == v.round() && v.abs() < 1e15 {
+        format!("{v:.0}")
+    } else {
+        let s = format!("{v:.3}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    }
+}
+
+/// The value range, percentiles and a coarse histogram (bars on a log
+/// scale, so the small peaks show beside air).
+fn value_histogram_text(o: &mut String, h: &ValueHistogram) {
+    use std::fmt::Write;
+    if let (Some(lo), Some(hi)) = (h.min, h.max) {
+        let _ = writeln!(
+            o,
+            "values       {} .. {} (rescaled), {} samples, {} NaN{}",
+            num(lo),
+            num(hi),
+            h.samples,
+            h.nan,
+            if h.infinite > 0 {
+                format!(", {} infinite", h.infinite)
+            } else {
+                String::new()
+            }
+        );
+    } else {
+        let _ = writeln!(o, "values       none finite ({} NaN)", h.nan);
+        return;
+    }
+    let ps: Vec<String> = h
+        .percentiles
+        .iter()
+        .map(|p| format!("p{}={}", num(p[0]), num(p[1])))
+        .collect();
+    let _ = writeln!(
+        o,
+        "percentiles  {} ({})",
+        ps.join(" "),
+        if h.exact { "exact" } else { "within one bin" }
+    );
+    let _ = writeln!(
+        o,
+        "value histogram ({} bins of {}; rows of samples, bar log scale; --json has every bin, \
+         `cdvol histogram` plots it)",
+        h.counts.len(),
+        num(h.bin_width)
+    );
+    let rows = h.coarse(VALUE_ROWS);
+    let top = rows.iter().map(|r| r.2).max().unwrap_or(0).max(1);
+    let total = h.samples.max(1);
+    for (a, b, n) in rows {
+        // Exact bins hold one value each: show the first and last value.
+        let (a, b) = if h.exact {
+            (a + h.bin_width / 2.0, b - h.bin_width / 2.0)
+        } else {
+            (a, b)
+        };
+        let bar = if n == 0 {
+            0
+        } else {
+            (1.0 + 39.0 * (n as f64).ln() / (top as f64).ln().max(1e-9)).round() as usize
+        };
+        let _ = writeln!(
+            o,
+            "  {:>9} .. {:<9} {n:>12} {:5.1} % {}",
+            num(a),
+            num(b),
+            100.0 * (n as f64 / total as f64).min(1.0),
+            "#".repeat(bar.min(40))
+        );
     }
 }

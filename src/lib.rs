@@ -10,12 +10,15 @@
 //! ```text
 //! input::SliceSource   raw+sidecar (memmap2), DICOM, NRRD, NIfTI: z slices
 //!   -> classify        cells between 8 samples -> 1-cells / 0-cells
+//!                      (an iso value, a transfer function, or one of the
+//!                      named presets of `presets`)
 //!   -> dt              streaming chessboard distance transform (2 passes)
 //!   -> prep            slabs of bricks, codes embedded, zstd, atomic write
 //! == packed file (format, docs/FORMAT.md) ==
 //!   -> format::reader  header, index, checked brick payloads on demand
 //!   -> format::brick   the one payload decoder (values, codes, planes)
-//!   -> info, export    summaries and full-resolution arrays back out
+//!   -> info, export    summaries (value histogram, percentiles) and
+//!                      full-resolution arrays back out
 //!   -> render          camera -> tiles (rayon) -> cache (decoded bricks,
 //!                      bounded) -> traverse (walkers: fvt, cd, octree,
 //!                      dda; paper Figs. 11-12) -> integrate (surface,
@@ -53,6 +56,7 @@ pub mod info;
 pub mod input;
 pub mod memory;
 pub mod prep;
+pub mod presets;
 pub mod progress;
 pub mod render;
 #[cfg(feature = "tools")]

@@ -127,6 +127,26 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 write!(out, "{}", info.to_text())?;
             }
         }
+        Command::Histogram(a) => {
+            // The extension first: a bad one needs no file read.
+            cdvol::tools::histplot::PlotFormat::of(&a.output)?;
+            let vol = PackedVolume::open(&a.file)?;
+            let h = vol.header();
+            let min = h.summary.histogram.as_ref().and_then(|x| x.min);
+            let opts = cdvol::tools::histplot::PlotOptions {
+                width: a.width,
+                height: a.height,
+                presets: a.presets(min)?,
+                title: a
+                    .file
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+            };
+            cdvol::tools::histplot::plot(h, &a.file, &a.output, &opts)?;
+            println!("wrote {}", a.output.display());
+        }
+        Command::Presets(a) => print_presets(&a)?,
         Command::Export(a) => {
             let vol = PackedVolume::open(&a.file)?;
             let raw = export(&vol, a.what.into(), &a.output, progress)?;
@@ -231,6 +251,65 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
     Ok(())
 }
 
+/// `cdvol presets`: a table, JSON, or one transfer function.
+fn print_presets(a: &cli::PresetsArgs) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    if let Some(name) = &a.tf {
+        let p = cdvol::presets::get(name).map_err(|e| anyhow::anyhow!("option --tf: {e}"))?;
+        serde_json::to_writer_pretty(&mut out, &p.tf)?;
+        writeln!(out)?;
+        return Ok(());
+    }
+    let all = cdvol::presets::all();
+    if a.json {
+        serde_json::to_writer_pretty(&mut out, all)?;
+        writeln!(out)?;
+        return Ok(());
+    }
+    let end = |v: f64| {
+        if v.is_finite() {
+            // At most 3 decimals: a table, not the data (--json has it).
+            let s = format!("{v:.3}");
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else if v < 0.0 {
+            "-inf".into()
+        } else {
+            "inf".into()
+        }
+    };
+    writeln!(
+        out,
+        "{:<15} {:<3} {:<22} {:>6} {:<16} description",
+        "name", "mod", "opacity > 0 on", "iso", "MIP window W/L"
+    )?;
+    for p in all {
+        let support = p
+            .support()
+            .map(|(a, b)| format!("{} .. {}", end(a), end(b)))
+            .unwrap_or_else(|| "-".into());
+        let iso = p.iso.map(|v| v.to_string()).unwrap_or_else(|| "-".into());
+        let window = p
+            .window
+            .map(|w| format!("{}/{}", w.width, w.level))
+            .unwrap_or_else(|| "-".into());
+        writeln!(
+            out,
+            "{:<15} {:<3} {:<22} {:>6} {:<16} {}",
+            p.name,
+            p.modality.name(),
+            support,
+            iso,
+            window,
+            p.description
+        )?;
+    }
+    writeln!(
+        out,
+        "(values in rescaled units: HU for CT; sources in --json and docs/PRESETS.md)"
+    )?;
+    Ok(())
+}
+
 /// Writes `value` as pretty JSON to `p` (temporary file, renamed).
 fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<()> {
     let bytes = serde_json::to_vec_pretty(value)?;
@@ -274,7 +353,7 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
     let rows = cdvol::batch::run(&inputs, &a.output, &opts, a.jobs, shard, &|r| {
         let _g = line.lock();
         progress.println(&format!(
-            "{:7} {} -> {} ({:.1} s){}",
+            "{:7} {} -> {} ({:.1} s){}{}",
             r.status,
             r.input,
             r.output,
@@ -282,6 +361,10 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
             r.error
                 .as_deref()
                 .map(|e| format!(": {e}"))
+                .unwrap_or_default(),
+            r.warning
+                .as_deref()
+                .map(|w| format!("; warning: {w}"))
                 .unwrap_or_default()
         ));
         progress.advance(1);
@@ -309,6 +392,11 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
                 .unwrap_or_else(|| "-".into()),
             r.status
         );
+    }
+    for r in rows.iter().filter(|r| r.warning.is_some()) {
+        let w = r.warning.as_deref().unwrap_or_default();
+        println!("warning: {}: {w}", r.input);
+        eprintln!("cdvol: warning: {}: {w}", r.input);
     }
     let summary = a.summary_path();
     write_json(&summary, &rows)?;
@@ -345,9 +433,13 @@ pub(crate) fn print_prep(output: &Path, r: &PrepReport) -> Result<()> {
     );
     let t = &r.stages;
     println!(
-        "stages (s): read {:.2}, classify+forward DT {:.2}, backward DT {:.2}, \
+        "stages (s): read {:.2}, classify+forward DT {:.2}, histogram {:.2}, backward DT {:.2}, \
          re-read+embed {:.2}, bricks+zstd {:.2}, write {:.2}",
-        t.read1, t.classify_forward, t.backward, t.embed, t.compress, t.write
+        t.read1, t.classify_forward, t.histogram, t.backward, t.embed, t.compress, t.write
     );
+    if let Some(w) = &r.selection {
+        println!("warning: {w}");
+        eprintln!("cdvol: warning: {w}");
+    }
     Ok(())
 }

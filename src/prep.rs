@@ -16,6 +16,7 @@ use rayon::prelude::*;
 
 use crate::classify::{classify_slice, slice_extrema, slice_iso_flags, Classification};
 use crate::dt::{self, BackwardDt, FileSpill, ForwardDt, OctantBlocks, ANISO_BLOCK, FAR};
+use crate::format::histogram::HistogramBuilder;
 use crate::format::word::{choose_encoding, Word};
 use crate::format::writer::PackedWriter;
 use crate::format::{CodeEncoding, FormatError, Header, Summary, FORMAT_VERSION};
@@ -89,6 +90,96 @@ pub struct PrepReport {
     pub temp_bytes: u64,
     /// Wall seconds per stage.
     pub stages: StageTimes,
+    /// The classification selected no cells or nearly all of them.
+    pub selection: Option<SelectionWarning>,
+}
+
+/// Share of 1-cells above which [`selection_warning`] says a
+/// classification selects nearly all cells.
+pub const NEARLY_ALL_CELLS: f64 = 0.95;
+
+/// A classification that selects no cells (the file renders empty) or
+/// nearly all of them (the distance codes cannot leap): what selected
+/// them and the data range they were chosen from.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SelectionWarning {
+    pub one_cells: u64,
+    pub cells: u64,
+    /// The figure that selected them: `iso 5000`, or the transfer
+    /// function's non-zero opacity range.
+    pub classification: String,
+    /// The data's smallest and largest value, rescaled (NaN left out);
+    /// `None` when every sample is NaN.
+    pub range: Option<[f64; 2]>,
+}
+
+impl std::fmt::Display for SelectionWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let range = match self.range {
+            Some([a, b]) => format!("the data range is {a} .. {b}"),
+            None => "every sample is NaN".into(),
+        };
+        if self.one_cells == 0 {
+            write!(
+                f,
+                "{} selects no cells ({range}): every cell is a 0-cell and renders empty",
+                self.classification
+            )
+        } else {
+            write!(
+                f,
+                "{} selects {:.1} % of the cells ({} of {}; {range}): \
+                 nearly every cell is a 1-cell, so rays cannot leap",
+                self.classification,
+                100.0 * self.one_cells as f64 / self.cells.max(1) as f64,
+                self.one_cells,
+                self.cells
+            )
+        }
+    }
+}
+
+/// What a classification is, in words for messages: `iso 300`, or the
+/// value range where a transfer function's opacity is not zero.
+pub fn describe_classification(c: &Classification) -> String {
+    match c {
+        Classification::Iso { iso } => format!("iso {iso}"),
+        Classification::TransferFunction { tf } => match tf.support() {
+            None => "the transfer function (zero opacity everywhere)".into(),
+            Some((a, b)) => {
+                let end = |v: f64| {
+                    if v.is_finite() {
+                        v.to_string()
+                    } else if v < 0.0 {
+                        "-inf".into()
+                    } else {
+                        "inf".into()
+                    }
+                };
+                format!(
+                    "the transfer function (opacity > 0 on {} .. {})",
+                    end(a),
+                    end(b)
+                )
+            }
+        },
+    }
+}
+
+/// A warning when the file's classification selected no cells or more
+/// than [`NEARLY_ALL_CELLS`] of them; `None` otherwise.
+pub fn selection_warning(h: &Header) -> Option<SelectionWarning> {
+    let s = &h.summary;
+    let frac = s.one_cells as f64 / s.cells.max(1) as f64;
+    if s.one_cells > 0 && frac <= NEARLY_ALL_CELLS {
+        return None;
+    }
+    Some(SelectionWarning {
+        one_cells: s.one_cells,
+        cells: s.cells,
+        classification: describe_classification(&h.classification),
+        range: h.value_range().map(|(a, b)| [a, b]),
+    })
 }
 
 /// Wall seconds spent in each stage of prep.
@@ -98,6 +189,8 @@ pub struct StageTimes {
     pub read1: f64,
     /// Pass 1: extrema, classification and the forward transform.
     pub classify_forward: f64,
+    /// Pass 1: the value histogram.
+    pub histogram: f64,
     /// Pass 2: the backward transform and the code histogram.
     pub backward: f64,
     /// Pass 2: re-reading samples, embedding codes.
@@ -191,6 +284,7 @@ pub fn prep(
         ..Summary::default()
     };
     let (mut raw_min, mut raw_max) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut values = HistogramBuilder::new(meta.dtype);
     let mut st = StageTimes::default();
     let lap = |t: &mut Instant| {
         let e = t.elapsed().as_secs_f64();
@@ -216,6 +310,9 @@ pub fn prep(
         };
         raw_min = raw_min.min(lo);
         raw_max = raw_max.max(hi);
+        st.classify_forward += lap(&mut t);
+        values.add_slice(&buf, (lo <= hi).then_some((lo, hi)));
+        st.histogram += lap(&mut t);
         if z > 0 {
             let prev = 1 - cur;
             summary.one_cells += match cls {
@@ -244,6 +341,7 @@ pub fn prep(
     let range = (raw_min <= raw_max).then_some((raw_min, raw_max));
     summary.raw_min = range.map(|r| r.0);
     summary.raw_max = range.map(|r| r.1);
+    summary.histogram = values.finish(meta.rescale);
     let (storage, codes) = choose_encoding(meta.dtype, range);
 
     // ---- Pass 2: backward transform, embed codes, write bricks. ----
@@ -382,6 +480,7 @@ pub fn prep(
             0
         };
     Ok(PrepReport {
+        selection: selection_warning(&header),
         header,
         seconds: t0.elapsed().as_secs_f64(),
         file_bytes,

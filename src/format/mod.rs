@@ -8,6 +8,7 @@
 //! truncated file has no footer and is refused.
 
 pub mod brick;
+pub mod histogram;
 pub mod reader;
 pub mod word;
 pub mod writer;
@@ -88,6 +89,11 @@ pub struct Summary {
     pub payload_bytes: u64,
     /// Bytes of payloads before compression.
     pub raw_payload_bytes: u64,
+    /// Histogram and percentiles of the rescaled sample values, recorded
+    /// in prep's first pass; absent in older files and omitted from the
+    /// JSON when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub histogram: Option<histogram::ValueHistogram>,
 }
 
 /// The JSON header (see docs/FORMAT.md).
@@ -133,6 +139,14 @@ pub struct Header {
 }
 
 impl Header {
+    /// Smallest and largest sample value in rescaled units (NaN left
+    /// out), from the summary; `None` when every sample is NaN.
+    pub fn value_range(&self) -> Option<(f64, f64)> {
+        let (a, b) = (self.summary.raw_min?, self.summary.raw_max?);
+        let (a, b) = (self.rescale.apply(a), self.rescale.apply(b));
+        Some((a.min(b), a.max(b)))
+    }
+
     pub fn cells(&self) -> [u64; 3] {
         self.dims.map(|d| d - 1)
     }

@@ -464,6 +464,15 @@ fn check_header(h: &Header) -> Result<(), HeaderInvalid> {
             );
         }
     }
+    if let Some(hist) = &h.summary.histogram {
+        if let Err(e) = hist.check() {
+            return bad(
+                format!("summary.histogram.{}", e.field),
+                e.found,
+                e.expected.into(),
+            );
+        }
+    }
     let storage_ok = match h.codes {
         super::CodeEncoding::IntRange { .. } => !h.storage.is_float(),
         super::CodeEncoding::NanPayload { .. } => h.storage.is_float(),

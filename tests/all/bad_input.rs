@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use crate::common::{cdvol, fails, write_stack};
+use crate::common::{cdvol, fails, rewrite_header, write_stack};
 use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
 
@@ -264,32 +264,6 @@ fn damaged_packed_files_are_refused() {
     std::fs::write(&bad, &bytes[..bytes.len() - 3]).unwrap();
     let err = fails(cdvol().arg("info").arg(&bad));
     assert!(err.contains("truncated"));
-}
-
-/// Rewrites the JSON header of a packed file and fixes up the trailer
-/// checksum and footer, so only the reader's header checks can refuse it.
-fn rewrite_header(bytes: &[u8], f: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
-    let n = bytes.len();
-    let foot = &bytes[n - 40..];
-    let u64_at = |i: usize| u64::from_le_bytes(foot[i..i + 8].try_into().unwrap()) as usize;
-    let (trailer, hlen, ilen) = (u64_at(0), u64_at(8), u64_at(16));
-    let mut header: serde_json::Value =
-        serde_json::from_slice(&bytes[trailer..trailer + hlen]).unwrap();
-    f(&mut header);
-    let json = serde_json::to_vec(&header).unwrap();
-    let index = &bytes[trailer + hlen..trailer + hlen + ilen];
-    let mut out = bytes[..trailer].to_vec();
-    out.extend_from_slice(&json);
-    out.extend_from_slice(index);
-    let mut crc = crc32fast::Hasher::new();
-    crc.update(&json);
-    crc.update(index);
-    out.extend_from_slice(&(trailer as u64).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u64).to_le_bytes());
-    out.extend_from_slice(&(ilen as u64).to_le_bytes());
-    out.extend_from_slice(&crc.finalize().to_le_bytes());
-    out.extend_from_slice(&foot[28..40]);
-    out
 }
 
 #[test]

@@ -62,6 +62,20 @@ const RULES: &[(&str, &[&str])] = &[
             "crate::batch",
         ],
     ),
+    // The presets are transfer functions and nothing else.
+    (
+        "presets.rs",
+        &[
+            "crate::dt",
+            "crate::prep",
+            "crate::format",
+            "crate::render",
+            "crate::batch",
+            "crate::info",
+            "crate::export",
+            "crate::input",
+        ],
+    ),
     (
         "dt/",
         &[

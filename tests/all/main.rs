@@ -21,6 +21,7 @@ mod data_extremes;
 mod dda_planes;
 mod dicom;
 mod experiments;
+mod explore;
 mod extremes;
 mod formats;
 mod generators;

@@ -401,3 +401,29 @@ pub fn gz(b: &[u8]) -> Vec<u8> {
     e.write_all(b).unwrap();
     e.finish().unwrap()
 }
+
+/// Rewrites the JSON header of a packed file and fixes up the trailer
+/// checksum and footer, so only the reader's header checks can refuse it.
+pub fn rewrite_header(bytes: &[u8], f: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
+    let n = bytes.len();
+    let foot = &bytes[n - 40..];
+    let u64_at = |i: usize| u64::from_le_bytes(foot[i..i + 8].try_into().unwrap()) as usize;
+    let (trailer, hlen, ilen) = (u64_at(0), u64_at(8), u64_at(16));
+    let mut header: serde_json::Value =
+        serde_json::from_slice(&bytes[trailer..trailer + hlen]).unwrap();
+    f(&mut header);
+    let json = serde_json::to_vec(&header).unwrap();
+    let index = &bytes[trailer + hlen..trailer + hlen + ilen];
+    let mut out = bytes[..trailer].to_vec();
+    out.extend_from_slice(&json);
+    out.extend_from_slice(index);
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(&json);
+    crc.update(index);
+    out.extend_from_slice(&(trailer as u64).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u64).to_le_bytes());
+    out.extend_from_slice(&(ilen as u64).to_le_bytes());
+    out.extend_from_slice(&crc.finalize().to_le_bytes());
+    out.extend_from_slice(&foot[28..40]);
+    out
+}
