@@ -662,8 +662,13 @@ pub struct RenderArgs {
     /// when it is not the file's own: any value inside the file's
     /// classification, at or above its iso value, renders exactly without
     /// a new prep.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "preset")]
     pub iso: Option<f64>,
+    /// A named preset (`cdvol presets`): its transfer function and shading
+    /// in composite mode, its iso value in surface, depth and cost modes,
+    /// its window in MIP mode.
+    #[arg(long, conflicts_with = "tf")]
+    pub preset: Option<String>,
     /// Transfer function (JSON) for --mode composite.
     #[arg(long)]
     pub tf: Option<PathBuf>,
@@ -801,22 +806,67 @@ impl RenderArgs {
             ModeArg::Cost => Mode::Cost,
             ModeArg::Depth => Mode::Depth { hit },
             ModeArg::Composite => {
-                let tf = self
-                    .tf
-                    .as_ref()
-                    .ok_or_else(|| anyhow::anyhow!("--mode composite needs --tf FILE"))?;
+                let tf = match (&self.tf, self.preset()?) {
+                    (Some(tf), _) => TransferFunction::load(tf)?,
+                    (None, Some(p)) => p.tf,
+                    (None, None) => {
+                        anyhow::bail!("--mode composite needs --tf FILE or --preset NAME")
+                    }
+                };
                 Mode::Composite {
-                    tf: TransferFunction::load(tf)?,
+                    tf,
                     step_mm: self.step,
                 }
             }
         })
     }
 
+    /// The `--preset`, looked up.
+    pub fn preset(&self) -> anyhow::Result<Option<cdvol::presets::Preset>> {
+        Ok(match &self.preset {
+            Some(name) => Some(cdvol::presets::get(name)?),
+            None => None,
+        })
+    }
+
+    /// The scene's iso value: `--iso`, or the preset's in surface, depth
+    /// and cost modes.
+    pub fn iso(&self) -> anyhow::Result<Option<f64>> {
+        let Some(p) = self.preset()? else {
+            return Ok(self.iso);
+        };
+        if !matches!(self.mode, ModeArg::Surface | ModeArg::Depth | ModeArg::Cost) {
+            return Ok(None);
+        }
+        match p.iso {
+            Some(v) => Ok(Some(v)),
+            None => {
+                let with: Vec<&str> = cdvol::presets::all()
+                    .iter()
+                    .filter(|q| q.iso.is_some())
+                    .map(|q| q.name.as_str())
+                    .collect();
+                anyhow::bail!(
+                    "preset {} has no iso value for --mode {}; presets with one: {} \
+                     (or render it with --mode composite)",
+                    p.name,
+                    format!("{:?}", self.mode).to_lowercase(),
+                    with.join(", ")
+                )
+            }
+        }
+    }
+
     /// The MIP window of `--window` and `--level`.
     pub fn window(&self) -> anyhow::Result<Window> {
         Ok(match (self.window.as_str(), self.level) {
-            ("auto", None) => Window::Auto,
+            ("auto", None) => match self.preset()?.and_then(|p| p.window) {
+                Some(w) => Window::Fixed {
+                    width: w.width,
+                    level: w.level,
+                },
+                None => Window::Auto,
+            },
             ("full", None) => Window::Full,
             ("auto" | "full", Some(_)) => {
                 anyhow::bail!(
@@ -841,6 +891,10 @@ impl RenderArgs {
     pub fn look(&self) -> anyhow::Result<CompositeLook> {
         let mut look = match (&self.tf, self.mode) {
             (Some(tf), ModeArg::Composite) => CompositeLook::load(tf)?,
+            (None, ModeArg::Composite) => CompositeLook {
+                shade: self.preset()?.is_some_and(|p| p.shade),
+                ..CompositeLook::default()
+            },
             _ => CompositeLook::default(),
         };
         look.shade |= self.shade;
@@ -906,7 +960,7 @@ impl RenderArgs {
                     NormalsArg::Smooth => cdvol::render::Normals::Smooth,
                     NormalsArg::Cell => cdvol::render::Normals::Cell,
                 },
-                iso: self.iso,
+                iso: self.iso()?,
             },
             template: self.traversal == TraversalArg::Template,
             output: self.output.clone(),

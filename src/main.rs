@@ -188,6 +188,17 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             for f in files {
                 println!("wrote {}", f.display());
             }
+            if stats.hits == 0 && stats.rays > 0 {
+                eprintln!(
+                    "cdvol: warning: {}: no ray met the scene ({} mode{}); the image is empty",
+                    a.file.display(),
+                    stats.mode,
+                    match job.options.iso {
+                        Some(v) => format!(", iso {v}"),
+                        None => String::new(),
+                    }
+                );
+            }
             println!(
                 "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read ({} reads), {:.2} s \
                  (thread seconds: decode {:.2}, traverse {:.2}, sample {:.2})",

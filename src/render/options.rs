@@ -366,9 +366,12 @@ pub(crate) fn check_mode(
                     path,
                     msg: format!(
                         "the transfer function gives opacity to values below {iso}, which this \
-                         file classified as empty (prepared with iso value {iso}); prepare it \
-                         classified by this transfer function, or with the iso value at the \
-                         lowest value with opacity"
+                         file classified as empty (prepared with iso value {iso}); prepare a \
+                         file classified by this transfer function: cdvol prep --classify-tf \
+                         TF.json {} -o {} (TF.json holding it; `cdvol presets --tf NAME` writes \
+                         a preset's)",
+                        shell_word(&h.source),
+                        shell_word(&suffixed(vol.path(), "tf")),
                     ),
                 })
             } else {
@@ -395,8 +398,11 @@ pub(crate) fn check_mode(
                     path,
                     msg: format!(
                         "the transfer function gives opacity at value {v}, where the one the file \
-                         was classified by has none; prepare it classified by this transfer \
-                         function"
+                         was classified by has none; prepare a file classified by this transfer \
+                         function: cdvol prep --classify-tf TF.json {} -o {} (TF.json holding \
+                         it; `cdvol presets --tf NAME` writes a preset's)",
+                        shell_word(&h.source),
+                        shell_word(&suffixed(vol.path(), "tf")),
                     ),
                 }),
                 None => Ok(()),
@@ -478,11 +484,16 @@ pub(crate) fn check_scene_iso(vol: &PackedVolume, opts: &RenderOptions) -> Resul
 
 /// `path` with `-iso{v}` before its extension.
 fn envelope_name(path: &std::path::Path, v: f64) -> String {
+    suffixed(path, &format!("iso{v}"))
+}
+
+/// `path` with `-{tag}.cdv` in place of its extension.
+fn suffixed(path: &std::path::Path, tag: &str) -> String {
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy())
         .unwrap_or_default();
-    path.with_file_name(format!("{stem}-iso{v}.cdv"))
+    path.with_file_name(format!("{stem}-{tag}.cdv"))
         .display()
         .to_string()
 }

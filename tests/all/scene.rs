@@ -253,3 +253,76 @@ fn iso_outside_the_envelope_is_refused_with_the_prep_command() {
         .arg(&png2));
     assert_eq!(std::fs::read(&png).unwrap(), std::fs::read(&png2).unwrap());
 }
+
+/// `render --preset`: the preset's iso value in surface mode, its window
+/// in MIP mode, its transfer function in composite mode; a preset without
+/// an iso value is refused in surface mode, naming those with one.
+#[test]
+fn render_presets_are_their_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = ct_phantom(dir.path());
+    let cdv = dir.path().join("head.cdv");
+    ok(cdvol()
+        .args(["prep", "-q", "--iso", "-1000"])
+        .arg(&head)
+        .arg("-o")
+        .arg(&cdv));
+    let bone = cdvol::presets::get("ct-bone").unwrap();
+    let mip = cdvol::presets::get("ct-mip").unwrap();
+    let w = mip.window.unwrap();
+    let render = |name: &str, args: &[String]| {
+        let out = dir.path().join(name);
+        ok(cdvol()
+            .args(["render", "-q", "--width", "40", "--height", "40"])
+            .args(args)
+            .arg(&cdv)
+            .arg("-o")
+            .arg(&out));
+        std::fs::read(&out).unwrap()
+    };
+    let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    assert_eq!(
+        render("p.png", &s(&["--preset", "ct-bone"])),
+        render("i.png", &s(&["--iso", &bone.iso.unwrap().to_string()]))
+    );
+    assert_eq!(
+        render("pm.png", &s(&["--mode", "mip", "--preset", "ct-mip"])),
+        render(
+            "wm.png",
+            &s(&[
+                "--mode",
+                "mip",
+                "--window",
+                &w.width.to_string(),
+                "--level",
+                &w.level.to_string()
+            ])
+        )
+    );
+    let tf = dir.path().join("bone.json");
+    std::fs::write(&tf, serde_json::to_string(&bone.tf).unwrap()).unwrap();
+    let mut comp = s(&["--mode", "composite", "--tf"]);
+    comp.push(tf.display().to_string());
+    let mut shaded = comp.clone();
+    if bone.shade {
+        shaded.push("--shade".into());
+    }
+    assert_eq!(
+        render(
+            "pc.png",
+            &s(&["--mode", "composite", "--preset", "ct-bone"])
+        ),
+        render("tc.png", &shaded)
+    );
+    let e = fails(
+        cdvol()
+            .args(["render", "-q", "--preset", "ct-lung"])
+            .arg(&cdv)
+            .arg("-o")
+            .arg(dir.path().join("x.png")),
+    );
+    assert!(
+        e.contains("ct-lung has no iso value") && e.contains("ct-bone"),
+        "{e}"
+    );
+}
