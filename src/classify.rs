@@ -155,6 +155,39 @@ impl TransferFunction {
         Some((lo, hi))
     }
 
+    /// A value where this function gives opacity and `outer` none, if
+    /// any: `None` means every value this one shows lies inside `outer`'s
+    /// support, so a file classified by `outer` renders it exactly. Both
+    /// are piecewise linear, so probing their points, the midpoints
+    /// between them and one value beyond each end is exact.
+    pub fn outside(&self, outer: &TransferFunction) -> Option<f64> {
+        let mut pts: Vec<f64> = self
+            .points
+            .iter()
+            .chain(&outer.points)
+            .map(|p| p.value)
+            .collect();
+        pts.sort_by(f64::total_cmp);
+        let mut probes = pts.clone();
+        probes.extend(pts.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+        probes.push(pts[0] - 1.0);
+        probes.push(pts[pts.len() - 1] + 1.0);
+        probes
+            .into_iter()
+            .find(|&v| self.opacity(v) > 0.0 && outer.opacity(v) == 0.0)
+    }
+
+    /// The largest iso value whose classification holds every cell this
+    /// function gives opacity: the last zero-opacity point before the
+    /// first non-zero one; `None` when the function is non-zero below its
+    /// first point (or nowhere).
+    pub fn iso_floor(&self) -> Option<f64> {
+        match self.support()?.0 {
+            lo if lo.is_finite() => Some(lo),
+            _ => None,
+        }
+    }
+
     /// True when the opacity is non-zero anywhere on `[lo, hi]`. A
     /// piecewise-linear function is largest at an end of the interval or
     /// at a control point inside it, so checking those is exact.
@@ -187,6 +220,20 @@ impl Classification {
             Classification::Iso { iso } => max >= *iso,
             // An empty range (all 8 NaN: min > max, or NaN) is background.
             Classification::TransferFunction { tf } => min <= max && tf.nonzero_on(min, max),
+        }
+    }
+
+    /// Whether this classification holds every 1-cell of an iso value
+    /// `v` (a cell whose largest vertex value is >= v), so that a file
+    /// classified by it renders surfaces at `v` exactly (`render --iso`):
+    /// `v` at or above the iso value, or where the transfer function is
+    /// non-zero from `v` up.
+    pub fn holds_iso(&self, v: f64) -> bool {
+        match self {
+            Classification::Iso { iso } => v >= *iso,
+            Classification::TransferFunction { tf } => {
+                tf.opacity(v) > 0.0 && tf.points.iter().all(|p| p.value < v || p.opacity > 0.0)
+            }
         }
     }
 

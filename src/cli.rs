@@ -216,10 +216,23 @@ pub struct PrepSettings {
     #[arg(
         long,
         value_name = "T",
-        conflicts_with_all = ["classify_tf", "preset"],
+        conflicts_with_all = ["classify_tf", "preset", "envelope"],
         allow_negative_numbers = true
     )]
     pub iso: Option<f64>,
+    /// One file for a whole exploration: the iso classification that
+    /// holds every item, so `render --iso`/`--tf`/`--preset` cover them all
+    /// without another prep. Items: iso values, presets, or a modality
+    /// (`ct`, `mr`: all its presets), comma-separated; e.g. `--envelope ct`
+    /// or `--envelope ct-bone,ct-muscle,500`.
+    #[arg(
+        long,
+        value_name = "ITEMS",
+        value_delimiter = ',',
+        conflicts_with_all = ["classify_tf", "preset"],
+        allow_negative_numbers = true
+    )]
+    pub envelope: Vec<String>,
     /// Transfer function (JSON): a cell is a 1-cell when its opacity is
     /// non-zero anywhere between the min and max of its vertex values.
     #[arg(long, value_name = "FILE", conflicts_with = "preset")]
@@ -255,6 +268,11 @@ impl PrepSettings {
     /// The checked prep options; errors name the flags.
     pub fn to_options(&self) -> anyhow::Result<cdvol::prep::PrepOptions> {
         use cdvol::classify::{Classification, TransferFunction};
+        if !self.envelope.is_empty() {
+            let (iso, _) = cdvol::presets::envelope(&self.envelope)
+                .map_err(|e| anyhow::anyhow!("option --envelope: {e}"))?;
+            return self.with(Classification::Iso { iso });
+        }
         let classification = match (self.iso, &self.classify_tf, &self.preset) {
             (Some(iso), None, None) => {
                 if !iso.is_finite() {
@@ -269,13 +287,21 @@ impl PrepSettings {
                 .map_err(|e| anyhow::anyhow!("option --preset: {e}"))?
                 .classification(),
             (None, None, None) => anyhow::bail!(
-                "prep needs --iso T, --classify-tf FILE or --preset NAME to decide which cells \
-                 are objects"
+                "prep needs --iso T, --classify-tf FILE, --preset NAME or --envelope ITEMS to \
+                 decide which cells are objects"
             ),
             _ => anyhow::bail!(
                 "--iso, --classify-tf and --preset each choose the classification: give one"
             ),
         };
+        self.with(classification)
+    }
+
+    /// The checked prep options with `classification`.
+    fn with(
+        &self,
+        classification: cdvol::classify::Classification,
+    ) -> anyhow::Result<cdvol::prep::PrepOptions> {
         let opts = cdvol::prep::PrepOptions {
             classification,
             brick_size: self.brick,

@@ -31,6 +31,8 @@ pub struct Info {
     pub storage: String,
     pub codes: CodeEncoding,
     pub classification: serde_json::Value,
+    /// What renders from this file without another prep (issue 16).
+    pub envelope: EnvelopeInfo,
     pub brick_size: u32,
     pub bricks: [u64; 3],
     pub brick_count: u64,
@@ -85,6 +87,7 @@ impl Info {
             storage: h.storage.name().into(),
             codes: h.codes,
             classification: serde_json::to_value(&h.classification).unwrap_or_default(),
+            envelope: EnvelopeInfo::of(&h.classification),
             brick_size: h.brick_size,
             bricks: h.bricks,
             brick_count: h.brick_count(),
@@ -142,6 +145,25 @@ impl Info {
         }
         let _ = writeln!(o, "samples      {} stored as {}", self.dtype, self.storage);
         let _ = writeln!(o, "classify     {}", self.classification);
+        let e = &self.envelope;
+        let _ = writeln!(o, "envelope     {}", e.statement);
+        let list = |v: &[String]| {
+            if v.is_empty() {
+                "none".to_string()
+            } else {
+                v.join(", ")
+            }
+        };
+        let _ = writeln!(
+            o,
+            "  presets    composite/--tf: {}",
+            list(&e.composite_presets)
+        );
+        let _ = writeln!(
+            o,
+            "             surface/--iso:  {}",
+            list(&e.surface_presets)
+        );
         let _ = writeln!(o, "codes        {:?}", self.codes);
         let _ = writeln!(
             o,
@@ -312,5 +334,46 @@ fn value_histogram_text(o: &mut String, h: &ValueHistogram) {
             100.0 * (n as f64 / total as f64).min(1.0),
             "#".repeat(bar.min(40))
         );
+    }
+}
+
+/// The file's classification as an envelope: what `render` may ask of it
+/// without another prep.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct EnvelopeInfo {
+    /// In words: which iso values and transfer functions fit.
+    pub statement: String,
+    /// Presets whose transfer function fits (composite, `--preset`).
+    pub composite_presets: Vec<String>,
+    /// Presets whose iso value fits (surface, `--preset`).
+    pub surface_presets: Vec<String>,
+}
+
+impl EnvelopeInfo {
+    fn of(c: &crate::classify::Classification) -> EnvelopeInfo {
+        use crate::classify::Classification;
+        let statement = match c {
+            Classification::Iso { iso } => {
+                format!("render --iso V for any V >= {iso}; --tf with no opacity below {iso}")
+            }
+            Classification::TransferFunction { tf } => {
+                let p = &tf.points;
+                let from = match p.iter().rposition(|q| q.opacity == 0.0) {
+                    None => "V of any value".to_string(),
+                    Some(i) if i + 1 == p.len() => "none (the function ends at zero)".to_string(),
+                    Some(i) => format!("V > {}", p[i].value),
+                };
+                format!(
+                    "render --tf with opacity only where the file's transfer function has some; \
+                     --iso {from}"
+                )
+            }
+        };
+        let (composite_presets, surface_presets) = crate::presets::covered(c);
+        EnvelopeInfo {
+            statement,
+            composite_presets,
+            surface_presets,
+        }
     }
 }

@@ -92,6 +92,19 @@ pub enum PresetError {
     /// No preset has this name.
     #[error("unknown preset {name:?}, expected one of: {known}")]
     Unknown { name: String, known: String },
+    /// An `--envelope` item that is no number, preset or modality.
+    #[error(
+        "envelope item {item:?}: expected an iso value, a modality (ct, mr) or a preset \
+         ({known})"
+    )]
+    EnvelopeItem { item: String, known: String },
+    /// A preset an iso classification cannot hold (opacity below its
+    /// first point).
+    #[error(
+        "preset {name} gives opacity to every value below its first point, so no iso \
+         value holds it: prepare with --preset {name} or --classify-tf"
+    )]
+    Unbounded { name: String },
     /// A preset breaks an invariant of [`Preset::check`] (a bug in the
     /// shipped data, caught by the unit tests).
     #[error("preset {name}: field `{field}`: {found}, expected {expected}")]
@@ -389,4 +402,78 @@ mod tests {
         assert!(slicer_curve("3 0 0 1", 2).is_none());
         assert!(slicer_curve("2 0 x", 2).is_none());
     }
+}
+
+/// The classification one prep needs so that every item renders from its
+/// file without another prep (`prep --envelope`): the lowest of the items'
+/// iso values, where an item is an iso value, a preset (its transfer
+/// function's lowest value with opacity, see
+/// [`TransferFunction::iso_floor`], and its surface iso value) or a
+/// modality (`ct`, `mr`: all of its presets). Returns the iso value and
+/// the presets it covers.
+pub fn envelope(items: &[String]) -> Result<(f64, Vec<String>), PresetError> {
+    let mut iso = f64::INFINITY;
+    let mut covers = Vec::new();
+    for item in items.iter().map(|i| i.trim()) {
+        if let Ok(v) = item.parse::<f64>() {
+            if v.is_finite() {
+                iso = iso.min(v);
+                continue;
+            }
+        }
+        let group: Vec<&Preset> = match item.to_ascii_lowercase().as_str() {
+            "ct" => all()
+                .iter()
+                .filter(|p| p.modality == Modality::Ct)
+                .collect(),
+            "mr" => all()
+                .iter()
+                .filter(|p| p.modality == Modality::Mr)
+                .collect(),
+            _ => match all().iter().find(|p| p.name.eq_ignore_ascii_case(item)) {
+                Some(p) => vec![p],
+                None => {
+                    return Err(PresetError::EnvelopeItem {
+                        item: item.into(),
+                        known: names(),
+                    })
+                }
+            },
+        };
+        for p in group {
+            let floor = p.tf.iso_floor().ok_or_else(|| PresetError::Unbounded {
+                name: p.name.clone(),
+            })?;
+            iso = iso.min(floor).min(p.iso.unwrap_or(f64::INFINITY));
+            covers.push(p.name.clone());
+        }
+    }
+    if !iso.is_finite() {
+        return Err(PresetError::EnvelopeItem {
+            item: items.join(","),
+            known: names(),
+        });
+    }
+    Ok((iso, covers))
+}
+
+/// What a file classified by `c` renders without another prep: the
+/// presets whose transfer function fits (composite) and those whose iso
+/// value fits (surface), by name.
+pub fn covered(c: &Classification) -> (Vec<String>, Vec<String>) {
+    let mut composite = Vec::new();
+    let mut surface = Vec::new();
+    for p in all() {
+        let tf_ok = match c {
+            Classification::Iso { iso } => !p.tf.nonzero_on(f64::MIN, iso.next_down()),
+            Classification::TransferFunction { tf } => p.tf.outside(tf).is_none(),
+        };
+        if tf_ok {
+            composite.push(p.name.clone());
+        }
+        if p.iso.is_some_and(|v| c.holds_iso(v)) {
+            surface.push(p.name.clone());
+        }
+    }
+    (composite, surface)
 }

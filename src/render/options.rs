@@ -379,21 +379,7 @@ pub(crate) fn check_mode(
             }
         }
         (Mode::Composite { tf, .. }, Classification::TransferFunction { tf: file_tf }) => {
-            let mut pts: Vec<f64> = tf
-                .points
-                .iter()
-                .chain(&file_tf.points)
-                .map(|p| p.value)
-                .collect();
-            pts.sort_by(f64::total_cmp);
-            let mut probes = pts.clone();
-            probes.extend(pts.windows(2).map(|w| 0.5 * (w[0] + w[1])));
-            probes.push(pts[0] - 1.0);
-            probes.push(pts[pts.len() - 1] + 1.0);
-            match probes
-                .iter()
-                .find(|&&v| tf.opacity(v) > 0.0 && file_tf.opacity(v) == 0.0)
-            {
+            match tf.outside(file_tf) {
                 Some(v) => Err(RenderError::Incompatible {
                     path,
                     msg: format!(
@@ -455,13 +441,7 @@ pub(crate) fn check_scene_iso(vol: &PackedVolume, opts: &RenderOptions) -> Resul
         ));
     }
     let h = vol.header();
-    let inside = match &h.classification {
-        Classification::Iso { iso } => v >= *iso,
-        Classification::TransferFunction { tf } => {
-            tf.opacity(v) > 0.0 && tf.points.iter().all(|p| p.value < v || p.opacity > 0.0)
-        }
-    };
-    if inside {
+    if h.classification.holds_iso(v) {
         return Ok(());
     }
     let envelope = match &h.classification {

@@ -326,3 +326,69 @@ fn render_presets_are_their_settings() {
         "{e}"
     );
 }
+
+/// `prep --envelope ct`: one file from which every CT preset renders, in
+/// composite and (where it has an iso value) surface mode, with no second
+/// prep; `info` lists them; an unknown item is refused by name.
+#[test]
+fn one_envelope_prep_serves_every_ct_preset() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = ct_phantom(dir.path());
+    let cdv = dir.path().join("env.cdv");
+    ok(cdvol()
+        .args(["prep", "-q", "--envelope", "ct"])
+        .arg(&head)
+        .arg("-o")
+        .arg(&cdv));
+    let (iso, covers) = cdvol::presets::envelope(&["ct".to_string()]).unwrap();
+    let ct: Vec<_> = cdvol::presets::all()
+        .iter()
+        .filter(|p| p.modality == cdvol::presets::Modality::Ct)
+        .collect();
+    assert_eq!(covers.len(), ct.len());
+    for p in &ct {
+        assert!(p.tf.iso_floor().unwrap() >= iso && p.iso.is_none_or(|v| v >= iso));
+        let mut modes = vec!["composite"];
+        if p.iso.is_some() {
+            modes.push("surface");
+        }
+        for mode in modes {
+            ok(cdvol()
+                .args([
+                    "render", "-q", "--width", "24", "--height", "24", "--mode", mode,
+                ])
+                .args(["--preset", &p.name])
+                .arg(&cdv)
+                .arg("-o")
+                .arg(dir.path().join(format!("{}-{mode}.png", p.name))));
+        }
+    }
+    let info: serde_json::Value =
+        serde_json::from_str(&ok(cdvol().args(["info", "--json"]).arg(&cdv))).unwrap();
+    let listed = info["envelope"]["composite_presets"].as_array().unwrap();
+    for p in &ct {
+        assert!(listed.iter().any(|x| x == p.name.as_str()), "{}", p.name);
+    }
+    // A file prepared at bone's iso does not cover the skin preset.
+    let bone = dir.path().join("bone.cdv");
+    ok(cdvol()
+        .args(["prep", "-q", "--envelope", "ct-bone"])
+        .arg(&head)
+        .arg("-o")
+        .arg(&bone));
+    fails(
+        cdvol()
+            .args(["render", "-q", "--mode", "composite", "--preset", "ct-skin"])
+            .arg(&bone)
+            .arg("-o")
+            .arg(dir.path().join("x.png")),
+    );
+    let e = fails(
+        cdvol()
+            .args(["prep", "-q", "--envelope", "ct,bogus"])
+            .arg(&head)
+            .arg("-o")
+            .arg(dir.path().join("y.cdv")),
+    );
+    assert!(e.contains("\"bogus\"") && e.contains("ct-bone"), "{e}");
+}
