@@ -388,3 +388,34 @@ fn render_output_format_follows_the_extension() {
         assert!(!out.exists(), "{name} was written");
     }
 }
+
+/// `render r.cdv -o r.cdv` is refused (by its extension) and the packed
+/// file is untouched.
+#[test]
+fn render_onto_its_packed_file_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = dir.path().join("head.json");
+    common::ok(
+        common::cdvol()
+            .args(["phantom", "ct", "-q", "--dims", "16,16,12", "-o"])
+            .arg(&head),
+    );
+    let cdv = dir.path().join("r.cdv");
+    common::ok(
+        common::cdvol()
+            .args(["prep", "-q", "--iso", "300"])
+            .arg(&head)
+            .arg("-o")
+            .arg(&cdv),
+    );
+    let before = std::fs::read(&cdv).unwrap();
+    let e = common::fails(
+        common::cdvol()
+            .args(["render", "-q"])
+            .arg(&cdv)
+            .arg("-o")
+            .arg(&cdv),
+    );
+    assert!(e.contains("r.cdv"), "{e}");
+    assert_eq!(std::fs::read(&cdv).unwrap(), before);
+}

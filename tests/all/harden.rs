@@ -230,6 +230,10 @@ fn an_output_that_is_an_input_is_refused() {
     std::fs::copy(&r, d.join("x.f32")).unwrap();
     std::fs::copy(&r, d.join("t.0001.png")).unwrap();
     std::os::unix::fs::symlink("s.raw", d.join("link.cdv")).unwrap();
+    // The packed file under an image name (a render's output must be one:
+    // `-o r.cdv` is refused for its extension before this check).
+    std::fs::hard_link(&r, d.join("r-link.png")).unwrap();
+    std::fs::hard_link(d.join("P0.cdvpart"), d.join("P0-link.png")).unwrap();
     let series = d.join("dcm");
     let slices = dicom_series::write_series(&series);
     let before = snapshot(d);
@@ -275,8 +279,8 @@ fn an_output_that_is_an_input_is_refused() {
         },
         {
             let mut c = render(&r);
-            c.arg("-o").arg(&r);
-            (c, "r.cdv", "r.cdv")
+            c.arg("-o").arg(p("r-link.png"));
+            (c, "r.cdv", "r-link.png")
         },
         {
             let mut c = render(&r);
@@ -309,8 +313,8 @@ fn an_output_that_is_an_input_is_refused() {
                 .arg(p("P0.cdvpart"))
                 .arg(p("P1.cdvpart"))
                 .arg("-o")
-                .arg(p("P0.cdvpart"));
-            (c, "P0.cdvpart", "P0.cdvpart")
+                .arg(p("P0-link.png"));
+            (c, "P0.cdvpart", "P0-link.png")
         },
         {
             let mut c = cdvol();
