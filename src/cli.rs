@@ -937,12 +937,10 @@ impl RenderArgs {
     pub fn job(&self) -> anyhow::Result<RenderJob> {
         let view = match (self.eye, self.target, self.up) {
             (Some(eye), Some(target), Some(up)) => View::LookAt { eye, target, up },
-            (None, None, None) => {
-                match self.view.unwrap_or(ViewArg::Angles([0.0, 0.0])) {
-                    ViewArg::Angles([az_deg, el_deg]) => View::Orbit { az_deg, el_deg },
-                    ViewArg::Named(v) => View::Named(v),
-                }
-            }
+            (None, None, None) => match self.view.unwrap_or(ViewArg::Angles([0.0, 0.0])) {
+                ViewArg::Angles([az_deg, el_deg]) => View::Orbit { az_deg, el_deg },
+                ViewArg::Named(v) => View::Named(v),
+            },
             _ => anyhow::bail!("--eye, --target and --up go together: give all three or none"),
         };
         Ok(RenderJob {

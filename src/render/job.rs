@@ -341,13 +341,11 @@ fn turntable(
         if job.shard.is_some_and(|s| f % s.n != s.k) {
             continue;
         }
-        let cam = job
-            .camera
-            .place(
-                bounds,
-                job.orbit_deg * f as f64 / job.frames as f64,
-                vol.header().orientation.as_ref(),
-            )?;
+        let cam = job.camera.place(
+            bounds,
+            job.orbit_deg * f as f64 / job.frames as f64,
+            vol.header().orientation.as_ref(),
+        )?;
         let (frame, stats) = render_one(vol, Some(&cache), &cam, job, progress)?;
         stage(&frame, &numbered(&job.output, f), &mut set)?;
         total.merge(&stats);
