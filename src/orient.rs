@@ -172,13 +172,10 @@ impl Orientation {
     /// Checks a header's orientation (finite, unit, orthogonal).
     pub fn check(&self) -> Result<(), OrientationError> {
         Orientation::from_lps(self.axes_lps, &self.source)?;
-        for k in 0..3 {
-            let n: f64 = self.axes_lps[k].iter().map(|x| x * x).sum();
+        for (axis, dir) in AXIS.into_iter().zip(self.axes_lps) {
+            let n: f64 = dir.iter().map(|x| x * x).sum();
             if (n - 1.0).abs() > 1e-6 {
-                return Err(OrientationError::Degenerate {
-                    axis: AXIS[k],
-                    dir: self.axes_lps[k],
-                });
+                return Err(OrientationError::Degenerate { axis, dir });
             }
         }
         Ok(())

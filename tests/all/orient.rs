@@ -495,3 +495,56 @@ fn oblique_dicom_is_stated_with_its_angle() {
         .arg(dir.path().join("o.png"))
         .args(["--view", "left", "--width", "16", "--height", "16"]));
 }
+
+#[test]
+fn header_orientation_is_optional_and_checked() {
+    use cdvol::format::reader::PackedVolume;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let raw = write_raw(d, "lps", serde_json::json!({"orientation": "LPS"}));
+    let vol = d.join("lps.cdv");
+    prep(&raw, &vol);
+    let bytes = std::fs::read(&vol).unwrap();
+    let h = PackedVolume::open(&vol).unwrap().header().clone();
+    let o = h.orientation.expect("recorded");
+    assert_eq!(
+        o.axes_lps,
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    );
+    assert_eq!(o.source, "sidecar orientation");
+    // Older files have no key: they read, with the orientation unknown.
+    let old = d.join("old.cdv");
+    std::fs::write(
+        &old,
+        crate::common::rewrite_header(&bytes, |h| {
+            h.as_object_mut().unwrap().remove("orientation");
+        }),
+    )
+    .unwrap();
+    assert!(PackedVolume::open(&old)
+        .unwrap()
+        .header()
+        .orientation
+        .is_none());
+    // Crafted directions are refused by field.
+    for (name, axes) in [
+        ("zero", serde_json::json!([[1, 0, 0], [0, 0, 0], [0, 0, 1]])),
+        ("long", serde_json::json!([[2, 0, 0], [0, 1, 0], [0, 0, 1]])),
+        (
+            "skew",
+            serde_json::json!([[1, 0, 0], [0.7071, 0.7071, 0], [0, 0, 1]]),
+        ),
+    ] {
+        let p = d.join(format!("{name}.cdv"));
+        std::fs::write(
+            &p,
+            crate::common::rewrite_header(&bytes, |h| h["orientation"]["axes_lps"] = axes.clone()),
+        )
+        .unwrap();
+        let e = PackedVolume::open(&p).err().expect(name).to_string();
+        assert!(
+            e.contains("orientation.axes_lps") && e.contains(&format!("{name}.cdv")),
+            "{e}"
+        );
+    }
+}
