@@ -743,14 +743,25 @@ pub struct RenderArgs {
     /// Perspective field of view in degrees.
     #[arg(long, default_value_t = 40.0)]
     pub fov: f64,
-    /// Orbit view: azimuth and elevation in degrees around the volume centre,
-    /// in the file's sample axes (x = columns, y = rows, z = slices; the
-    /// patient orientation of DICOM, NIfTI and NRRD is not applied). Azimuth
-    /// turns about +z: 0 puts the eye on the -y side looking towards +y, 90
-    /// on the +x side looking towards -x. Elevation lifts the eye towards +z,
-    /// looking down; +z is up in the image (default 0,0).
-    #[arg(long, value_parser = parse_pair, allow_hyphen_values = true)]
-    pub view: Option<[f64; 2]>,
+    /// The view: a name in patient terms (anterior, posterior, left, right,
+    /// superior, inferior) or AZ,EL, azimuth and elevation in degrees
+    /// around the volume centre. Anterior looks at the face, head up, so
+    /// the patient's left is on the image's right (the radiological
+    /// convention); left looks at the patient's left side; superior and
+    /// inferior look along the body axis with the face at the top.
+    ///
+    /// AZ,EL are in patient axes when the file records its orientation
+    /// (`cdvol info`: DICOM, NIfTI, NRRD with a patient space, a sidecar
+    /// with "orientation"): 0,0 = anterior, 90,0 = left, 180,0 =
+    /// posterior, 270,0 = right; elevation lifts the eye towards the head,
+    /// and the head is up in the image (at +-90 the back of the head is
+    /// up). Otherwise they are in the file's sample axes (x = columns, y =
+    /// rows, z = slices): azimuth turns about +z, 0 puts the eye on the -y
+    /// side looking towards +y, 90 on the +x side looking towards -x;
+    /// elevation lifts the eye towards +z, and +z is up in the image; named
+    /// views are refused. Default: 0,0 (anterior for oriented files).
+    #[arg(long, value_parser = parse_view, allow_hyphen_values = true)]
+    pub view: Option<ViewArg>,
     /// Exact camera: eye, target and up in mm (all three needed).
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
     pub eye: Option<[f64; 3]>,
@@ -952,10 +963,10 @@ impl RenderArgs {
     pub fn job(&self) -> anyhow::Result<RenderJob> {
         let view = match (self.eye, self.target, self.up) {
             (Some(eye), Some(target), Some(up)) => View::LookAt { eye, target, up },
-            (None, None, None) => {
-                let [az_deg, el_deg] = self.view.unwrap_or([0.0, 0.0]);
-                View::Orbit { az_deg, el_deg }
-            }
+            (None, None, None) => match self.view.unwrap_or(ViewArg::Angles([0.0, 0.0])) {
+                ViewArg::Angles([az_deg, el_deg]) => View::Orbit { az_deg, el_deg },
+                ViewArg::Named(v) => View::Named(v),
+            },
             _ => anyhow::bail!("--eye, --target and --up go together: give all three or none"),
         };
         Ok(RenderJob {
@@ -1035,6 +1046,7 @@ pub fn render_error(e: JobError) -> anyhow::Error {
             CameraError::Frame { .. } => "--frame",
             CameraError::Fov { .. } => "--fov",
             CameraError::TooFar { .. } => "--frame/--eye",
+            CameraError::NoOrientation { .. } => "--view",
         }),
         _ => None,
     };
@@ -1074,8 +1086,25 @@ fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
     Ok(out)
 }
 
-fn parse_pair(s: &str) -> Result<[f64; 2], String> {
-    parse_floats::<2>(s)
+/// `render --view`: a named view or `AZ,EL`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ViewArg {
+    Angles([f64; 2]),
+    Named(cdvol::orient::NamedView),
+}
+
+fn parse_view(s: &str) -> Result<ViewArg, String> {
+    use cdvol::orient::NamedView;
+    if let Some(v) = NamedView::parse(s) {
+        return Ok(ViewArg::Named(v));
+    }
+    if !s.contains(',') {
+        return Err(format!(
+            "{s:?}: expected AZ,EL in degrees or one of {}",
+            NamedView::NAMES
+        ));
+    }
+    parse_floats::<2>(s).map(ViewArg::Angles)
 }
 
 fn parse_triple(s: &str) -> Result<[f64; 3], String> {

@@ -24,6 +24,11 @@ pub struct Info {
     pub source: String,
     /// The input's notes (a DICOM series' z spacing report).
     pub notes: Vec<String>,
+    /// The patient orientation as `LPS from DICOM ImageOrientationPatient`
+    /// (with the angle when oblique), or `unknown`.
+    pub orientation: String,
+    /// The directions behind it (LPS), when known.
+    pub orientation_axes_lps: Option<[[f64; 3]; 3]>,
     pub dims: [u64; 3],
     pub cells: [u64; 3],
     pub axes: [AxisInfo; 3],
@@ -80,6 +85,11 @@ impl Info {
             file_bytes: vol.file_len(),
             source: h.source.clone(),
             notes: h.notes.clone(),
+            orientation: h
+                .orientation
+                .as_ref()
+                .map_or_else(|| "unknown".to_string(), |o| o.describe()),
+            orientation_axes_lps: h.orientation.as_ref().map(|o| o.axes_lps),
             dims: h.dims,
             cells: h.cells(),
             axes,
@@ -130,6 +140,7 @@ impl Info {
         for n in &self.notes {
             let _ = writeln!(o, "             {n}");
         }
+        let _ = writeln!(o, "orientation  {}", self.orientation);
         let _ = writeln!(
             o,
             "dims         {} x {} x {} samples, {} x {} x {} cells",

@@ -55,6 +55,7 @@ pub mod grid;
 pub mod info;
 pub mod input;
 pub mod memory;
+pub mod orient;
 pub mod prep;
 pub mod presets;
 pub mod progress;

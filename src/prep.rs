@@ -363,6 +363,7 @@ pub fn prep(
         zstd_level: opts.zstd_level,
         source: meta.origin_desc.clone(),
         notes: src.report(),
+        orientation: meta.orientation.clone(),
         summary: Summary::default(),
     };
     if header.max_payload_len() > crate::format::MAX_PAYLOAD_LEN {

@@ -135,6 +135,10 @@ pub struct Header {
     /// DICOM series' z spacing report); absent in older files.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// Which way the sample axes point in the patient (LPS), and where
+    /// that came from; absent when unknown (and in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orientation: Option<crate::orient::Orientation>,
     pub summary: Summary,
 }
 

@@ -473,6 +473,13 @@ fn check_header(h: &Header) -> Result<(), HeaderInvalid> {
             );
         }
     }
+    if let Some(Err(e)) = h.orientation.as_ref().map(|o| o.check()) {
+        return bad(
+            "orientation.axes_lps".into(),
+            e.to_string(),
+            "unit orthogonal directions".into(),
+        );
+    }
     let storage_ok = match h.codes {
         super::CodeEncoding::IntRange { .. } => !h.storage.is_float(),
         super::CodeEncoding::NanPayload { .. } => h.storage.is_float(),

@@ -6,7 +6,9 @@
 //! sorts them by their position along the slice normal (the cross product
 //! of the two ImageOrientationPatient directions, dotted with
 //! ImagePositionPatient) and makes those positions the z axis, rectilinear
-//! wherever the spacing varies: no resampling. Pixel data are decoded one
+//! wherever the spacing varies: no resampling. The row, column and normal
+//! directions are recorded as the volume's patient orientation (LPS,
+//! crate::orient). Pixel data are decoded one
 //! slice at a time, when prep asks for it.
 //!
 //! Refused, naming the file and the tag: files that start like DICOM but
@@ -406,6 +408,15 @@ pub fn open_files(
             intercept: first.rescale[1],
         },
         origin_desc: format!("DICOM series {} in {}", first.series, dir.display()),
+        // x along the rows, y down the columns, z along the normal (the
+        // slices are sorted that way): DICOM's patient space is LPS.
+        orientation: Some(
+            crate::orient::Orientation::from_lps(
+                [row_dir, col_dir, normal],
+                "DICOM ImageOrientationPatient",
+            )
+            .map_err(|e| err(&first.path, "ImageOrientationPatient", e.to_string()))?,
+        ),
     };
     let src = DicomSource {
         meta,

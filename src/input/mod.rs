@@ -141,6 +141,9 @@ pub struct VolumeMeta {
     pub rescale: Rescale,
     /// Where the volume came from (for error messages and the header).
     pub origin_desc: String,
+    /// Which way the sample axes point in the patient; `None` when the
+    /// input does not say.
+    pub orientation: Option<crate::orient::Orientation>,
 }
 
 impl VolumeMeta {

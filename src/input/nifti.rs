@@ -7,8 +7,11 @@
 //! millimetres unless it says metres or micrometres), the origin the
 //! sform/qform offset, and `scl_slope`/`scl_inter` the rescale (slope 0
 //! means none, as the standard says). The voxel-to-world rotation is not
-//! applied: samples stay in file order, like every input of cdvol (no
-//! resampling).
+//! applied to the samples, which stay in file order like every input of
+//! cdvol (no resampling); its axis directions are recorded as the
+//! volume's patient orientation (crate::orient), from the sform when
+//! `sform_code > 0` and its columns are orthogonal, else from the qform
+//! when `qform_code > 0`, else unknown.
 
 use std::path::Path;
 
@@ -19,6 +22,7 @@ use super::raw::RawSource;
 use super::sidecar::{DataFiles, Sidecar};
 use super::{Dtype, Endian, InputError, Rescale, SliceSource, VolumeMeta};
 use crate::grid::{Axis, Grid};
+use crate::orient::Orientation;
 
 /// Opens a `.nii` or `.nii.gz` file as a slice source.
 pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
@@ -126,6 +130,7 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
         dtype,
         rescale,
         origin_desc: path.display().to_string(),
+        orientation: orientation(&h),
     };
     let gz = path
         .file_name()
@@ -150,6 +155,7 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
             header_bytes: skip,
             grid,
             rescale,
+            orientation: meta.orientation,
         })?))
     }
 }
@@ -159,4 +165,45 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
 /// not 0.89999997615814208984375.
 fn dec(x: f32) -> f64 {
     format!("{x}").parse().unwrap_or(x as f64)
+}
+
+/// The patient orientation of the sform (`sform_code > 0`), else of the
+/// qform (`qform_code > 0`); `None` when neither is set or usable (a
+/// sheared or degenerate sform falls back to the qform).
+fn orientation(h: &NiftiHeader) -> Option<Orientation> {
+    if h.sform_code > 0 {
+        let rows = [h.srow_x, h.srow_y, h.srow_z];
+        let axes = std::array::from_fn(|k| std::array::from_fn(|j| rows[j][k] as f64));
+        if let Ok(o) = Orientation::from_ras(axes, "NIfTI sform") {
+            return Some(o);
+        }
+    }
+    if h.qform_code > 0 {
+        let [b, c, d] = [h.quatern_b, h.quatern_c, h.quatern_d].map(f64::from);
+        let a = (1.0 - (b * b + c * c + d * d)).max(0.0).sqrt();
+        let r = [
+            [
+                a * a + b * b - c * c - d * d,
+                2.0 * (b * c - a * d),
+                2.0 * (b * d + a * c),
+            ],
+            [
+                2.0 * (b * c + a * d),
+                a * a + c * c - b * b - d * d,
+                2.0 * (c * d - a * b),
+            ],
+            [
+                2.0 * (b * d - a * c),
+                2.0 * (c * d + a * b),
+                a * a + d * d - b * b - c * c,
+            ],
+        ];
+        let qfac = if h.pixdim[0] < 0.0 { -1.0 } else { 1.0 };
+        let axes = std::array::from_fn(|k| {
+            let s = if k == 2 { qfac } else { 1.0 };
+            std::array::from_fn(|j| r[j][k] * s)
+        });
+        return Orientation::from_ras(axes, "NIfTI qform").ok();
+    }
+    None
 }

@@ -8,7 +8,11 @@
 //! line or the end of a detached header. Axis-aligned direction vectors
 //! with a negative component give the absolute spacing: the samples are
 //! kept in file order, so such an axis is mirrored relative to the
-//! patient, as it is in the file.
+//! patient, as it is in the file. With a patient `space`
+//! (`left-posterior-superior`, `right-anterior-superior`,
+//! `left-anterior-superior` or their short names LPS, RAS, LAS) the signs
+//! of the directions give the volume's patient orientation
+//! (crate::orient); any other space, or none, leaves it unknown.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
@@ -19,6 +23,7 @@ use super::raw::RawSource;
 use super::sidecar::{DataFiles, Sidecar};
 use super::{Dtype, Endian, InputError, Rescale, SliceSource, VolumeMeta};
 use crate::grid::{Axis, Grid};
+use crate::orient::Orientation;
 
 /// Headers longer than this are refused (a real one is a few hundred bytes).
 const MAX_HEADER: u64 = 1 << 20;
@@ -31,6 +36,7 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
         dtype: h.dtype,
         rescale: Rescale::IDENTITY,
         origin_desc: path.display().to_string(),
+        orientation: h.orientation.clone(),
     };
     if h.gzip {
         let layout = GzLayout {
@@ -52,6 +58,7 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
             header_bytes: h.file_offset + h.skip,
             grid: h.grid,
             rescale: Rescale::IDENTITY,
+            orientation: h.orientation,
         };
         Ok(Box::new(RawSource::from_sidecar(sidecar)?))
     }
@@ -72,6 +79,9 @@ pub struct NrrdHeader {
     /// stream for gzip).
     pub skip: u64,
     pub gzip: bool,
+    /// From `space` and the signs of `space directions`; `None` when the
+    /// space is not a patient space (or absent).
+    pub orientation: Option<Orientation>,
 }
 
 /// Parses and checks the header at `path`.
@@ -184,6 +194,7 @@ pub fn parse(path: &Path) -> Result<NrrdHeader, InputError> {
         Some(e) => return Err(bad("endian", format!("{e:?}, expected little or big"))),
     };
     let spacing = spacings(&fields, path)?;
+    let orientation = orientation(&fields, path)?;
     let origin = match get("space origin") {
         Some(v) => vector(v).ok_or_else(|| {
             bad(
@@ -245,6 +256,7 @@ pub fn parse(path: &Path) -> Result<NrrdHeader, InputError> {
         file_offset,
         skip: byte_skip,
         gzip,
+        orientation,
     })
 }
 
@@ -336,4 +348,34 @@ fn spacings(fields: &BTreeMap<String, String>, path: &Path) -> Result<[f64; 3], 
         "space directions",
         "missing (and no `spacings`): the sample spacing is unknown".into(),
     ))
+}
+
+/// The patient orientation from `space` and the signs of the
+/// (axis-aligned, already checked by [`spacings`]) `space directions`.
+fn orientation(
+    fields: &BTreeMap<String, String>,
+    path: &Path,
+) -> Result<Option<Orientation>, InputError> {
+    // The sign that turns each space axis into LPS.
+    let to_lps = match fields
+        .get("space")
+        .map(|s| s.to_ascii_lowercase())
+        .as_deref()
+    {
+        Some("left-posterior-superior" | "lps") => [1.0, 1.0, 1.0],
+        Some("right-anterior-superior" | "ras") => [-1.0, -1.0, 1.0],
+        Some("left-anterior-superior" | "las") => [1.0, -1.0, 1.0],
+        _ => return Ok(None),
+    };
+    let Some(v) = fields.get("space directions") else {
+        return Ok(None);
+    };
+    let mut axes = [[0.0; 3]; 3];
+    for (k, s) in v.split_whitespace().enumerate().take(3) {
+        let d = vector(s).unwrap_or([0.0; 3]);
+        axes[k] = std::array::from_fn(|j| d[j] * to_lps[j]);
+    }
+    Orientation::from_lps(axes, "NRRD space directions")
+        .map(Some)
+        .map_err(|e| InputError::field(path, "space directions", e.to_string()))
 }

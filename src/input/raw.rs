@@ -115,6 +115,7 @@ impl RawSource {
             dtype: sidecar.dtype,
             rescale: sidecar.rescale,
             origin_desc: path.display().to_string(),
+            orientation: sidecar.orientation.clone(),
         };
         Ok(RawSource {
             meta,

@@ -28,6 +28,8 @@ pub struct Sidecar {
     pub header_bytes: u64,
     pub grid: Grid,
     pub rescale: Rescale,
+    /// Optional key `orientation`: which way the axes point in the patient.
+    pub orientation: Option<crate::orient::Orientation>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -274,6 +276,7 @@ pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
         header_bytes,
         grid: Grid { axes },
         rescale,
+        orientation: parse_orientation(path, get("orientation"))?,
     })
 }
 
@@ -354,4 +357,54 @@ fn parse_axis(
         }
         _ => Err(InputError::field(path, name, format!("{v}, {expected}"))),
     }
+}
+
+/// The optional `orientation` key: a code such as `"LPS"` or `"RAS"` (the
+/// patient direction of +x, +y, +z), or `{"lps": [[..], [..], [..]]}` or
+/// `{"ras": ...}`, the three axis directions. Absent: unknown.
+fn parse_orientation(
+    path: &Path,
+    v: Option<&Value>,
+) -> Result<Option<crate::orient::Orientation>, InputError> {
+    use crate::orient::Orientation;
+    const SOURCE: &str = "sidecar orientation";
+    let expected = "expected a code such as \"LPS\" or \"RAS\", or {\"lps\": [[x], [y], [z]]} \
+                    with the directions of the three axes";
+    let bad = |field: &str, msg: String| InputError::field(path, field, msg);
+    let Some(v) = v else { return Ok(None) };
+    let o = match v {
+        Value::String(code) => Orientation::from_code(code, SOURCE),
+        Value::Object(o) if o.len() == 1 => {
+            let (key, m) = o
+                .iter()
+                .next()
+                .ok_or_else(|| bad("orientation", format!("{v}, {expected}")))?;
+            let field = format!("orientation.{key}");
+            let rows = m
+                .as_array()
+                .filter(|a| a.len() == 3)
+                .ok_or_else(|| bad(&field, format!("{m}, expected three [x, y, z] directions")))?;
+            let mut axes = [[0.0; 3]; 3];
+            for (k, r) in rows.iter().enumerate() {
+                let r = r.as_array().filter(|a| a.len() == 3).ok_or_else(|| {
+                    bad(&format!("{field}[{k}]"), format!("{r}, expected [x, y, z]"))
+                })?;
+                for (j, x) in r.iter().enumerate() {
+                    axes[k][j] = x.as_f64().filter(|x| x.is_finite()).ok_or_else(|| {
+                        bad(
+                            &format!("{field}[{k}][{j}]"),
+                            format!("{x}, expected a finite number"),
+                        )
+                    })?;
+                }
+            }
+            match key.as_str() {
+                "lps" => Orientation::from_lps(axes, SOURCE),
+                "ras" => Orientation::from_ras(axes, SOURCE),
+                _ => return Err(bad("orientation", format!("key {key:?}, {expected}"))),
+            }
+        }
+        _ => return Err(bad("orientation", format!("{v}, {expected}"))),
+    };
+    o.map(Some).map_err(|e| bad("orientation", e.to_string()))
 }

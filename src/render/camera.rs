@@ -29,6 +29,14 @@ pub enum CameraError {
     Frame { frame_mm: f64 },
     #[error("fov_deg {fov_deg} degrees, expected 0 < fov < 180")]
     Fov { fov_deg: f64 },
+    /// A named view on a file that does not record its orientation.
+    #[error(
+        "view {view} is in patient terms, but the file does not record its patient \
+         orientation (info: orientation unknown); use --view AZ,EL in the file's sample \
+         axes, or prepare from an input that gives one (DICOM, NIfTI, NRRD with a \
+         patient space, or a sidecar with \"orientation\": \"LPS\" or the code that fits)"
+    )]
+    NoOrientation { view: &'static str },
     /// A corner pixel's ray fails [`Ray::check`].
     #[error("the view reaches too far (frame or eye): {source}")]
     TooFar { source: RayError },
@@ -139,11 +147,24 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Result<Camera, CameraError> {
+        let (back, up) = orbit_dirs(az_deg, el_deg);
+        Camera::orbit_dir(bounds, back, up, persp_fov, frame_mm, width, height)
+    }
+
+    /// [`Camera::orbit`] with the eye in direction `back` from the centre
+    /// (a unit vector) and `up` (not parallel to `back`).
+    pub fn orbit_dir(
+        bounds: ([f64; 3], [f64; 3]),
+        back: [f64; 3],
+        up: [f64; 3],
+        persp_fov: Option<f64>,
+        frame_mm: Option<f64>,
+        width: u32,
+        height: u32,
+    ) -> Result<Camera, CameraError> {
         let (lo, hi) = bounds;
         let centre: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
         let radius = 0.5 * (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
-        let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
-        let back = [el.cos() * az.sin(), -el.cos() * az.cos(), el.sin()];
         let (projection, dist) = match persp_fov {
             Some(fov) => {
                 let half = (0.5 * fov).to_radians();
@@ -160,12 +181,15 @@ impl Camera {
             ),
         };
         let eye = std::array::from_fn(|k| centre[k] + dist * back[k]);
-        let up = if el.cos().abs() < 1e-9 {
-            [0.0, 1.0, 0.0]
-        } else {
-            [0.0, 0.0, 1.0]
-        };
         Camera::look_at(eye, centre, up, projection, width, height)
+    }
+
+    /// Mirrors the image left to right (the right vector reversed): for
+    /// sample axes that are mirrored in the patient, so that the image
+    /// shows the patient as a viewer would see them.
+    pub fn mirrored(mut self) -> Camera {
+        self.right = -self.right;
+        self
     }
 
     /// The ray through the centre of pixel `(px, py)` (row 0 at the top),
@@ -194,6 +218,20 @@ impl Camera {
             }
         }
     }
+}
+
+/// The unit direction from the centre to the eye of an orbit, and its up
+/// vector: azimuth about +z (0 puts the eye on the -y side), elevation
+/// towards +z; up is +z, or +y when looking straight along z.
+pub fn orbit_dirs(az_deg: f64, el_deg: f64) -> ([f64; 3], [f64; 3]) {
+    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
+    let back = [el.cos() * az.sin(), -el.cos() * az.cos(), el.sin()];
+    let up = if el.cos().abs() < 1e-9 {
+        [0.0, 1.0, 0.0]
+    } else {
+        [0.0, 0.0, 1.0]
+    };
+    (back, up)
 }
 
 #[cfg(test)]

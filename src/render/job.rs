@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use super::cache::BrickCache;
-use super::camera::{Camera, CameraError, Projection};
+use super::camera::{orbit_dirs, Camera, CameraError, Projection};
 use super::error::RenderError;
 use super::options::Mode;
 use super::options::RenderOptions;
@@ -20,13 +20,18 @@ use super::tiles::{render, render_in, Shard};
 use super::traverse::TGrid;
 use crate::format::reader::PackedVolume;
 use crate::fsutil::{FileSet, OutputError, WriteError};
+use crate::orient::{AxisMap, NamedView, Orientation};
 use crate::progress::Progress;
 
 /// Where the camera stands.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum View {
-    /// Around the volume centre ([`Camera::orbit`]), degrees.
+    /// Around the volume centre ([`Camera::orbit`]), degrees: in patient
+    /// axes (LPS: 0,0 looks at the face, head up) when the file records
+    /// its orientation, else in the file's sample axes.
     Orbit { az_deg: f64, el_deg: f64 },
+    /// A view in patient terms; needs a file that records its orientation.
+    Named(NamedView),
     /// Exactly, in mm ([`Camera::look_at`]); an orthographic frame then
     /// defaults to the volume's diagonal.
     LookAt {
@@ -51,8 +56,52 @@ pub struct CameraSpec {
 
 impl CameraSpec {
     /// The camera over the box `bounds` (mm), turned by `az_turn_deg` of
-    /// azimuth (turntables; 0 for a single image).
+    /// azimuth (turntables; 0 for a single image). With an `orientation`,
+    /// orbits and named views are in patient axes: placed in LPS, then
+    /// turned into sample axes through the nearest signed permutation
+    /// (and mirrored when the sample axes are mirrored in the patient);
+    /// eye, target and up stay in sample-axis mm.
     pub fn place(
+        &self,
+        bounds: ([f64; 3], [f64; 3]),
+        az_turn_deg: f64,
+        orientation: Option<&Orientation>,
+    ) -> Result<Camera, CameraError> {
+        let (back, up) = match (self.view, orientation) {
+            (View::Named(v), None) => return Err(CameraError::NoOrientation { view: v.name() }),
+            (View::Named(v), Some(_)) => {
+                let (az, el) = v.az_el();
+                let (back, up) = orbit_dirs(az + az_turn_deg, el);
+                if v.is_axial() {
+                    // Anterior (the face) at the top of the image.
+                    let a = (az + az_turn_deg).to_radians();
+                    let s = -el.signum();
+                    (back, [s * a.sin(), -s * a.cos(), 0.0])
+                } else {
+                    (back, up)
+                }
+            }
+            (View::Orbit { az_deg, el_deg }, Some(_)) => orbit_dirs(az_deg + az_turn_deg, el_deg),
+            (View::Orbit { .. } | View::LookAt { .. }, None) | (View::LookAt { .. }, Some(_)) => {
+                return self.place_in_samples(bounds, az_turn_deg)
+            }
+        };
+        let map = orientation.map_or(AxisMap::IDENTITY, Orientation::nearest);
+        let cam = Camera::orbit_dir(
+            bounds,
+            map.to_sample(back),
+            map.to_sample(up),
+            self.persp_fov_deg,
+            self.frame_mm,
+            self.width,
+            self.height,
+        )?;
+        Ok(if map.det() < 0.0 { cam.mirrored() } else { cam })
+    }
+
+    /// The camera in the file's sample axes, as for a file without
+    /// orientation.
+    fn place_in_samples(
         &self,
         bounds: ([f64; 3], [f64; 3]),
         az_turn_deg: f64,
@@ -80,6 +129,7 @@ impl CameraSpec {
                 self.width,
                 self.height,
             ),
+            View::Named(v) => Err(CameraError::NoOrientation { view: v.name() }),
         }
     }
 }
@@ -193,7 +243,8 @@ pub fn run(
     if job.frames > 1 && matches!(job.camera.view, View::LookAt { .. }) {
         return Err(JobError::TurntableLookAt { frames: job.frames });
     }
-    let camera = job.camera.place(bounds, 0.0)?;
+    let orientation = vol.header().orientation.as_ref();
+    let camera = job.camera.place(bounds, 0.0, orientation)?;
     if job.template && job.shard.is_some() {
         return Err(JobError::TemplateShard);
     }
@@ -290,9 +341,11 @@ fn turntable(
         if job.shard.is_some_and(|s| f % s.n != s.k) {
             continue;
         }
-        let cam = job
-            .camera
-            .place(bounds, job.orbit_deg * f as f64 / job.frames as f64)?;
+        let cam = job.camera.place(
+            bounds,
+            job.orbit_deg * f as f64 / job.frames as f64,
+            vol.header().orientation.as_ref(),
+        )?;
         let (frame, stats) = render_one(vol, Some(&cache), &cam, job, progress)?;
         stage(&frame, &numbered(&job.output, f), &mut set)?;
         total.merge(&stats);

@@ -28,6 +28,7 @@ mod generators;
 mod harden;
 mod layout;
 mod normals;
+mod orient;
 mod prep;
 mod real_data;
 mod reference;
