@@ -640,6 +640,12 @@ pub struct RenderArgs {
     /// .tiff, .jpg, .jpeg); the depth mode writes PNG.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// What shows behind the image where rays cover less than the pixel:
+    /// black (default), white, R,G,B, #rrggbb, or transparent (RGBA PNG or
+    /// TIFF whose alpha is each pixel's coverage: the composite's opacity,
+    /// 1 on a surface).
+    #[arg(long, default_value = "black", value_parser = cdvol::render::Background::parse)]
+    pub background: cdvol::render::Background,
     #[arg(long, value_enum, default_value = "surface")]
     pub mode: ModeArg,
     /// Ray generator (paper section 5): chessboard distance (default),
@@ -1009,6 +1015,7 @@ impl RenderArgs {
                 ..s
             }),
             threads: self.threads,
+            background: self.background,
         })
     }
 }
@@ -1067,6 +1074,10 @@ pub struct AssembleArgs {
     /// Write the merged statistics as JSON.
     #[arg(long)]
     pub stats: Option<PathBuf>,
+    /// What shows behind the image: black (default), white, R,G,B,
+    /// #rrggbb, or transparent (RGBA: alpha is each pixel's coverage).
+    #[arg(long, default_value = "black", value_parser = cdvol::render::Background::parse)]
+    pub background: cdvol::render::Background,
 }
 
 fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {

@@ -12,7 +12,7 @@ use super::camera::{orbit_dirs, Camera, CameraError, Projection};
 use super::error::RenderError;
 use super::options::Mode;
 use super::options::RenderOptions;
-use super::output::{image_files, stage, SaveError};
+use super::output::{image_files, stage_on, Background, SaveError};
 use super::shard::{render_part, PartError};
 use super::stats::Stats;
 use super::template::render_template;
@@ -156,6 +156,9 @@ pub struct RenderJob {
     pub shard: Option<Shard>,
     /// Worker threads (`None`: rayon's default, all cores).
     pub threads: Option<usize>,
+    /// What shows where rays cover less than the pixel (black: the image
+    /// as rendered).
+    pub background: Background,
 }
 
 /// Why a render job failed. Fields are named as in [`RenderJob`].
@@ -222,6 +225,9 @@ impl RenderJob {
             v.push(self.output.clone());
         } else {
             v.extend(image_files(&self.output, depth)?);
+        }
+        if self.shard.is_none() || self.frames > 1 {
+            self.background.check(&self.output)?;
         }
         v.extend(self.stats.iter().cloned());
         Ok(v)
@@ -302,7 +308,7 @@ fn image(
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
     let (frame, stats) = render_one(vol, None, camera, job, progress)?;
     let mut set = FileSet::new();
-    stage(&frame, &job.output, &mut set)?;
+    stage_on(&frame, &job.output, &mut set, job.background)?;
     if let Some(p) = &job.stats {
         add_json(&mut set, p, &stats)?;
     }
@@ -347,7 +353,7 @@ fn turntable(
             vol.header().orientation.as_ref(),
         )?;
         let (frame, stats) = render_one(vol, Some(&cache), &cam, job, progress)?;
-        stage(&frame, &numbered(&job.output, f), &mut set)?;
+        stage_on(&frame, &numbered(&job.output, f), &mut set, job.background)?;
         total.merge(&stats);
         per_frame.push(stats);
     }

@@ -49,7 +49,9 @@ pub use options::{
     mode_name, CompositeLook, GradientPoint, Mode, Precision, RenderOptions, Window, EARLY_STOP,
     MAX_PIXELS, MIN_STEP_MM,
 };
-pub use output::{image_files, save, stage, Colouring, Frame, SaveError};
+pub use output::{
+    image_files, save, save_on, stage, stage_on, Background, Colouring, Frame, SaveError,
+};
 pub use shard::{render_part, render_part_in};
 pub use stats::Stats;
 pub use tiles::{render, render_in, Shard, ShardLayout, ShardParseError, TilePx};

@@ -55,7 +55,13 @@ impl Colouring {
 pub struct Frame {
     pub width: u32,
     pub height: u32,
+    /// Colour over black (composite colours are premultiplied by their
+    /// coverage).
     pub rgb: Vec<u8>,
+    /// Coverage per pixel, 0..=255: the composite's opacity; 255 on a
+    /// hit and 0 on a miss otherwise; 255 everywhere in a cost map. The
+    /// output's [`Background`] shows through the rest.
+    pub alpha: Vec<u8>,
     /// Depth mode: hit distance in mm, NaN where the ray misses.
     pub depth: Option<Vec<f32>>,
     /// Steps per pixel.
@@ -105,6 +111,13 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
     let n = (w * h) as usize;
     let mut rgb = vec![0u8; 3 * n];
     let to8 = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let alpha: Vec<u8> = match kind {
+        Colouring::Rgb => px.iter().map(|p| to8(p.alpha)).collect(),
+        Colouring::Cost => vec![255; n],
+        Colouring::Mip { .. } | Colouring::Depth => {
+            px.iter().map(|p| if p.hit { 255 } else { 0 }).collect()
+        }
+    };
     let mut depth = None;
     match kind {
         Colouring::Rgb => {
@@ -155,6 +168,7 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
         width: w,
         height: h,
         rgb,
+        alpha,
         depth,
         steps: px.iter().map(|p| p.steps).collect(),
     }
@@ -205,6 +219,12 @@ pub enum SaveError {
         path.display()
     )]
     Extension { path: PathBuf, found: String },
+    /// A transparent background in a format without alpha.
+    #[error(
+        "{}: JPEG has no alpha channel for --background transparent; use .png or .tif",
+        path.display()
+    )]
+    NoAlpha { path: PathBuf },
     /// A depth image must be PNG (its 16-bit and f32 companions are).
     #[error(
         "{}: the depth mode writes a PNG (and .f32 and .depth16.png beside it); use a .png name",
@@ -271,16 +291,138 @@ pub fn image_files(path: &Path, depth: bool) -> Result<Vec<PathBuf>, SaveError> 
 /// (fsutil::FileSet): all are written to temporary files first, then
 /// renamed, so a failure replaces none of an older set.
 pub fn save(frame: &Frame, path: &Path) -> Result<Vec<PathBuf>, SaveError> {
+    save_on(frame, path, Background::BLACK)
+}
+
+/// [`save`] over `bg`.
+pub fn save_on(frame: &Frame, path: &Path, bg: Background) -> Result<Vec<PathBuf>, SaveError> {
     let mut set = FileSet::new();
-    let files = stage(frame, path, &mut set)?;
+    let files = stage_on(frame, path, &mut set, bg)?;
     set.commit()?;
     Ok(files)
+}
+
+/// What shows where rays cover less than the whole pixel (`render
+/// --background`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Background {
+    /// This colour, composited under the image (black by default, which
+    /// leaves the image as rendered).
+    Colour([u8; 3]),
+    /// None: an RGBA image whose alpha is the coverage (PNG and TIFF).
+    Transparent,
+}
+
+impl Default for Background {
+    fn default() -> Background {
+        Background::BLACK
+    }
+}
+
+impl Background {
+    pub const BLACK: Background = Background::Colour([0, 0, 0]);
+
+    /// Parses `black`, `white`, `transparent`, `R,G,B` (0..=255) or
+    /// `#rrggbb`.
+    pub fn parse(s: &str) -> Result<Background, String> {
+        let t = s.trim().to_ascii_lowercase();
+        let bad = || {
+            format!(
+                "background {s:?}: expected black, white, transparent, R,G,B (0..=255) or #rrggbb"
+            )
+        };
+        match t.as_str() {
+            "black" => return Ok(Background::BLACK),
+            "white" => return Ok(Background::Colour([255; 3])),
+            "transparent" | "none" => return Ok(Background::Transparent),
+            _ => {}
+        }
+        if let Some(hex) = t.strip_prefix('#') {
+            if hex.len() != 6 {
+                return Err(bad());
+            }
+            let c: Result<Vec<u8>, _> = (0..3)
+                .map(|i| u8::from_str_radix(&hex[2 * i..2 * i + 2], 16))
+                .collect();
+            let c = c.map_err(|_| bad())?;
+            return Ok(Background::Colour([c[0], c[1], c[2]]));
+        }
+        let c: Vec<u8> = t
+            .split(',')
+            .map(|x| x.trim().parse::<u8>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| bad())?;
+        match c[..] {
+            [r, g, b] => Ok(Background::Colour([r, g, b])),
+            _ => Err(bad()),
+        }
+    }
+
+    /// Refuses a transparent background for a format without alpha.
+    pub fn check(self, path: &Path) -> Result<(), SaveError> {
+        if self == Background::Transparent && image_format(path)? == image::ImageFormat::Jpeg {
+            return Err(SaveError::NoAlpha {
+                path: path.to_path_buf(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// `frame`'s colour over `bg`: RGB over a colour (`rgb + (1 - alpha) *
+/// bg`, the premultiplied "over"), or straight (not premultiplied) RGBA.
+fn composited(frame: &Frame, bg: Background) -> image::DynamicImage {
+    let (w, h) = (frame.width, frame.height);
+    let px = frame.rgb.chunks_exact(3).zip(&frame.alpha);
+    match bg {
+        Background::Colour([0, 0, 0]) => image::DynamicImage::ImageRgb8(
+            image::RgbImage::from_raw(w, h, frame.rgb.clone()).unwrap_or_default(),
+        ),
+        Background::Colour(c) => {
+            let mut out = Vec::with_capacity(frame.rgb.len());
+            for (rgb, &a) in px {
+                for k in 0..3 {
+                    let under = ((255 - a as u32) * c[k] as u32 + 127) / 255;
+                    out.push((rgb[k] as u32 + under).min(255) as u8);
+                }
+            }
+            image::DynamicImage::ImageRgb8(image::RgbImage::from_raw(w, h, out).unwrap_or_default())
+        }
+        Background::Transparent => {
+            let mut out = Vec::with_capacity(frame.rgb.len() / 3 * 4);
+            for (rgb, &a) in px {
+                for &v in rgb {
+                    let straight = match a {
+                        0 => 0,
+                        255 => v as u32,
+                        a => (v as u32 * 255 + a as u32 / 2) / a as u32,
+                    };
+                    out.push(straight.min(255) as u8);
+                }
+                out.push(a);
+            }
+            image::DynamicImage::ImageRgba8(
+                image::RgbaImage::from_raw(w, h, out).unwrap_or_default(),
+            )
+        }
+    }
 }
 
 /// [`save`] into `set`: the files are written to temporary files and
 /// renamed when the caller commits the set (a turntable commits all its
 /// frames at once).
 pub fn stage(frame: &Frame, path: &Path, set: &mut FileSet) -> Result<Vec<PathBuf>, SaveError> {
+    stage_on(frame, path, set, Background::BLACK)
+}
+
+/// [`stage`] over `bg` ([`Background`]).
+pub fn stage_on(
+    frame: &Frame,
+    path: &Path,
+    set: &mut FileSet,
+    bg: Background,
+) -> Result<Vec<PathBuf>, SaveError> {
+    bg.check(path)?;
     let encode = |img: image::DynamicImage, to: &Path| -> Result<Vec<u8>, SaveError> {
         let mut buf = std::io::Cursor::new(Vec::new());
         img.write_to(&mut buf, image_format(to)?)
@@ -299,9 +441,13 @@ pub fn stage(frame: &Frame, path: &Path, set: &mut FileSet) -> Result<Vec<PathBu
         expected: frame.width as usize * frame.height as usize * per_px,
     };
     let files = image_files(path, frame.depth.is_some())?;
-    let rgb = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
-        .ok_or_else(|| size("rgb", frame.rgb.len(), 3))?;
-    set.add_bytes(path, &encode(image::DynamicImage::ImageRgb8(rgb), path)?)?;
+    if frame.rgb.len() != frame.width as usize * frame.height as usize * 3 {
+        return Err(size("rgb", frame.rgb.len(), 3));
+    }
+    if frame.alpha.len() * 3 != frame.rgb.len() {
+        return Err(size("alpha", frame.alpha.len(), 1));
+    }
+    set.add_bytes(path, &encode(composited(frame, bg), path)?)?;
     if let Some(d) = &frame.depth {
         let raw: Vec<u8> = d.iter().flat_map(|x| x.to_le_bytes()).collect();
         set.add_bytes(&files[1], &raw)?;

@@ -9,11 +9,11 @@
 //! A single-process render never comes here: it calls the tile scheduler
 //! and the image output directly.
 //!
-//! Part file (little-endian): magic `CDVPART\x01`, u64 length of a JSON
+//! Part file (little-endian): magic `CDVPART\x02`, u64 length of a JSON
 //! header (`PartHeader`: the [`RenderKey`], the shard, its [`Stats`] and
 //! the tile rectangles), the header, then per tile in header order its
-//! pixels row by row, 21 bytes each (3 f32 colour, f32 depth, u32 steps,
-//! u8 hit), then a u32 CRC-32 of everything before it. Written to a
+//! pixels row by row, 25 bytes each (3 f32 colour, f32 alpha, f32 depth,
+//! u32 steps, u8 hit), then a u32 CRC-32 of everything before it. Written to a
 //! temporary file and renamed when complete.
 
 use std::collections::BTreeMap;
@@ -245,8 +245,9 @@ struct PartHeader {
     tiles: Vec<[u32; 4]>,
 }
 
-const MAGIC: &[u8; 8] = b"CDVPART\x01";
-const PX_BYTES: usize = 21;
+/// Part format 2: pixels carry their coverage (alpha) since issue 16.
+const MAGIC: &[u8; 8] = b"CDVPART\x02";
+const PX_BYTES: usize = 25;
 
 /// Why a part file could not be written or read.
 #[derive(Debug, thiserror::Error)]
@@ -259,7 +260,11 @@ pub enum PartError {
     },
     /// The first 8 bytes are not the magic (or the file is shorter than a
     /// header).
-    #[error("{}: not a cdvol part file (magic CDVPART\\x01 expected)", path.display())]
+    #[error(
+        "{}: not a cdvol part file of this version (magic CDVPART\\x02 expected; parts of \
+         older versions cannot be mixed with new ones: render them again)",
+        path.display()
+    )]
     Magic { path: PathBuf },
     /// The trailing CRC-32 does not match the bytes before it.
     #[error(
@@ -348,6 +353,7 @@ impl Part {
                 for c in p.rgb {
                     b.extend_from_slice(&c.to_le_bytes());
                 }
+                b.extend_from_slice(&p.alpha.to_le_bytes());
                 b.extend_from_slice(&p.depth.to_le_bytes());
                 b.extend_from_slice(&p.steps.to_le_bytes());
                 b.push(p.hit as u8);
@@ -418,9 +424,10 @@ impl Part {
                 .chunks_exact(PX_BYTES)
                 .map(|r| Px {
                     rgb: [f(r, 0), f(r, 4), f(r, 8)],
-                    depth: f(r, 12),
-                    steps: u32::from_le_bytes(r[16..20].try_into().expect("4")),
-                    hit: r[20] != 0,
+                    alpha: f(r, 12),
+                    depth: f(r, 16),
+                    steps: u32::from_le_bytes(r[20..24].try_into().expect("4")),
+                    hit: r[24] != 0,
                 })
                 .collect();
             rest = &rest[n * PX_BYTES..];

@@ -775,6 +775,7 @@ fn warp_pixel(
     };
     out.steps = near.steps;
     out.hit = near.hit;
+    out.alpha = if near.hit { 1.0 } else { 0.0 };
     if !near.hit || matches!(mode, Mode::Cost) {
         return out;
     }

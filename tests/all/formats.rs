@@ -419,3 +419,150 @@ fn render_onto_its_packed_file_is_refused() {
     assert!(e.contains("r.cdv"), "{e}");
     assert_eq!(std::fs::read(&cdv).unwrap(), before);
 }
+
+/// `--background`: a colour under the image where rays cover less than the
+/// pixel, or transparency (RGBA, alpha = coverage); black leaves the image
+/// as rendered; sharded and whole renders agree; JPEG cannot be
+/// transparent.
+#[test]
+fn render_backgrounds() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let head = d.join("head.json");
+    common::ok(
+        common::cdvol()
+            .args(["phantom", "ct", "-q", "--dims", "24,24,16", "-o"])
+            .arg(&head),
+    );
+    let cdv = d.join("head.cdv");
+    common::ok(
+        common::cdvol()
+            .args(["prep", "-q", "--iso", "-500"])
+            .arg(&head)
+            .arg("-o")
+            .arg(&cdv),
+    );
+    let tf = d.join("tf.json");
+    std::fs::write(
+        &tf,
+        r#"{"points": [{"value": -500, "opacity": 0}, {"value": 0, "opacity": 0.05}, {"value": 1000, "opacity": 0.6}]}"#,
+    )
+    .unwrap();
+    let render = |name: &str, extra: &[&str]| {
+        let out = d.join(name);
+        common::ok(
+            common::cdvol()
+                .args([
+                    "render", "-q", "--width", "32", "--height", "28", "--view", "30,20",
+                ])
+                .args(extra)
+                .arg(&cdv)
+                .arg("-o")
+                .arg(&out),
+        );
+        image::open(&out).unwrap()
+    };
+    for (mode, extra) in [
+        ("surface", vec![]),
+        ("composite", vec!["--tf", tf.to_str().unwrap()]),
+    ] {
+        let mut args = vec!["--mode", mode];
+        args.extend(extra.iter().copied());
+        let black = render(&format!("{mode}-black.png"), &args).to_rgb8();
+        let plain = render(
+            &format!("{mode}-plain.png"),
+            &[&args[..], &["--background", "black"]].concat(),
+        )
+        .to_rgb8();
+        assert_eq!(black, plain, "{mode}: --background black changed the image");
+        let white = render(
+            &format!("{mode}-white.png"),
+            &[&args[..], &["--background", "white"]].concat(),
+        )
+        .to_rgb8();
+        let rgba = render(
+            &format!("{mode}-t.png"),
+            &[&args[..], &["--background", "transparent"]].concat(),
+        );
+        let rgba = rgba.as_rgba8().expect("an RGBA image").clone();
+        let (mut empty, mut full, mut partial) = (0, 0, 0);
+        for ((b, w), t) in black.pixels().zip(white.pixels()).zip(rgba.pixels()) {
+            let a = t[3] as u32;
+            match a {
+                0 => {
+                    empty += 1;
+                    assert_eq!((b.0, w.0), ([0; 3], [255; 3]), "{mode}: uncovered pixel");
+                }
+                255 => {
+                    full += 1;
+                    assert_eq!(
+                        (b.0, w.0),
+                        ([t[0], t[1], t[2]], [t[0], t[1], t[2]]),
+                        "{mode}"
+                    );
+                }
+                _ => {
+                    partial += 1;
+                    for k in 0..3 {
+                        // Straight colour times alpha is the premultiplied one.
+                        let pre = (t[k] as u32 * a + 127) / 255;
+                        assert!(
+                            pre.abs_diff(b[k] as u32) <= 1,
+                            "{mode}: {t:?} over black {b:?}"
+                        );
+                        let over = b[k] as u32 + ((255 - a) * 255 + 127) / 255;
+                        assert_eq!(w[k] as u32, over.min(255), "{mode}: {b:?} {t:?} {w:?}");
+                    }
+                }
+            }
+        }
+        assert!(
+            empty > 0 && full + partial > 0,
+            "{mode}: {empty} {full} {partial}"
+        );
+        if mode == "composite" {
+            assert!(partial > 0, "a composite has partly covered pixels");
+        }
+    }
+    // Parts assemble to the same image over the same background.
+    let whole = render("w.png", &["--background", "#336699"]).to_rgb8();
+    for k in 0..2 {
+        common::ok(
+            common::cdvol()
+                .args([
+                    "render", "-q", "--width", "32", "--height", "28", "--view", "30,20",
+                ])
+                .args(["--shard", &format!("{k}/2")])
+                .arg(&cdv)
+                .arg("-o")
+                .arg(d.join(format!("p{k}.cdvpart"))),
+        );
+    }
+    let asm = d.join("asm.png");
+    common::ok(
+        common::cdvol()
+            .args(["assemble", "--background", "51,102,153"])
+            .arg(d.join("p0.cdvpart"))
+            .arg(d.join("p1.cdvpart"))
+            .arg("-o")
+            .arg(&asm),
+    );
+    assert_eq!(image::open(&asm).unwrap().to_rgb8(), whole);
+    let e = common::fails(
+        common::cdvol()
+            .args(["render", "-q", "--background", "transparent"])
+            .arg(&cdv)
+            .arg("-o")
+            .arg(d.join("t.jpg")),
+    );
+    assert!(e.contains("JPEG has no alpha"), "{e}");
+    assert!(!d.join("t.jpg").exists());
+    let e = common::fails(
+        common::cdvol()
+            .args(["render", "-q", "--background", "pink"])
+            .arg(&cdv)
+            .arg("-o")
+            .arg(d.join("x.png")),
+    );
+    assert!(e.contains("\"pink\""), "{e}");
+}

@@ -46,6 +46,7 @@ pub(super) fn composite<T: Real>(
     };
     let counts = march(ctx, ray, acc, clock, step, &mut s);
     px.hit = s.alpha > 0.0;
+    px.alpha = s.alpha as f32;
     px.rgb = s.col.map(|x| x as f32);
     counts
 }
@@ -84,6 +85,7 @@ pub(super) fn composite32<T: Real>(
     };
     let counts = march(ctx, ray, acc, clock, step, &mut s);
     px.hit = s.alpha > 0.0;
+    px.alpha = s.alpha;
     px.rgb = s.col.to_array();
     counts
 }

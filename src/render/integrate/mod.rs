@@ -27,7 +27,12 @@ use super::traverse::{Ray, Real, StepCounts, TGrid};
 /// store it).
 #[derive(Clone, Copy, Default, Debug, PartialEq)]
 pub struct Px {
+    /// Colour, premultiplied by `alpha` (composite: composited over
+    /// black).
     pub(crate) rgb: [f32; 3],
+    /// Coverage in [0, 1]: the composite's opacity, else 1 on a hit and 0
+    /// on a miss (the output's background shows through the rest).
+    pub(crate) alpha: f32,
     pub(crate) depth: f32,
     pub(crate) steps: u32,
     pub(crate) hit: bool,
@@ -113,6 +118,9 @@ pub(crate) fn pixel<T: Real>(
             }
         }
     };
+    if !matches!(ctx.opts.mode, Mode::Composite { .. }) {
+        px.alpha = if px.hit { 1.0 } else { 0.0 };
+    }
     px.steps = counts.steps.min(u32::MAX as u64) as u32;
     (px, counts)
 }
