@@ -342,68 +342,6 @@ fn tf_color(tf: &TransferFunction, x: f64) -> [f64; 3] {
     [v[0], v[1], v[2]]
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn every_preset_parses_and_checks() {
-        for (file, text) in FILES {
-            let p = parse(file, text).unwrap_or_else(|e| panic!("{e}"));
-            p.tf.check().unwrap();
-        }
-        assert_eq!(all().len(), FILES.len());
-        for want in [
-            "ct-bone",
-            "ct-skin",
-            "ct-soft-tissue",
-            "ct-muscle",
-            "ct-lung",
-            "ct-vessels",
-            "ct-mip",
-            "mr-default",
-            "mr-brain",
-            "mr-mip",
-        ] {
-            assert_eq!(get(want).unwrap().name, want);
-        }
-    }
-
-    #[test]
-    fn unknown_names_list_the_known_ones() {
-        let e = get("ct-bones").unwrap_err().to_string();
-        assert!(
-            e.contains("\"ct-bones\"") && e.contains("ct-bone, ct-skin"),
-            "{e}"
-        );
-        assert_eq!(get("CT-Bone").unwrap().name, "ct-bone");
-    }
-
-    #[test]
-    fn check_catches_a_point_off_the_source_curves() {
-        let mut p = get("ct-bone").unwrap();
-        p.check().unwrap();
-        p.tf.points[2].opacity += 0.01;
-        let e = p.check().unwrap_err().to_string();
-        assert!(e.contains("tf.points"), "{e}");
-        let mut p = get("ct-mip").unwrap();
-        p.sources.remove("window");
-        assert!(p
-            .check()
-            .unwrap_err()
-            .to_string()
-            .contains("sources.window"));
-    }
-
-    #[test]
-    fn slicer_curves_need_their_count() {
-        assert_eq!(slicer_curve("4 0 0 1 1", 2).unwrap().len(), 2);
-        assert!(slicer_curve("6 0 0 1 1", 2).is_none());
-        assert!(slicer_curve("3 0 0 1", 2).is_none());
-        assert!(slicer_curve("2 0 x", 2).is_none());
-    }
-}
-
 /// The classification one prep needs so that every item renders from its
 /// file without another prep (`prep --envelope`): the lowest of the items'
 /// iso values, where an item is an iso value, a preset (its transfer
@@ -476,4 +414,66 @@ pub fn covered(c: &Classification) -> (Vec<String>, Vec<String>) {
         }
     }
     (composite, surface)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_preset_parses_and_checks() {
+        for (file, text) in FILES {
+            let p = parse(file, text).unwrap_or_else(|e| panic!("{e}"));
+            p.tf.check().unwrap();
+        }
+        assert_eq!(all().len(), FILES.len());
+        for want in [
+            "ct-bone",
+            "ct-skin",
+            "ct-soft-tissue",
+            "ct-muscle",
+            "ct-lung",
+            "ct-vessels",
+            "ct-mip",
+            "mr-default",
+            "mr-brain",
+            "mr-mip",
+        ] {
+            assert_eq!(get(want).unwrap().name, want);
+        }
+    }
+
+    #[test]
+    fn unknown_names_list_the_known_ones() {
+        let e = get("ct-bones").unwrap_err().to_string();
+        assert!(
+            e.contains("\"ct-bones\"") && e.contains("ct-bone, ct-skin"),
+            "{e}"
+        );
+        assert_eq!(get("CT-Bone").unwrap().name, "ct-bone");
+    }
+
+    #[test]
+    fn check_catches_a_point_off_the_source_curves() {
+        let mut p = get("ct-bone").unwrap();
+        p.check().unwrap();
+        p.tf.points[2].opacity += 0.01;
+        let e = p.check().unwrap_err().to_string();
+        assert!(e.contains("tf.points"), "{e}");
+        let mut p = get("ct-mip").unwrap();
+        p.sources.remove("window");
+        assert!(p
+            .check()
+            .unwrap_err()
+            .to_string()
+            .contains("sources.window"));
+    }
+
+    #[test]
+    fn slicer_curves_need_their_count() {
+        assert_eq!(slicer_curve("4 0 0 1 1", 2).unwrap().len(), 2);
+        assert!(slicer_curve("6 0 0 1 1", 2).is_none());
+        assert!(slicer_curve("3 0 0 1", 2).is_none());
+        assert!(slicer_curve("2 0 x", 2).is_none());
+    }
 }
