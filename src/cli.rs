@@ -267,6 +267,7 @@ impl PrepSettings {
             dda: self.dda,
             gradient_halo: self.gradient_halo,
             temp_dir: self.temp_dir.clone(),
+            stamp: None,
         };
         opts.check().map_err(prep_error)?;
         Ok(opts)

@@ -49,6 +49,7 @@ pub mod export;
 pub mod format;
 pub mod fsutil;
 pub mod grid;
+pub mod identity;
 pub mod info;
 pub mod input;
 pub mod memory;

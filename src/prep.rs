@@ -42,6 +42,8 @@ pub struct PrepOptions {
     pub gradient_halo: bool,
     /// Where the one-byte-per-cell spill goes (default: beside the output).
     pub temp_dir: Option<PathBuf>,
+    /// The input's identity, recorded in the header (`prep-batch`).
+    pub stamp: Option<crate::identity::InputStamp>,
 }
 
 impl PrepOptions {
@@ -54,6 +56,7 @@ impl PrepOptions {
             dda: false,
             gradient_halo: false,
             temp_dir: None,
+            stamp: None,
         }
     }
 
@@ -265,6 +268,7 @@ pub fn prep(
         zstd_level: opts.zstd_level,
         source: meta.origin_desc.clone(),
         notes: src.report(),
+        input: opts.stamp.clone(),
         summary: Summary::default(),
     };
     if header.max_payload_len() > crate::format::MAX_PAYLOAD_LEN {

@@ -129,6 +129,11 @@ pub struct Header {
     /// DICOM series' z spacing report); absent in older files.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// What the input was when the file was made (`prep-batch` records it
+    /// to know, on a re-run, whether the input changed); absent in files
+    /// made by `prep` and in older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input: Option<crate::identity::InputStamp>,
     pub summary: Summary,
 }
 

@@ -1072,6 +1072,7 @@ mod tests {
             zstd_level: 3,
             source: String::new(),
             notes: Vec::new(),
+            input: None,
             summary: Default::default(),
         }
     }

@@ -25,6 +25,7 @@ mod extremes;
 mod formats;
 mod generators;
 mod harden;
+mod harden_batch;
 mod layout;
 mod normals;
 mod prep;
