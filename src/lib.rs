@@ -52,6 +52,7 @@ pub mod grid;
 pub mod identity;
 pub mod info;
 pub mod input;
+pub mod json;
 pub mod memory;
 pub mod prep;
 pub mod progress;

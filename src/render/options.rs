@@ -129,6 +129,9 @@ impl CompositeLook {
             msg,
         };
         let text = std::fs::read_to_string(path).map_err(|x| e(format!("cannot read: {x}")))?;
+        if let Some(key) = crate::json::duplicate_key(&text) {
+            return Err(e(format!("{key}: duplicate key, expected each key once")));
+        }
         let look: CompositeLook = serde_json::from_str(&text).map_err(|x| {
             e(format!(
                 "expected optional \"shade\": true|false and \"gradient_opacity\": \

@@ -26,6 +26,7 @@ mod formats;
 mod generators;
 mod harden;
 mod harden_batch;
+mod harden_json;
 mod layout;
 mod normals;
 mod prep;
