@@ -321,22 +321,33 @@ pub fn options_differ(h: &crate::format::Header, opts: &PrepOptions) -> Vec<Stri
     d
 }
 
+/// What a batch does with one input.
+enum Verdict {
+    /// The output is up to date.
+    Skip(PackedVolume),
+    /// Prepare it, for this reason (`new`, `redo: ...`).
+    Redo(String),
+}
+
 /// Whether `out` must be (re)made from an input whose identity is now
-/// `stamp` with `opts`: `Err(reason)` to redo, `Ok(volume)` to skip.
-fn verdict(out: &Path, stamp: &InputStamp, opts: &PrepOptions) -> Result<PackedVolume, String> {
+/// `stamp` with `opts`.
+fn verdict(out: &Path, stamp: &InputStamp, opts: &PrepOptions) -> Verdict {
     if std::fs::symlink_metadata(out).is_err() {
-        return Err("new".into());
+        return Verdict::Redo("new".into());
     }
-    let v = PackedVolume::open(out).map_err(|e| format!("redo: output unreadable ({e})"))?;
+    let v = match PackedVolume::open(out) {
+        Ok(v) => v,
+        Err(e) => return Verdict::Redo(format!("redo: output unreadable ({e})")),
+    };
     let d = options_differ(v.header(), opts);
     if !d.is_empty() {
-        return Err(format!("redo: options changed ({})", d.join(", ")));
+        return Verdict::Redo(format!("redo: options changed ({})", d.join(", ")));
     }
     match &v.header().input {
-        None => Err("redo: the output records no input identity".into()),
+        None => Verdict::Redo("redo: the output records no input identity".into()),
         Some(was) => match was.differs(stamp) {
-            Some(why) => Err(format!("redo: input changed ({why})")),
-            None => Ok(v),
+            Some(why) => Verdict::Redo(format!("redo: input changed ({why})")),
+            None => Verdict::Skip(v),
         },
     }
 }
@@ -431,8 +442,8 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
             )
         })?;
         match verdict(&out, &stamp, opts) {
-            Ok(v) => Ok((v, false)),
-            Err(why) => {
+            Verdict::Skip(v) => Ok((v, false)),
+            Verdict::Redo(why) => {
                 row.reason = Some(why);
                 let opts = PrepOptions {
                     stamp: Some(stamp),

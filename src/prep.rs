@@ -150,6 +150,21 @@ pub fn prep(
     opts.check()?;
     let meta = src.meta().clone();
     crate::fsutil::check_outputs(&[out.to_path_buf()], &src.files(), Some(&meta.origin_desc))?;
+    // Readers refuse such a header (format::reader), so refuse it here
+    // (a DICOM RescaleSlope of 0, say) before any work.
+    if !(meta.rescale.slope.is_finite()
+        && meta.rescale.slope != 0.0
+        && meta.rescale.intercept.is_finite())
+    {
+        return Err(PrepError::Input(InputError::field(
+            Path::new(&meta.origin_desc),
+            "rescale",
+            format!(
+                "slope {} intercept {}, expected a finite non-zero slope and a finite intercept",
+                meta.rescale.slope, meta.rescale.intercept
+            ),
+        )));
+    }
     let b = opts.brick_size;
     let [nx, ny, nz] = meta.dims();
     let [ncx, ncy, ncz] = meta.grid.cells();

@@ -464,6 +464,72 @@ fn check_header(h: &Header) -> Result<(), HeaderInvalid> {
             );
         }
     }
+    let r = h.rescale;
+    if !(r.slope.is_finite() && r.slope != 0.0) {
+        return bad(
+            "rescale.slope".into(),
+            r.slope.to_string(),
+            "a finite, non-zero number".into(),
+        );
+    }
+    if !r.intercept.is_finite() {
+        return bad(
+            "rescale.intercept".into(),
+            r.intercept.to_string(),
+            "a finite number".into(),
+        );
+    }
+    if !(-7..=22).contains(&h.zstd_level) {
+        return bad(
+            "zstd_level".into(),
+            h.zstd_level.to_string(),
+            "-7..=22".into(),
+        );
+    }
+    // The stored words are the input's type, or (integers) a wider one.
+    let storage_fits = if h.dtype.is_float() {
+        h.storage == h.dtype
+    } else {
+        !h.storage.is_float() && h.storage.size() >= h.dtype.size() && {
+            let ((smin, smax), (dmin, dmax)) = (h.storage.int_range(), h.dtype.int_range());
+            smin <= dmin && dmax <= smax
+        }
+    };
+    if !storage_fits {
+        return bad(
+            "storage".into(),
+            h.storage.name().into(),
+            format!("the input type {} or a wider integer type", h.dtype.name()),
+        );
+    }
+    let max_code = h.codes.max_code();
+    if max_code > super::word::MAX_CODE {
+        return bad(
+            "codes.max".into(),
+            max_code.to_string(),
+            format!("at most {}", super::word::MAX_CODE),
+        );
+    }
+    if let super::CodeEncoding::IntRange { base, max } = h.codes {
+        let (tmin, tmax) = h.storage.int_range();
+        if base < tmin || base.checked_add(max as i64).is_none_or(|top| top > tmax) {
+            return bad(
+                "codes.base".into(),
+                format!(
+                    "{base} (codes {base}..={})",
+                    base.saturating_add(max as i64)
+                ),
+                format!("a code range inside {} ({tmin}..={tmax})", h.storage.name()),
+            );
+        }
+    }
+    if h.summary.code_histogram.len() > max_code as usize + 1 {
+        return bad(
+            "summary.code_histogram".into(),
+            format!("{} entries", h.summary.code_histogram.len()),
+            format!("at most {} (codes.max + 1)", max_code as u64 + 1),
+        );
+    }
     let storage_ok = match h.codes {
         super::CodeEncoding::IntRange { .. } => !h.storage.is_float(),
         super::CodeEncoding::NanPayload { .. } => h.storage.is_float(),
