@@ -316,6 +316,9 @@ pub fn input_error(e: cdvol::input::InputError) -> anyhow::Error {
     }
 }
 
+/// Most inputs `prep-batch --jobs` prepares at once.
+pub const MAX_JOBS: usize = 256;
+
 #[derive(Args, Debug)]
 pub struct PrepBatchArgs {
     /// Directory searched (recursively) for inputs.
@@ -334,6 +337,17 @@ pub struct PrepBatchArgs {
 }
 
 impl PrepBatchArgs {
+    /// Checks `--jobs` (each job is one prep's memory).
+    pub fn check(&self) -> anyhow::Result<()> {
+        if !(1..=MAX_JOBS).contains(&self.jobs) {
+            anyhow::bail!(
+                "option --jobs: {}, expected 1..={MAX_JOBS} (each job holds one prep's memory)",
+                self.jobs
+            );
+        }
+        Ok(())
+    }
+
     /// `(K, N)` of `--shard K/N`; `(0, 1)` without it.
     pub fn shard(&self) -> (u32, u32) {
         self.shard.map(|s| (s.k, s.n)).unwrap_or((0, 1))
@@ -799,6 +813,13 @@ impl RenderArgs {
 
     /// The library's render job for these arguments.
     pub fn job(&self) -> anyhow::Result<RenderJob> {
+        if self.cache_mb < 1 {
+            anyhow::bail!(
+                "option --cache-mb: {} MiB, expected at least 1 (with no cache every brick \
+                 is decoded again at each visit)",
+                self.cache_mb
+            );
+        }
         let view = match (self.eye, self.target, self.up) {
             (Some(eye), Some(target), Some(up)) => View::LookAt { eye, target, up },
             (None, None, None) => {
@@ -859,6 +880,8 @@ fn render_flag(field: &str) -> Option<&'static str> {
         "early_stop" => "--early-stop",
         "window" => "--window",
         "newton_tol" => "--newton-tol",
+        "bisect_iters" => "--bisect-iters",
+        "newton_iters" => "--newton-iters",
         "width x height" => "--width/--height",
         "shard" => "--shard",
         _ => return None,
@@ -874,6 +897,11 @@ pub fn render_error(e: JobError) -> anyhow::Error {
             Some("--frames")
         }
         JobError::TemplateShard => Some("--traversal template"),
+        JobError::Bound { field, .. } => Some(match *field {
+            "threads" => "--threads",
+            "orbit_deg" => "--orbit",
+            _ => *field,
+        }),
         JobError::PartName { .. } => Some("--shard"),
         JobError::Camera(c) => Some(match c {
             CameraError::FarPoint { what: "eye", .. } => "--eye",

@@ -240,6 +240,7 @@ fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<()> {
 /// `cdvol prep-batch`: prepares every input, prints a table, writes the
 /// summary JSON; fails when any input failed.
 fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
+    a.check()?;
     let opts = a.settings.to_options()?;
     let inputs = cdvol::batch::find_inputs(&a.input)?;
     // The summary must not replace an input (the output directory may be

@@ -145,7 +145,17 @@ pub enum JobError {
     PartName { path: PathBuf },
     #[error("cannot start the thread pool: {0}")]
     Threads(#[from] rayon::ThreadPoolBuildError),
+    /// A job field out of its range (`threads`, `orbit_deg`).
+    #[error("{field} {value}, expected {expected}")]
+    Bound {
+        field: &'static str,
+        value: String,
+        expected: String,
+    },
 }
+
+/// Most worker threads of a render.
+pub const MAX_THREADS: usize = 1024;
 
 /// Most frames of a turntable (all are committed together at the end).
 pub const MAX_FRAMES: u32 = 100_000;
@@ -199,6 +209,20 @@ pub fn run(
     }
     if job.frames == 0 {
         return Err(JobError::NoFrames);
+    }
+    if let Some(n) = job.threads.filter(|n| !(1..=MAX_THREADS).contains(n)) {
+        return Err(JobError::Bound {
+            field: "threads",
+            value: n.to_string(),
+            expected: format!("1..={MAX_THREADS}"),
+        });
+    }
+    if job.frames > 1 && !job.orbit_deg.is_finite() {
+        return Err(JobError::Bound {
+            field: "orbit_deg",
+            value: job.orbit_deg.to_string(),
+            expected: "a finite number of degrees".into(),
+        });
     }
     if job.frames == 1
         && job.shard.is_some()

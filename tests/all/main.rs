@@ -27,6 +27,7 @@ mod generators;
 mod harden;
 mod harden_batch;
 mod harden_json;
+mod harden_options;
 mod harden_reader;
 mod layout;
 mod normals;
