@@ -199,7 +199,40 @@ impl PackedVolume {
             .chunks_exact(INDEX_ENTRY_LEN)
             .map(IndexEntry::from_bytes)
             .collect();
+        let max_code = header.codes.max_code();
         for (i, e) in index.iter().enumerate() {
+            let known = super::FLAG_UNIFORM | super::FLAG_NO_OBJECT;
+            let entry_err = if e.flags & !known != 0 {
+                Some(format!(
+                    "index flags {:#x}, expected bits of {known:#x}",
+                    e.flags
+                ))
+            } else if e.reserved != 0 {
+                Some(format!("index reserved {:#x}, expected 0", e.reserved))
+            } else if e.is_uniform() && (e.length != 0 || e.crc32 != 0 || !e.has_no_object()) {
+                Some(format!(
+                    "uniform brick with length {}, crc {:08x}, flags {:#x}: expected \
+                     length 0, crc 0 and the no-object flag",
+                    e.length, e.crc32, e.flags
+                ))
+            } else if !e.is_uniform() && e.length == 0 {
+                Some("a stored brick of 0 bytes".into())
+            } else if (e.is_uniform() || e.has_no_object()) && e.uniform_code > max_code {
+                Some(format!(
+                    "index code {}, expected at most codes.max {max_code}",
+                    e.uniform_code
+                ))
+            } else {
+                None
+            };
+            if let Some(msg) = entry_err {
+                return Err(FormatError::Brick {
+                    path: p(),
+                    brick: i as u64,
+                    coords: header.brick_coords(i as u64),
+                    msg,
+                });
+            }
             let end = e.offset.checked_add(e.length as u64);
             if !e.is_uniform() && (e.offset < PREAMBLE_LEN || end.is_none_or(|end| end > trailer)) {
                 return Err(FormatError::Brick {

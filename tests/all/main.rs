@@ -26,6 +26,7 @@ mod formats;
 mod generators;
 mod harden;
 mod harden_batch;
+mod harden_flips;
 mod harden_json;
 mod harden_options;
 mod harden_reader;
