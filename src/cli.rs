@@ -239,6 +239,11 @@ pub struct PrepSettings {
     /// Directory for the temporary spill (default: beside the output).
     #[arg(long)]
     pub temp_dir: Option<PathBuf>,
+    /// Memory prep may plan to use, in MiB (default: 3/4 of RAM); a prep
+    /// whose planned peak (docs/RELIABILITY.md, "Memory") is above it is
+    /// refused before it allocates.
+    #[arg(long, value_name = "MIB")]
+    pub mem_limit: Option<u64>,
 }
 
 impl PrepSettings {
@@ -268,6 +273,7 @@ impl PrepSettings {
             gradient_halo: self.gradient_halo,
             temp_dir: self.temp_dir.clone(),
             stamp: None,
+            mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
         };
         opts.check().map_err(prep_error)?;
         Ok(opts)
@@ -649,6 +655,10 @@ pub struct RenderArgs {
     /// Brick cache budget in MiB.
     #[arg(long, default_value_t = 512)]
     pub cache_mb: usize,
+    /// Memory the render may plan to use, in MiB (default: 3/4 of RAM):
+    /// the cache plus 64 bytes a pixel (docs/RELIABILITY.md, "Memory").
+    #[arg(long, value_name = "MIB")]
+    pub mem_limit: Option<u64>,
     /// Perspective projection (default orthographic).
     #[arg(long)]
     pub persp: bool,
@@ -868,6 +878,7 @@ impl RenderArgs {
                 ..s
             }),
             threads: self.threads,
+            mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
         })
     }
 }
@@ -897,6 +908,7 @@ pub fn render_error(e: JobError) -> anyhow::Error {
             Some("--frames")
         }
         JobError::TemplateShard => Some("--traversal template"),
+        JobError::Memory { .. } => Some("--mem-limit"),
         JobError::Bound { field, .. } => Some(match *field {
             "threads" => "--threads",
             "orbit_deg" => "--orbit",

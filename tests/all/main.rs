@@ -28,6 +28,7 @@ mod harden;
 mod harden_batch;
 mod harden_flips;
 mod harden_json;
+mod harden_memory;
 mod harden_options;
 mod harden_reader;
 mod layout;
