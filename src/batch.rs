@@ -324,7 +324,7 @@ pub fn options_differ(h: &crate::format::Header, opts: &PrepOptions) -> Vec<Stri
 /// What a batch does with one input.
 enum Verdict {
     /// The output is up to date.
-    Skip(PackedVolume),
+    Skip(Box<PackedVolume>),
     /// Prepare it, for this reason (`new`, `redo: ...`).
     Redo(String),
 }
@@ -347,7 +347,7 @@ fn verdict(out: &Path, stamp: &InputStamp, opts: &PrepOptions) -> Verdict {
         None => Verdict::Redo("redo: the output records no input identity".into()),
         Some(was) => match was.differs(stamp) {
             Some(why) => Verdict::Redo(format!("redo: input changed ({why})")),
-            None => Verdict::Skip(v),
+            None => Verdict::Skip(Box::new(v)),
         },
     }
 }
@@ -442,7 +442,7 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
             )
         })?;
         match verdict(&out, &stamp, opts) {
-            Verdict::Skip(v) => Ok((v, false)),
+            Verdict::Skip(v) => Ok((*v, false)),
             Verdict::Redo(why) => {
                 row.reason = Some(why);
                 let opts = PrepOptions {
