@@ -7,8 +7,13 @@
 //! sorted by their path relative to the input directory; each output is
 //! named after that path (see [`output_names`]).
 //!
-//! An output that opens cleanly (its trailer CRC checks) and is newer than
-//! every file of its input is skipped, so a re-run after a crash resumes:
+//! Each output records its input's identity (every file's path, size,
+//! modification time and content fingerprint: [`crate::identity`]) in its
+//! header. An output that opens cleanly (its trailer CRC checks), was made
+//! with the same options (the header's classification, brick size, aniso,
+//! dda, gradient halo and zstd level) and whose recorded identity matches
+//! the input now is skipped; any other is redone, and the row says why
+//! (`reason`). So a re-run after a crash resumes:
 //! outputs are written to a temporary file and renamed when complete, so a
 //! crash never leaves one that looks complete. A failing input is recorded
 //! and the batch goes on. `--shard K/N` takes input `i` when
@@ -17,11 +22,12 @@
 //! either way.
 
 use std::path::{Path, PathBuf};
-use std::time::{Instant, SystemTime};
+use std::time::Instant;
 
 use serde::Serialize;
 
 use crate::format::reader::PackedVolume;
+use crate::identity::InputStamp;
 use crate::input::InputError;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::NoProgress;
@@ -66,6 +72,10 @@ pub struct BatchRow {
     pub output_bytes: Option<u64>,
     /// `done`, `skipped` (up to date), or `failed`.
     pub status: String,
+    /// Why the input was prepared or skipped: `new`, `redo: options
+    /// changed (iso 300 -> 500)`, `redo: input changed (size ...)`,
+    /// `skip: unchanged`.
+    pub reason: Option<String>,
     pub error: Option<String>,
     /// The classification selected no cells or nearly all of them
     /// ([`crate::prep::selection_warning`]).
@@ -223,22 +233,37 @@ fn is_sidecar(p: &Path) -> std::io::Result<bool> {
 
 /// The output files of `inputs` in `out_dir`: each input's name with
 /// `/` turned into `_` and `.cdv` appended (extensions kept, so
-/// `vol.nrrd` and `vol.nii.gz` stay apart), and `~2`, `~3`, ... added
-/// in input order where two names would still meet. Computed over all
-/// inputs, so every shard of a batch names the same input alike.
+/// `vol.nrrd` and `vol.nii.gz` stay apart). Where two inputs' names would
+/// still meet (`b/vol.nrrd` and `b_vol.nrrd`), each of them gets
+/// `~XXXXXXXX`, the CRC-32 of its own name, so the name depends on the
+/// input and the set of inputs, never on their order or age. Computed
+/// over all inputs, so every shard of a batch names the same input alike.
 pub fn output_names(out_dir: &Path, inputs: &[BatchInput]) -> Vec<PathBuf> {
+    let flat = |input: &BatchInput| -> String {
+        match input.name.as_str() {
+            "." => "dicom".into(),
+            n => n
+                .chars()
+                .map(|c| if c == '/' || c == '\\' { '_' } else { c })
+                .collect(),
+        }
+    };
+    let mut count: std::collections::HashMap<String, usize> = Default::default();
+    for i in inputs {
+        *count.entry(flat(i)).or_default() += 1;
+    }
     let mut seen = std::collections::HashSet::new();
     inputs
         .iter()
         .map(|input| {
-            let base: String = match input.name.as_str() {
-                "." => "dicom".into(),
-                n => n
-                    .chars()
-                    .map(|c| if c == '/' || c == '\\' { '_' } else { c })
-                    .collect(),
+            let base = flat(input);
+            let mut name = if count[&base] > 1 {
+                format!("{base}~{:08x}.cdv", crc32fast::hash(input.name.as_bytes()))
+            } else {
+                format!("{base}.cdv")
             };
-            let mut name = format!("{base}.cdv");
+            // Only a contrived set (a name that is another's hashed name)
+            // still meets: number it in input order.
             let mut k = 1;
             while !seen.insert(name.clone()) {
                 k += 1;
@@ -249,43 +274,85 @@ pub fn output_names(out_dir: &Path, inputs: &[BatchInput]) -> Vec<PathBuf> {
         .collect()
 }
 
-/// Newest modification time of the files an input reads: the DICOM
-/// files of its directory, or the header and the data files it names.
-fn input_mtime(input: &BatchInput) -> Option<SystemTime> {
-    let m = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-    let files: Vec<PathBuf> = if !input.files.is_empty() {
-        input.files.clone()
-    } else {
-        let mut f = vec![input.path.clone()];
-        let lower = input.path.to_string_lossy().to_ascii_lowercase();
-        if lower.ends_with(".json") {
-            if let Ok(s) = crate::input::sidecar::parse_sidecar(&input.path) {
-                match s.data {
-                    crate::input::sidecar::DataFiles::One(p) => f.push(p),
-                    crate::input::sidecar::DataFiles::PerSlice(v) => f.extend(v),
-                }
-            }
-        } else if lower.ends_with(".nhdr") {
-            if let Ok(h) = crate::input::nrrd::parse(&input.path) {
-                f.push(h.data);
-            }
+/// How the options that made `h` differ from `opts`, one `what old ->
+/// new` a difference (empty when the same output would be made).
+pub fn options_differ(h: &crate::format::Header, opts: &PrepOptions) -> Vec<String> {
+    use crate::classify::Classification as C;
+    let mut d = Vec::new();
+    let yn = |b: bool| if b { "yes" } else { "no" };
+    match (&h.classification, &opts.classification) {
+        (C::Iso { iso: a }, C::Iso { iso: b }) if a.to_bits() != b.to_bits() => {
+            d.push(format!("iso {a} -> {b}"))
         }
-        f
-    };
-    files
-        .iter()
-        .map(|p| m(p))
-        .collect::<Option<Vec<_>>>()?
-        .into_iter()
-        .max()
+        (C::Iso { iso }, C::TransferFunction { .. }) => {
+            d.push(format!("iso {iso} -> transfer function"))
+        }
+        (C::TransferFunction { .. }, C::Iso { iso }) => {
+            d.push(format!("transfer function -> iso {iso}"))
+        }
+        (C::TransferFunction { tf: a }, C::TransferFunction { tf: b }) if a != b => {
+            d.push("transfer function changed".into())
+        }
+        _ => {}
+    }
+    if h.brick_size as usize != opts.brick_size {
+        d.push(format!("brick {} -> {}", h.brick_size, opts.brick_size));
+    }
+    if h.aniso_block.is_some() != opts.aniso {
+        d.push(format!(
+            "aniso {} -> {}",
+            yn(h.aniso_block.is_some()),
+            yn(opts.aniso)
+        ));
+    }
+    if h.dda != opts.dda {
+        d.push(format!("dda {} -> {}", yn(h.dda), yn(opts.dda)));
+    }
+    if h.gradient_halo != opts.gradient_halo {
+        d.push(format!(
+            "gradient-halo {} -> {}",
+            yn(h.gradient_halo),
+            yn(opts.gradient_halo)
+        ));
+    }
+    if h.zstd_level != opts.zstd_level {
+        d.push(format!(
+            "zstd-level {} -> {}",
+            h.zstd_level, opts.zstd_level
+        ));
+    }
+    d
 }
 
-/// Whether `out` is a complete packed file newer than the input.
-fn up_to_date(out: &Path, input: &BatchInput) -> bool {
-    let Ok(t_out) = std::fs::metadata(out).and_then(|m| m.modified()) else {
-        return false;
+/// What a batch does with one input.
+enum Verdict {
+    /// The output is up to date.
+    Skip(Box<PackedVolume>),
+    /// Prepare it, for this reason (`new`, `redo: ...`).
+    Redo(String),
+}
+
+/// Whether `out` must be (re)made from an input whose identity is now
+/// `stamp` with `opts`.
+fn verdict(out: &Path, stamp: &InputStamp, opts: &PrepOptions) -> Verdict {
+    if std::fs::symlink_metadata(out).is_err() {
+        return Verdict::Redo("new".into());
+    }
+    let v = match PackedVolume::open(out) {
+        Ok(v) => v,
+        Err(e) => return Verdict::Redo(format!("redo: output unreadable ({e})")),
     };
-    PackedVolume::open(out).is_ok() && input_mtime(input).is_some_and(|t_in| t_out > t_in)
+    let d = options_differ(v.header(), opts);
+    if !d.is_empty() {
+        return Verdict::Redo(format!("redo: options changed ({})", d.join(", ")));
+    }
+    match &v.header().input {
+        None => Verdict::Redo("redo: the output records no input identity".into()),
+        Some(was) => match was.differs(stamp) {
+            Some(why) => Verdict::Redo(format!("redo: input changed ({why})")),
+            None => Verdict::Skip(Box::new(v)),
+        },
+    }
 }
 
 /// Prepares `inputs` (those of `shard`) into `out_dir`, `jobs` at a time,
@@ -349,6 +416,7 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
         seconds: 0.0,
         output_bytes: None,
         status: "done".into(),
+        reason: None,
         error: None,
         warning: None,
     };
@@ -365,26 +433,43 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
         row.error = Some(e.clone());
         return row;
     }
-    if up_to_date(&out, input) {
-        if let Ok(v) = PackedVolume::open(&out) {
-            describe(&mut row, &v);
-        }
-        row.status = "skipped".into();
-        return row;
-    }
     let opened = if !input.files.is_empty() {
         crate::input::dicom::open_files(&input.path, input.files.clone(), input.series.as_deref())
             .map(|s| Box::new(s) as Box<dyn crate::input::SliceSource>)
     } else {
         crate::input::open(&input.path)
     };
-    let result = opened
-        .map_err(|e| e.to_string())
-        .and_then(|src| prep(src.as_ref(), &out, opts, &NoProgress).map_err(|e| e.to_string()))
-        .and_then(|_| PackedVolume::open(&out).map_err(|e| e.to_string()));
+    let result = opened.map_err(|e| e.to_string()).and_then(|src| {
+        let stamp = InputStamp::of(&src.files()).map_err(|e| {
+            format!(
+                "{}: cannot fingerprint the input: {e}",
+                input.path.display()
+            )
+        })?;
+        match verdict(&out, &stamp, opts) {
+            Verdict::Skip(v) => Ok((*v, false)),
+            Verdict::Redo(why) => {
+                row.reason = Some(why);
+                let opts = PrepOptions {
+                    stamp: Some(stamp),
+                    ..opts.clone()
+                };
+                prep(src.as_ref(), &out, &opts, &NoProgress).map_err(|e| e.to_string())?;
+                PackedVolume::open(&out)
+                    .map(|v| (v, true))
+                    .map_err(|e| e.to_string())
+            }
+        }
+    });
     row.seconds = t0.elapsed().as_secs_f64();
     match result {
-        Ok(v) => describe(&mut row, &v),
+        Ok((v, made)) => {
+            describe(&mut row, &v);
+            if !made {
+                row.status = "skipped".into();
+                row.reason = Some("skip: unchanged".into());
+            }
+        }
         Err(e) => {
             row.status = "failed".into();
             row.error = Some(e);
@@ -420,11 +505,23 @@ mod tests {
             .iter()
             .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
             .collect();
+        assert_ne!(got[0], got[1]);
+        assert_eq!(
+            got[0],
+            format!("b_vol.nrrd~{:08x}.cdv", crc32fast::hash(b"b/vol.nrrd"))
+        );
+        let got: Vec<String> = got
+            .iter()
+            .map(|n| match n.find('~') {
+                Some(i) => format!("{}~HASH.cdv", &n[..i]),
+                None => n.clone(),
+            })
+            .collect();
         assert_eq!(
             got,
             [
-                "b_vol.nrrd.cdv",
-                "b_vol.nrrd~2.cdv",
+                "b_vol.nrrd~HASH.cdv",
+                "b_vol.nrrd~HASH.cdv",
                 "vol.nii.gz.cdv",
                 "vol.nrrd.cdv",
                 "series.cdv",

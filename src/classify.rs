@@ -68,6 +68,9 @@ impl TransferFunction {
             msg,
         };
         let text = std::fs::read_to_string(path).map_err(|x| e(format!("cannot read: {x}")))?;
+        if let Some(key) = crate::json::duplicate_key(&text) {
+            return Err(e(format!("{key}: duplicate key, expected each key once")));
+        }
         let tf: TransferFunction = serde_json::from_str(&text).map_err(|x| {
             e(format!(
                 "expected {{\"points\": [{{\"value\", \"opacity\", \"color\"}}, ...]}}: {x}"

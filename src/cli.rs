@@ -262,6 +262,11 @@ pub struct PrepSettings {
     /// Directory for the temporary spill (default: beside the output).
     #[arg(long)]
     pub temp_dir: Option<PathBuf>,
+    /// Memory prep may plan to use, in MiB (default: 3/4 of RAM); a prep
+    /// whose planned peak (docs/RELIABILITY.md, "Memory") is above it is
+    /// refused before it allocates.
+    #[arg(long, value_name = "MIB")]
+    pub mem_limit: Option<u64>,
 }
 
 impl PrepSettings {
@@ -310,6 +315,8 @@ impl PrepSettings {
             dda: self.dda,
             gradient_halo: self.gradient_halo,
             temp_dir: self.temp_dir.clone(),
+            stamp: None,
+            mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
         };
         opts.check().map_err(prep_error)?;
         Ok(opts)
@@ -358,6 +365,9 @@ pub fn input_error(e: cdvol::input::InputError) -> anyhow::Error {
     }
 }
 
+/// Most inputs `prep-batch --jobs` prepares at once.
+pub const MAX_JOBS: usize = 256;
+
 #[derive(Args, Debug)]
 pub struct PrepBatchArgs {
     /// Directory searched (recursively) for inputs.
@@ -376,6 +386,17 @@ pub struct PrepBatchArgs {
 }
 
 impl PrepBatchArgs {
+    /// Checks `--jobs` (each job is one prep's memory).
+    pub fn check(&self) -> anyhow::Result<()> {
+        if !(1..=MAX_JOBS).contains(&self.jobs) {
+            anyhow::bail!(
+                "option --jobs: {}, expected 1..={MAX_JOBS} (each job holds one prep's memory)",
+                self.jobs
+            );
+        }
+        Ok(())
+    }
+
     /// `(K, N)` of `--shard K/N`; `(0, 1)` without it.
     pub fn shard(&self) -> (u32, u32) {
         self.shard.map(|s| (s.k, s.n)).unwrap_or((0, 1))
@@ -743,6 +764,10 @@ pub struct RenderArgs {
     /// Brick cache budget in MiB.
     #[arg(long, default_value_t = 512)]
     pub cache_mb: usize,
+    /// Memory the render may plan to use, in MiB (default: 3/4 of RAM):
+    /// the cache plus 64 bytes a pixel (docs/RELIABILITY.md, "Memory").
+    #[arg(long, value_name = "MIB")]
+    pub mem_limit: Option<u64>,
     /// Perspective projection (default orthographic).
     #[arg(long)]
     pub persp: bool,
@@ -967,6 +992,13 @@ impl RenderArgs {
 
     /// The library's render job for these arguments.
     pub fn job(&self) -> anyhow::Result<RenderJob> {
+        if self.cache_mb < 1 {
+            anyhow::bail!(
+                "option --cache-mb: {} MiB, expected at least 1 (with no cache every brick \
+                 is decoded again at each visit)",
+                self.cache_mb
+            );
+        }
         let view = match (self.eye, self.target, self.up) {
             (Some(eye), Some(target), Some(up)) => View::LookAt { eye, target, up },
             (None, None, None) => match self.view.unwrap_or(ViewArg::Angles([0.0, 0.0])) {
@@ -1016,6 +1048,7 @@ impl RenderArgs {
             }),
             threads: self.threads,
             background: self.background,
+            mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
         })
     }
 }
@@ -1028,6 +1061,8 @@ fn render_flag(field: &str) -> Option<&'static str> {
         "early_stop" => "--early-stop",
         "window" => "--window",
         "newton_tol" => "--newton-tol",
+        "bisect_iters" => "--bisect-iters",
+        "newton_iters" => "--newton-iters",
         "width x height" => "--width/--height",
         "shard" => "--shard",
         _ => return None,
@@ -1043,6 +1078,12 @@ pub fn render_error(e: JobError) -> anyhow::Error {
             Some("--frames")
         }
         JobError::TemplateShard => Some("--traversal template"),
+        JobError::Memory { .. } => Some("--mem-limit"),
+        JobError::Bound { field, .. } => Some(match *field {
+            "threads" => "--threads",
+            "orbit_deg" => "--orbit",
+            _ => *field,
+        }),
         JobError::PartName { .. } => Some("--shard"),
         JobError::Camera(c) => Some(match c {
             CameraError::FarPoint { what: "eye", .. } => "--eye",

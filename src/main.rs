@@ -331,6 +331,7 @@ fn write_json(p: &Path, value: &impl serde::Serialize) -> Result<()> {
 /// `cdvol prep-batch`: prepares every input, prints a table, writes the
 /// summary JSON; fails when any input failed.
 fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
+    a.check()?;
     let opts = a.settings.to_options()?;
     let inputs = cdvol::batch::find_inputs(&a.input)?;
     // The summary must not replace an input (the output directory may be
@@ -365,11 +366,15 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
     let rows = cdvol::batch::run(&inputs, &a.output, &opts, a.jobs, shard, &|r| {
         let _g = line.lock();
         progress.println(&format!(
-            "{:7} {} -> {} ({:.1} s){}{}",
+            "{:7} {} -> {} ({:.1} s){}{}{}",
             r.status,
             r.input,
             r.output,
             r.seconds,
+            r.reason
+                .as_deref()
+                .map(|e| format!(" {e}"))
+                .unwrap_or_default(),
             r.error
                 .as_deref()
                 .map(|e| format!(": {e}"))

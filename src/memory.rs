@@ -25,3 +25,54 @@ pub fn bound_heap_fragmentation() {
         libc::mallopt(libc::M_MMAP_THRESHOLD, MMAP_THRESHOLD as libc::c_int);
     }
 }
+
+/// The share of physical memory a command may plan to use when no
+/// `--mem-limit` is given: 3/4 of RAM (`MemTotal`), leaving the rest to
+/// the page cache and other processes.
+pub const DEFAULT_FRACTION: (u64, u64) = (3, 4);
+
+/// Bytes of physical memory (`MemTotal` of /proc/meminfo), if known.
+pub fn ram_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// The default memory limit: [`DEFAULT_FRACTION`] of RAM, or no limit
+/// where RAM is unknown.
+pub fn default_limit() -> u64 {
+    ram_bytes()
+        .map(|r| r / DEFAULT_FRACTION.1 * DEFAULT_FRACTION.0)
+        .unwrap_or(u64::MAX)
+}
+
+/// How a limit was set, for messages: `--mem-limit` or the default.
+pub fn describe_limit(limit: u64, explicit: bool) -> String {
+    if explicit {
+        format!("{} (--mem-limit)", human(limit))
+    } else {
+        match ram_bytes() {
+            Some(r) => format!(
+                "{} ({}/{} of {} RAM; raise it with --mem-limit)",
+                human(limit),
+                DEFAULT_FRACTION.0,
+                DEFAULT_FRACTION.1,
+                human(r)
+            ),
+            None => "no limit".into(),
+        }
+    }
+}
+
+/// `1.5 GiB`, `300.0 MiB`, `2.0 TiB`.
+pub fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    let units = [("TiB", 40), ("GiB", 30), ("MiB", 20), ("KiB", 10)];
+    for (u, shift) in units {
+        if b >= (1u64 << shift) as f64 {
+            return format!("{:.1} {u}", b / (1u64 << shift) as f64);
+        }
+    }
+    format!("{bytes} B")
+}

@@ -43,6 +43,11 @@ pub struct PrepOptions {
     pub gradient_halo: bool,
     /// Where the one-byte-per-cell spill goes (default: beside the output).
     pub temp_dir: Option<PathBuf>,
+    /// The input's identity, recorded in the header (`prep-batch`).
+    pub stamp: Option<crate::identity::InputStamp>,
+    /// Bytes prep may plan to use ([`prep_memory`]); None: the default,
+    /// [`crate::memory::default_limit`] (3/4 of RAM).
+    pub mem_limit: Option<u64>,
 }
 
 impl PrepOptions {
@@ -55,6 +60,8 @@ impl PrepOptions {
             dda: false,
             gradient_halo: false,
             temp_dir: None,
+            stamp: None,
+            mem_limit: None,
         }
     }
 
@@ -217,6 +224,21 @@ pub enum PrepError {
         what: &'static str,
         source: std::io::Error,
     },
+    /// The planned memory ([`prep_memory`]) is above the limit.
+    #[error(
+        "{source_desc}: prep needs about {} ({per_sample} bytes per slice sample x {nx} x {ny} \
+         samples, plus {} fixed), above the memory limit of {limit}",
+        crate::memory::human(*needed),
+        crate::memory::human(PREP_FIXED_BYTES)
+    )]
+    Memory {
+        source_desc: String,
+        needed: u64,
+        per_sample: u64,
+        nx: u64,
+        ny: u64,
+        limit: String,
+    },
     /// A [`PrepOptions`] field is out of range: the field, its value, and
     /// what was expected.
     #[error("{field} {value}: {msg}")]
@@ -225,6 +247,57 @@ pub enum PrepError {
         value: String,
         msg: String,
     },
+}
+
+/// Bytes of prep's fixed overhead in [`prep_memory`] (threads, zstd
+/// contexts, the binary).
+pub const PREP_FIXED_BYTES: u64 = 64 << 20;
+
+/// Prep's planned peak memory, an upper bound of what it allocates:
+/// `(per_sample, total)` with `total = per_sample * nx * ny + index +`
+/// [`PREP_FIXED_BYTES`]. Per slice sample (`nx * ny`), with `w` the
+/// stored word's bytes (the input type's, or the next wider integer's)
+/// and `s = min(brick, nz - 1) + 1` the sample slices of a slab:
+///
+/// * pass 1: the slice as f64 (8), the cell flags of two slices (2; 32
+///   for a transfer function's extrema), the object plane (1), the
+///   forward and backward transforms' planes (4; 6 more with `--dda`);
+/// * pass 2: a slab's distances (`s`), its words (`s * w'`, with `w'`
+///   the wider type's bytes in case prep must widen), its bricks
+///   compressed (`s * w`: compression to at most the input's size), one
+///   slice as f64 (8), and with `--dda` two planes per slab cell slice
+///   (`2 * brick`).
+///
+/// The index adds 32 bytes a brick. docs/RELIABILITY.md ("Memory")
+/// compares this with measured peaks.
+pub fn prep_memory(meta: &crate::input::VolumeMeta, opts: &PrepOptions) -> (u64, u64) {
+    let [nx, ny, nz] = meta.dims().map(|d| d as u64);
+    let b = opts.brick_size as u64;
+    let w = meta.dtype.size() as u64;
+    let w_wide = meta.dtype.size().max(meta.dtype.widened().size()) as u64;
+    let s = b.min(nz.saturating_sub(1)) + 1;
+    let tf = matches!(opts.classification, Classification::TransferFunction { .. });
+    let per_sample = 8
+        + if tf { 32 } else { 2 }
+        + 1
+        + 4
+        + if opts.dda { 6 + 2 * b } else { 0 }
+        + s
+        + s * w_wide
+        + s * w
+        + 8;
+    let bricks = [nx, ny, nz].map(|n| n.saturating_sub(1).div_ceil(b.max(1)));
+    let total = per_sample
+        .saturating_mul(nx)
+        .saturating_mul(ny)
+        .saturating_add(
+            32u64
+                .saturating_mul(bricks[0])
+                .saturating_mul(bricks[1])
+                .saturating_mul(bricks[2]),
+        )
+        .saturating_add(PREP_FIXED_BYTES);
+    (per_sample, total)
 }
 
 /// Prepares `src` into the packed file `out`. Before any work, `out` is
@@ -240,6 +313,34 @@ pub fn prep(
     opts.check()?;
     let meta = src.meta().clone();
     crate::fsutil::check_outputs(&[out.to_path_buf()], &src.files(), Some(&meta.origin_desc))?;
+    let (per_sample, needed) = prep_memory(&meta, opts);
+    let limit = opts.mem_limit.unwrap_or_else(crate::memory::default_limit);
+    if needed > limit {
+        let [nx, ny, _] = meta.dims().map(|d| d as u64);
+        return Err(PrepError::Memory {
+            source_desc: meta.origin_desc.clone(),
+            needed,
+            per_sample,
+            nx,
+            ny,
+            limit: crate::memory::describe_limit(limit, opts.mem_limit.is_some()),
+        });
+    }
+    // Readers refuse such a header (format::reader), so refuse it here
+    // (a DICOM RescaleSlope of 0, say) before any work.
+    if !(meta.rescale.slope.is_finite()
+        && meta.rescale.slope != 0.0
+        && meta.rescale.intercept.is_finite())
+    {
+        return Err(PrepError::Input(InputError::field(
+            Path::new(&meta.origin_desc),
+            "rescale",
+            format!(
+                "slope {} intercept {}, expected a finite non-zero slope and a finite intercept",
+                meta.rescale.slope, meta.rescale.intercept
+            ),
+        )));
+    }
     let b = opts.brick_size;
     let [nx, ny, nz] = meta.dims();
     let [ncx, ncy, ncz] = meta.grid.cells();
@@ -364,6 +465,7 @@ pub fn prep(
         source: meta.origin_desc.clone(),
         notes: src.report(),
         orientation: meta.orientation.clone(),
+        input: opts.stamp.clone(),
         summary: Summary::default(),
     };
     if header.max_payload_len() > crate::format::MAX_PAYLOAD_LEN {

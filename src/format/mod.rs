@@ -139,6 +139,11 @@ pub struct Header {
     /// that came from; absent when unknown (and in older files).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub orientation: Option<crate::orient::Orientation>,
+    /// What the input was when the file was made (`prep-batch` records it
+    /// to know, on a re-run, whether the input changed); absent in files
+    /// made by `prep` and in older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input: Option<crate::identity::InputStamp>,
     pub summary: Summary,
 }
 

@@ -199,7 +199,40 @@ impl PackedVolume {
             .chunks_exact(INDEX_ENTRY_LEN)
             .map(IndexEntry::from_bytes)
             .collect();
+        let max_code = header.codes.max_code();
         for (i, e) in index.iter().enumerate() {
+            let known = super::FLAG_UNIFORM | super::FLAG_NO_OBJECT;
+            let entry_err = if e.flags & !known != 0 {
+                Some(format!(
+                    "index flags {:#x}, expected bits of {known:#x}",
+                    e.flags
+                ))
+            } else if e.reserved != 0 {
+                Some(format!("index reserved {:#x}, expected 0", e.reserved))
+            } else if e.is_uniform() && (e.length != 0 || e.crc32 != 0 || !e.has_no_object()) {
+                Some(format!(
+                    "uniform brick with length {}, crc {:08x}, flags {:#x}: expected \
+                     length 0, crc 0 and the no-object flag",
+                    e.length, e.crc32, e.flags
+                ))
+            } else if !e.is_uniform() && e.length == 0 {
+                Some("a stored brick of 0 bytes".into())
+            } else if (e.is_uniform() || e.has_no_object()) && e.uniform_code > max_code {
+                Some(format!(
+                    "index code {}, expected at most codes.max {max_code}",
+                    e.uniform_code
+                ))
+            } else {
+                None
+            };
+            if let Some(msg) = entry_err {
+                return Err(FormatError::Brick {
+                    path: p(),
+                    brick: i as u64,
+                    coords: header.brick_coords(i as u64),
+                    msg,
+                });
+            }
             let end = e.offset.checked_add(e.length as u64);
             if !e.is_uniform() && (e.offset < PREAMBLE_LEN || end.is_none_or(|end| end > trailer)) {
                 return Err(FormatError::Brick {
@@ -478,6 +511,72 @@ fn check_header(h: &Header) -> Result<(), HeaderInvalid> {
             "orientation.axes_lps".into(),
             e.to_string(),
             "unit orthogonal directions".into(),
+        );
+    }
+    let r = h.rescale;
+    if !(r.slope.is_finite() && r.slope != 0.0) {
+        return bad(
+            "rescale.slope".into(),
+            r.slope.to_string(),
+            "a finite, non-zero number".into(),
+        );
+    }
+    if !r.intercept.is_finite() {
+        return bad(
+            "rescale.intercept".into(),
+            r.intercept.to_string(),
+            "a finite number".into(),
+        );
+    }
+    if !(-7..=22).contains(&h.zstd_level) {
+        return bad(
+            "zstd_level".into(),
+            h.zstd_level.to_string(),
+            "-7..=22".into(),
+        );
+    }
+    // The stored words are the input's type, or (integers) a wider one.
+    let storage_fits = if h.dtype.is_float() {
+        h.storage == h.dtype
+    } else {
+        !h.storage.is_float() && h.storage.size() >= h.dtype.size() && {
+            let ((smin, smax), (dmin, dmax)) = (h.storage.int_range(), h.dtype.int_range());
+            smin <= dmin && dmax <= smax
+        }
+    };
+    if !storage_fits {
+        return bad(
+            "storage".into(),
+            h.storage.name().into(),
+            format!("the input type {} or a wider integer type", h.dtype.name()),
+        );
+    }
+    let max_code = h.codes.max_code();
+    if max_code > super::word::MAX_CODE {
+        return bad(
+            "codes.max".into(),
+            max_code.to_string(),
+            format!("at most {}", super::word::MAX_CODE),
+        );
+    }
+    if let super::CodeEncoding::IntRange { base, max } = h.codes {
+        let (tmin, tmax) = h.storage.int_range();
+        if base < tmin || base.checked_add(max as i64).is_none_or(|top| top > tmax) {
+            return bad(
+                "codes.base".into(),
+                format!(
+                    "{base} (codes {base}..={})",
+                    base.saturating_add(max as i64)
+                ),
+                format!("a code range inside {} ({tmin}..={tmax})", h.storage.name()),
+            );
+        }
+    }
+    if h.summary.code_histogram.len() > max_code as usize + 1 {
+        return bad(
+            "summary.code_histogram".into(),
+            format!("{} entries", h.summary.code_histogram.len()),
+            format!("at most {} (codes.max + 1)", max_code as u64 + 1),
         );
     }
     let storage_ok = match h.codes {

@@ -83,6 +83,12 @@ impl SidecarOut {
 
 const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
 
+/// Smallest spacing a sidecar may give, in mm (1 nm): a uniform spacing,
+/// or the mean gap of a `spacing` or `positions` axis (single gaps may be
+/// smaller). A smaller one (5e-324 was accepted) puts every sample at one
+/// point and renders nothing.
+pub const MIN_SPACING_MM: f64 = 1e-6;
+
 /// Reads and checks a sidecar. Data files are not opened here.
 pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
     let text = crate::fsutil::read_regular_to_string(path).map_err(|source| InputError::Io {
@@ -94,6 +100,13 @@ pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
         path: path.to_path_buf(),
         source,
     })?;
+    if let Some(key) = crate::json::duplicate_key(&text) {
+        return Err(InputError::field(
+            path,
+            key,
+            "duplicate key, expected each key once",
+        ));
+    }
     let obj = v
         .as_object()
         .ok_or_else(|| InputError::field(path, "(top level)", "expected a JSON object"))?;
@@ -316,24 +329,52 @@ fn parse_axis(
             })
             .collect()
     };
+    // The mean gap of a listed axis: single gaps may be far smaller (slices
+    // 1e-9 mm apart render, data_extremes::slices_1e_9_apart_at_1e6), but
+    // an axis that is all tiny gaps is a mistake that renders nothing.
+    let mean_gap = |field: &str, c: &[f64]| -> Result<(), InputError> {
+        let (Some(first), Some(last)) = (c.first(), c.last()) else {
+            return Ok(());
+        };
+        let mean = (last - first) / (c.len() - 1).max(1) as f64;
+        if c.len() > 1 && mean < MIN_SPACING_MM {
+            return Err(InputError::field(
+                path,
+                field,
+                format!(
+                    "from {first} to {last} mm, a mean gap of {mean:e} mm, \
+                     expected a mean gap >= {MIN_SPACING_MM:e} mm"
+                ),
+            ));
+        }
+        Ok(())
+    };
     let axis_err =
         |field: &str, p: crate::grid::AxisError| InputError::field(path, field, p.to_string());
     match v {
         Value::Number(_) => {
             let s = v.as_f64().unwrap_or(f64::NAN);
-            if !(s.is_finite() && s > 0.0) {
+            if !(s.is_finite() && s >= MIN_SPACING_MM) {
                 return Err(InputError::field(
                     path,
                     name,
-                    format!("{v}, expected a spacing > 0 mm"),
+                    format!("{v}, expected a finite spacing >= {MIN_SPACING_MM:e} mm"),
                 ));
             }
             Axis::uniform(origin, s, n).map_err(|p| axis_err(name, p))
         }
         Value::Object(o) => {
+            if o.contains_key("positions") && o.contains_key("spacing") {
+                return Err(InputError::field(
+                    path,
+                    name,
+                    "both positions and spacing given, expected one of them",
+                ));
+            }
             if let Some(p) = o.get("positions") {
                 let field = format!("{name}.positions");
                 let coords = numbers(&field, p, n)?;
+                mean_gap(&field, &coords)?;
                 Axis::from_coords(coords).map_err(|e| axis_err(&field, e))
             } else if let Some(s) = o.get("spacing") {
                 let field = format!("{name}.spacing");
@@ -350,6 +391,7 @@ fn parse_axis(
                     }
                     coords.push(coords[i] + g);
                 }
+                mean_gap(&field, &coords)?;
                 Axis::from_coords(coords).map_err(|e| axis_err(&field, e))
             } else {
                 Err(InputError::field(path, name, format!("{v}, {expected}")))

@@ -1073,6 +1073,7 @@ mod tests {
             source: String::new(),
             notes: Vec::new(),
             orientation: None,
+            input: None,
             summary: Default::default(),
         }
     }

@@ -159,6 +159,9 @@ pub struct RenderJob {
     /// What shows where rays cover less than the pixel (black: the image
     /// as rendered).
     pub background: Background,
+    /// Bytes the render may plan to use ([`render_memory`]); None: the
+    /// default, [`crate::memory::default_limit`] (3/4 of RAM).
+    pub mem_limit: Option<u64>,
 }
 
 /// Why a render job failed. Fields are named as in [`RenderJob`].
@@ -198,7 +201,57 @@ pub enum JobError {
     PartName { path: PathBuf },
     #[error("cannot start the thread pool: {0}")]
     Threads(#[from] rayon::ThreadPoolBuildError),
+    /// The planned memory ([`render_memory`]) is above the limit.
+    #[error(
+        "the render needs about {} (cache {} + {width} x {height} pixels x \
+         {RENDER_BYTES_PER_PIXEL} bytes + {} fixed), above the memory limit of {limit}",
+        crate::memory::human(*needed),
+        crate::memory::human(*cache as u64),
+        crate::memory::human(RENDER_FIXED_BYTES)
+    )]
+    Memory {
+        needed: u64,
+        cache: usize,
+        width: u32,
+        height: u32,
+        limit: String,
+    },
+    /// A job field out of its range (`threads`, `orbit_deg`).
+    #[error("{field} {value}, expected {expected}")]
+    Bound {
+        field: &'static str,
+        value: String,
+        expected: String,
+    },
 }
+
+/// Bytes a pixel of one frame costs at most in [`render_memory`]: the
+/// tiles' pixels before colouring (24), the placed pixels (24), the RGB
+/// bytes, the depth and step counts (3 + 4 + 4) and the encoder's copy (3
+/// and rounding). Measured: 48.6 bytes a pixel for a 4096^2 surface
+/// render, 51 for a depth render (docs/RELIABILITY.md, "Memory").
+pub const RENDER_BYTES_PER_PIXEL: u64 = 64;
+
+/// Bytes of a render's fixed overhead in [`render_memory`].
+pub const RENDER_FIXED_BYTES: u64 = 64 << 20;
+
+/// Bytes a sample of the volume costs at most in the brick cache (f32
+/// values with the brick apron, codes, levels, octants, DDA planes).
+pub const CACHE_BYTES_PER_SAMPLE: u64 = 16;
+
+/// A render's planned peak memory: the brick cache (its budget, or the
+/// whole volume decoded at [`CACHE_BYTES_PER_SAMPLE`] if that is less:
+/// `cache_bytes` here is that smaller figure), plus
+/// [`RENDER_BYTES_PER_PIXEL`] per pixel of one frame (turntables render
+/// one frame at a time), plus [`RENDER_FIXED_BYTES`].
+pub fn render_memory(cache_bytes: usize, width: u32, height: u32) -> u64 {
+    (cache_bytes as u64)
+        .saturating_add(RENDER_BYTES_PER_PIXEL.saturating_mul(width as u64 * height as u64))
+        .saturating_add(RENDER_FIXED_BYTES)
+}
+
+/// Most worker threads of a render.
+pub const MAX_THREADS: usize = 1024;
 
 /// Most frames of a turntable (all are committed together at the end).
 pub const MAX_FRAMES: u32 = 100_000;
@@ -256,6 +309,36 @@ pub fn run(
     }
     if job.frames == 0 {
         return Err(JobError::NoFrames);
+    }
+    let (width, height) = (job.camera.width, job.camera.height);
+    let samples = vol.header().dims.iter().product::<u64>();
+    let cache =
+        (job.options.cache_bytes as u64).min(CACHE_BYTES_PER_SAMPLE.saturating_mul(samples));
+    let cache = usize::try_from(cache).unwrap_or(usize::MAX);
+    let needed = render_memory(cache, width, height);
+    let limit = job.mem_limit.unwrap_or_else(crate::memory::default_limit);
+    if needed > limit {
+        return Err(JobError::Memory {
+            needed,
+            cache,
+            width,
+            height,
+            limit: crate::memory::describe_limit(limit, job.mem_limit.is_some()),
+        });
+    }
+    if let Some(n) = job.threads.filter(|n| !(1..=MAX_THREADS).contains(n)) {
+        return Err(JobError::Bound {
+            field: "threads",
+            value: n.to_string(),
+            expected: format!("1..={MAX_THREADS}"),
+        });
+    }
+    if job.frames > 1 && !job.orbit_deg.is_finite() {
+        return Err(JobError::Bound {
+            field: "orbit_deg",
+            value: job.orbit_deg.to_string(),
+            expected: "a finite number of degrees".into(),
+        });
     }
     if job.frames == 1
         && job.shard.is_some()

@@ -130,6 +130,9 @@ impl CompositeLook {
             msg,
         };
         let text = std::fs::read_to_string(path).map_err(|x| e(format!("cannot read: {x}")))?;
+        if let Some(key) = crate::json::duplicate_key(&text) {
+            return Err(e(format!("{key}: duplicate key, expected each key once")));
+        }
         let look: CompositeLook = serde_json::from_str(&text).map_err(|x| {
             e(format!(
                 "expected optional \"shade\": true|false and \"gradient_opacity\": \
@@ -242,6 +245,11 @@ impl Precision {
     }
 }
 
+/// Most bisection or Newton steps of a surface hit: each halves the
+/// bracket, which is below f64 resolution after ~53, so more only costs
+/// time (`--bisect-iters 4000000000` ran for minutes).
+pub const MAX_HIT_ITERS: u32 = 200;
+
 fn bad(field: &'static str, value: String, expected: String) -> RenderError {
     RenderError::Option {
         field,
@@ -260,6 +268,21 @@ pub(crate) fn check_tol_and_size(opts: &RenderOptions, camera: &Camera) -> Resul
             tol.to_string(),
             "a relative tolerance in [0, 1)".into(),
         ));
+    }
+    for (field, n) in [
+        ("bisect_iters", opts.hit_params.bisect_iters),
+        ("newton_iters", opts.hit_params.newton_iters),
+    ] {
+        if n > MAX_HIT_ITERS {
+            return Err(bad(
+                field,
+                n.to_string(),
+                format!(
+                    "at most {MAX_HIT_ITERS} (each step halves the bracket; \
+                     past ~53 it is below f64 resolution)"
+                ),
+            ));
+        }
     }
     let pixels = camera.width as u64 * camera.height as u64;
     if pixels > MAX_PIXELS {

@@ -101,7 +101,7 @@ fn coordinates() {
     let m = refused(&with("y", r#"{"spacing": [1e308, 1e308, 1e308]}"#));
     assert_has(&m, &["field `y.spacing`", "expected at most 1e15 mm"]);
     let m = refused(&with("x", "0"));
-    assert_has(&m, &["field `x`", "spacing > 0"]);
+    assert_has(&m, &["field `x`", "spacing >= 1e-6 mm"]);
     let m = refused(&with("x", "-1.5"));
     assert_has(&m, &["field `x`", "-1.5"]);
     let m = refused(&with("z", r#""thick""#));

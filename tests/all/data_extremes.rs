@@ -906,14 +906,15 @@ fn past_the_limits_is_refused_naming_the_field() {
         m.contains("field `dims[0]`") && m.contains("at most 1048576"),
         "{m}"
     );
-    // Refused: a z gap of 1e-11 mm at 1e6 mm is below ulp(1e6): the two
-    // positions round to the same number -> field `z.spacing`, not
-    // strictly increasing.
+    // Refused: a z gap of 1e-3 mm at 1e14 mm is below half ulp(1e14)
+    // (0.0156 mm): the two positions round to the same number -> field
+    // `z.spacing`, not strictly increasing. (A gap below MIN_SPACING_MM,
+    // 1e-6 mm, is refused first: harden_json.)
     let m = refuse(
         "gap",
         [2, 2, 3],
-        ["1", "1", "{\"spacing\": [1e-11, 1]}"],
-        ", \"origin\": [0, 0, 1e6]",
+        ["1", "1", "{\"spacing\": [1e-3, 1]}"],
+        ", \"origin\": [0, 0, 1e14]",
     );
     assert!(
         m.contains("field `z.spacing`") && m.contains("strictly increasing"),
