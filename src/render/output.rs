@@ -324,12 +324,10 @@ impl Background {
 
     /// Parses `black`, `white`, `transparent`, `R,G,B` (0..=255) or
     /// `#rrggbb`.
-    pub fn parse(s: &str) -> Result<Background, String> {
+    pub fn parse(s: &str) -> Result<Background, BackgroundError> {
         let t = s.trim().to_ascii_lowercase();
-        let bad = || {
-            format!(
-                "background {s:?}: expected black, white, transparent, R,G,B (0..=255) or #rrggbb"
-            )
+        let bad = || BackgroundError {
+            found: s.to_string(),
         };
         match t.as_str() {
             "black" => return Ok(Background::BLACK),
@@ -367,6 +365,14 @@ impl Background {
         }
         Ok(())
     }
+}
+
+/// A `--background` that is none of the forms [`Background::parse`] takes.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("background {found:?}: expected black, white, transparent, R,G,B (0..=255) or #rrggbb")]
+pub struct BackgroundError {
+    /// The text given.
+    pub found: String,
 }
 
 /// `frame`'s colour over `bg`: RGB over a colour (`rgb + (1 - alpha) *
