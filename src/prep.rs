@@ -261,12 +261,15 @@ pub const PREP_FIXED_BYTES: u64 = 64 << 20;
 ///
 /// * pass 1: the slice as f64 (8), the cell flags of two slices (2; 32
 ///   for a transfer function's extrema), the object plane (1), the
-///   forward and backward transforms' planes (4; 6 more with `--dda`);
-/// * pass 2: a slab's distances (`s`), its words (`s * w'`, with `w'`
-///   the wider type's bytes in case prep must widen), its bricks
-///   compressed (`s * w`: compression to at most the input's size), one
-///   slice as f64 (8), and with `--dda` two planes per slab cell slice
-///   (`2 * brick`).
+///   forward transform's planes (2; 3 more with `--dda`);
+/// * pass 2, after pass 1's buffers are freed: the backward transform's
+///   planes (2; 3 more with `--dda`), a slab's distances (`s`), its words
+///   (`s * w'`, with `w'` the wider type's bytes in case prep must
+///   widen), its bricks compressed (`s * w`: compression to at most the
+///   input's size), one slice as f64 (8), and with `--dda` two planes per
+///   slab cell slice (`2 * brick`);
+///
+/// and `per_sample` is the larger of the two.
 ///
 /// The index adds 32 bytes a brick. docs/RELIABILITY.md ("Memory")
 /// compares this with measured peaks.
@@ -277,15 +280,10 @@ pub fn prep_memory(meta: &crate::input::VolumeMeta, opts: &PrepOptions) -> (u64,
     let w_wide = meta.dtype.size().max(meta.dtype.widened().size()) as u64;
     let s = b.min(nz.saturating_sub(1)) + 1;
     let tf = matches!(opts.classification, Classification::TransferFunction { .. });
-    let per_sample = 8
-        + if tf { 32 } else { 2 }
-        + 1
-        + 4
-        + if opts.dda { 6 + 2 * b } else { 0 }
-        + s
-        + s * w_wide
-        + s * w
-        + 8;
+    let dda = |x: u64| if opts.dda { x } else { 0 };
+    let pass1 = 8 + if tf { 32 } else { 2 } + 1 + 2 + dda(3);
+    let pass2 = 2 + dda(3 + 2 * b) + s + s * w_wide + s * w + 8;
+    let per_sample = pass1.max(pass2);
     let bricks = [nx, ny, nz].map(|n| n.saturating_sub(1).div_ceil(b.max(1)));
     let total = per_sample
         .saturating_mul(nx)
@@ -444,6 +442,9 @@ pub fn prep(
     summary.raw_max = range.map(|r| r.1);
     summary.histogram = values.finish(meta.rescale);
     let (storage, codes) = choose_encoding(meta.dtype, range);
+    // Pass 1's slice buffers are not needed any more: free them before
+    // pass 2 allocates its slabs (docs/RELIABILITY.md, "Memory").
+    drop((buf, planes, min_planes, flags, obj, fwd));
 
     // ---- Pass 2: backward transform, embed codes, write bricks. ----
     let bricks = [ncx, ncy, ncz].map(|c| c.div_ceil(b) as u64);
@@ -486,7 +487,9 @@ pub fn prep(
     let mut bwd = BackwardDt::new(ncx, ncy, ncz, opts.aniso).with_dda(opts.dda);
     // Distances of cell slices z0..=z1 of the current slab (the last one
     // is the first slice of the slab above, kept from the previous round).
-    let mut slab_dist = vec![FAR; (b + 1) * n_cells_slice];
+    // (A volume of one slab has no slab above: no slot for its slice.)
+    let slab_slices = if ncz > b { b + 1 } else { ncz };
+    let mut slab_dist = vec![FAR; slab_slices * n_cells_slice];
     let mut slab_blocks: Vec<Option<OctantBlocks>> = vec![None; b / ANISO_BLOCK];
     // City-block and chamfer planes of cell slices z0..z1 (with --dda).
     let dda_len = if opts.dda { b * n_cells_slice } else { 0 };
@@ -560,7 +563,9 @@ pub fn prep(
             }
         }
         // The first slice of this slab is the upper slice of the next one.
-        slab_dist.copy_within(0..n_cells_slice, b * n_cells_slice);
+        if bz > 0 {
+            slab_dist.copy_within(0..n_cells_slice, b * n_cells_slice);
+        }
         st.write += lap(&mut t);
     }
     progress.end();
