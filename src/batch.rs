@@ -80,6 +80,10 @@ pub struct BatchRow {
     /// The classification selected no cells or nearly all of them
     /// ([`crate::prep::selection_warning`]).
     pub warning: Option<String>,
+    /// `--envelope auto`: the modality chosen for this input, why, and
+    /// its envelope's iso value ([`PrepOptions::resolved`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub modality: Option<String>,
 }
 
 /// Finds the inputs under `dir`, sorted by name. The walk
@@ -419,6 +423,7 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
         reason: None,
         error: None,
         warning: None,
+        modality: None,
     };
     let describe = |row: &mut BatchRow, vol: &PackedVolume| {
         let h = vol.header();
@@ -446,6 +451,9 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
                 input.path.display()
             )
         })?;
+        let (opts, modality) = opts.resolved(src.as_ref()).map_err(|e| e.to_string())?;
+        let opts = &opts;
+        row.modality = modality;
         match verdict(&out, &stamp, opts) {
             Verdict::Skip(v) => Ok((*v, false)),
             Verdict::Redo(why) => {

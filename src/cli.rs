@@ -224,7 +224,9 @@ pub struct PrepSettings {
     /// holds every item, so `render --iso`/`--tf`/`--preset` cover them all
     /// without another prep. Items: iso values, presets, or a modality
     /// (`ct`, `mr`: all its presets), comma-separated; e.g. `--envelope ct`
-    /// or `--envelope ct-bone,ct-muscle,500`.
+    /// or `--envelope ct-bone,ct-muscle,500`. `auto`: the envelope of the
+    /// input's modality, CT or MR, guessed from its middle slice (values
+    /// below -500 mean CT) — per input in prep-batch.
     #[arg(
         long,
         value_name = "ITEMS",
@@ -273,6 +275,11 @@ impl PrepSettings {
     /// The checked prep options; errors name the flags.
     pub fn to_options(&self) -> anyhow::Result<cdvol::prep::PrepOptions> {
         use cdvol::classify::{Classification, TransferFunction};
+        if self.envelope.len() == 1 && self.envelope[0].eq_ignore_ascii_case("auto") {
+            let mut o = self.with(Classification::Iso { iso: 0.0 })?;
+            o.auto_envelope = true;
+            return Ok(o);
+        }
         if !self.envelope.is_empty() {
             let (iso, _) = cdvol::presets::envelope(&self.envelope)
                 .map_err(|e| anyhow::anyhow!("option --envelope: {e}"))?;
@@ -316,6 +323,7 @@ impl PrepSettings {
             gradient_halo: self.gradient_halo,
             temp_dir: self.temp_dir.clone(),
             stamp: None,
+            auto_envelope: false,
             mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
         };
         opts.check().map_err(prep_error)?;

@@ -366,11 +366,15 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
     let rows = cdvol::batch::run(&inputs, &a.output, &opts, a.jobs, shard, &|r| {
         let _g = line.lock();
         progress.println(&format!(
-            "{:7} {} -> {} ({:.1} s){}{}{}",
+            "{:7} {} -> {} ({:.1} s){}{}{}{}",
             r.status,
             r.input,
             r.output,
             r.seconds,
+            r.modality
+                .as_deref()
+                .map(|m| format!(" [{m}]"))
+                .unwrap_or_default(),
             r.reason
                 .as_deref()
                 .map(|e| format!(" {e}"))

@@ -48,6 +48,11 @@ pub struct PrepOptions {
     /// Bytes prep may plan to use ([`prep_memory`]); None: the default,
     /// [`crate::memory::default_limit`] (3/4 of RAM).
     pub mem_limit: Option<u64>,
+    /// `--envelope auto`: classify by the envelope of the input's modality
+    /// (all CT or all MR presets, [`crate::presets::envelope`]), the
+    /// modality guessed from the data ([`guess_modality`]); replaces
+    /// `classification` ([`PrepOptions::resolved`]).
+    pub auto_envelope: bool,
 }
 
 impl PrepOptions {
@@ -62,7 +67,33 @@ impl PrepOptions {
             temp_dir: None,
             stamp: None,
             mem_limit: None,
+            auto_envelope: false,
         }
+    }
+
+    /// These options for `src`: with [`PrepOptions::auto_envelope`], the
+    /// classification of its modality's envelope, and the modality with
+    /// the reason it was chosen; otherwise unchanged.
+    pub fn resolved(
+        &self,
+        src: &dyn SliceSource,
+    ) -> Result<(PrepOptions, Option<String>), PrepError> {
+        if !self.auto_envelope {
+            return Ok((self.clone(), None));
+        }
+        let (m, why) = guess_modality(src)?;
+        let group = m.name().to_ascii_lowercase();
+        let (iso, _) = crate::presets::envelope(&[group]).map_err(|e| PrepError::Option {
+            field: "envelope",
+            value: "auto".into(),
+            msg: e.to_string(),
+        })?;
+        let opts = PrepOptions {
+            classification: Classification::Iso { iso },
+            auto_envelope: false,
+            ..self.clone()
+        };
+        Ok((opts, Some(format!("{} ({why}): iso {iso}", m.name()))))
     }
 
     /// Checks the ranges [`prep`] needs before it reads anything:
@@ -309,6 +340,8 @@ pub fn prep(
 ) -> Result<PrepReport, PrepError> {
     let t0 = Instant::now();
     opts.check()?;
+    let (opts, _) = opts.resolved(src)?;
+    let opts = &opts;
     let meta = src.meta().clone();
     crate::fsutil::check_outputs(&[out.to_path_buf()], &src.files(), Some(&meta.origin_desc))?;
     let (per_sample, needed) = prep_memory(&meta, opts);
@@ -826,4 +859,30 @@ fn or_planes(a: &[u8], b: &[u8], obj: &mut [u8]) -> u64 {
             n
         })
         .sum()
+}
+
+/// The modality of `src`'s data for `--envelope auto`: CT when the middle
+/// slice holds values below -500 after rescaling (air in Hounsfield units
+/// is -1000; MR intensities are not negative), else MR. One slice is read.
+/// Returns the modality and the figure that decided it.
+pub fn guess_modality(
+    src: &dyn SliceSource,
+) -> Result<(crate::presets::Modality, String), PrepError> {
+    let meta = src.meta();
+    let [nx, ny, nz] = meta.dims();
+    let z = nz / 2;
+    let mut buf = vec![0.0f64; nx * ny];
+    src.read_slice(z, &mut buf)?;
+    let r = meta.rescale;
+    let lo = buf
+        .iter()
+        .map(|&v| v * r.slope + r.intercept)
+        .filter(|v| !v.is_nan())
+        .fold(f64::INFINITY, f64::min);
+    let m = if lo < -500.0 {
+        crate::presets::Modality::Ct
+    } else {
+        crate::presets::Modality::Mr
+    };
+    Ok((m, format!("smallest value of slice {z}: {lo}")))
 }

@@ -392,3 +392,61 @@ fn one_envelope_prep_serves_every_ct_preset() {
     );
     assert!(e.contains("\"bogus\"") && e.contains("ct-bone"), "{e}");
 }
+
+/// `prep-batch --envelope auto`: per input, the envelope of its modality
+/// (CT for the phantom in HU, MR for non-negative intensities), recorded
+/// in batch.json; a re-run skips both.
+#[test]
+fn batch_envelope_auto_picks_each_inputs_modality() {
+    let dir = tempfile::tempdir().unwrap();
+    let inp = dir.path().join("in");
+    std::fs::create_dir(&inp).unwrap();
+    ct_phantom(&inp);
+    let mr: Vec<u8> = (0..24 * 20 * 16)
+        .flat_map(|i: u32| (((i * 7919) % 131) as u16).to_le_bytes())
+        .collect();
+    std::fs::write(inp.join("mr.raw"), mr).unwrap();
+    std::fs::write(
+        inp.join("mr.json"),
+        r#"{"data": "mr.raw", "dims": [24, 20, 16], "dtype": "u16", "x": 1, "y": 1, "z": 1}"#,
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = || {
+        ok(cdvol()
+            .args(["prep-batch", "-q", "--envelope", "auto"])
+            .arg(&inp)
+            .arg("-o")
+            .arg(&out));
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("batch.json")).unwrap())
+                .unwrap();
+        j
+    };
+    let first = run();
+    let rows = first
+        .as_array()
+        .or_else(|| first["inputs"].as_array())
+        .unwrap()
+        .clone();
+    let (ct_iso, _) = cdvol::presets::envelope(&["ct".into()]).unwrap();
+    let (mr_iso, _) = cdvol::presets::envelope(&["mr".into()]).unwrap();
+    for (name, modality, iso) in [("head.json", "CT", ct_iso), ("mr.json", "MR", mr_iso)] {
+        let row = rows.iter().find(|r| r["input"] == name).unwrap();
+        let m = row["modality"].as_str().unwrap();
+        assert!(m.starts_with(modality), "{name}: {m}");
+        let vol =
+            PackedVolume::open(std::path::Path::new(row["output"].as_str().unwrap())).unwrap();
+        assert_eq!(
+            vol.header().classification,
+            Classification::Iso { iso },
+            "{name}"
+        );
+    }
+    let again = run();
+    let rows = again
+        .as_array()
+        .or_else(|| again["inputs"].as_array())
+        .unwrap();
+    assert!(rows.iter().all(|r| r["status"] == "skipped"), "{again}");
+}
