@@ -183,7 +183,10 @@ impl OptionsKey {
 /// JSON numbers, which round-trip exactly.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RenderKey {
-    /// Name, length and header+index checksum of the packed file.
+    /// Name, length and header+index checksum of the packed file. Parts
+    /// match by content: the length and the checksum (which covers every
+    /// brick's CRC in the index), not the name, so parts rendered from
+    /// byte-identical copies under other names assemble.
     pub volume: String,
     pub volume_bytes: u64,
     pub volume_crc: u32,
@@ -502,7 +505,7 @@ pub fn assemble(parts: &[Part], names: &[PathBuf]) -> Result<(Frame, Stats), Ass
     let first = parts.first().ok_or(AssembleError::NoParts)?;
     let key = &first.key;
     for (i, p) in parts.iter().enumerate().skip(1) {
-        if p.key != key.clone() {
+        if !same_render(&p.key, key) {
             return Err(AssembleError::DifferentRenders {
                 first: name(0),
                 other: name(i),
@@ -581,8 +584,18 @@ pub fn assemble(parts: &[Part], names: &[PathBuf]) -> Result<(Frame, Stats), Ass
     Ok(finish(&key.colouring, key.width, key.height, tiles, stats))
 }
 
+/// Whether two parts' keys are of one render: every field but the packed
+/// file's name.
+fn same_render(a: &RenderKey, b: &RenderKey) -> bool {
+    let named = RenderKey {
+        volume: a.volume.clone(),
+        ..b.clone()
+    };
+    *a == named
+}
+
 fn differing_field(a: &RenderKey, b: &RenderKey) -> &'static str {
-    if a.volume != b.volume || a.volume_bytes != b.volume_bytes || a.volume_crc != b.volume_crc {
+    if a.volume_bytes != b.volume_bytes || a.volume_crc != b.volume_crc {
         "the packed file"
     } else if a.camera != b.camera || a.width != b.width || a.height != b.height {
         "the camera"

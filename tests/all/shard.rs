@@ -266,6 +266,15 @@ fn assembly_refuses_parts_that_do_not_make_one_render() {
         assemble_files(&other("l.cdvpart", &cam, &opts, blocks, &vol)),
         &["l.cdvpart", "shard layout"],
     );
+    // A byte-identical copy under another name is the same file: its
+    // part assembles with the others (identity from content, not path).
+    let copy = d.join("copy-of-s.cdv");
+    std::fs::copy(vol.path(), &copy).unwrap();
+    let vol_copy = PackedVolume::open(&copy).unwrap();
+    let from_copy = other("k.cdvpart", &cam, &opts, sh(2, 3), &vol_copy);
+    let (a, _) = assemble_files(&from_copy).unwrap();
+    let (b, _) = assemble_files(&p).unwrap();
+    assert_eq!(a.rgb, b.rgb);
     // Same name, different contents: a re-prepared file is noticed.
     phantom(d, "s2");
     std::fs::create_dir(d.join("sub")).unwrap();
