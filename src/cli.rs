@@ -675,6 +675,10 @@ pub struct RenderArgs {
     /// 1 on a surface).
     #[arg(long, default_value = "black", value_parser = cdvol::render::Background::parse)]
     pub background: cdvol::render::Background,
+    /// Bits per channel of the image: 8, or 16 (PNG and TIFF; the same
+    /// colours, rounded to 16 bits instead of 8).
+    #[arg(long, default_value_t = 8, value_parser = parse_bit_depth)]
+    pub bit_depth: u8,
     #[arg(long, value_enum, default_value = "surface")]
     pub mode: ModeArg,
     /// Ray generator (paper section 5): chessboard distance (default),
@@ -1055,7 +1059,10 @@ impl RenderArgs {
                 ..s
             }),
             threads: self.threads,
-            background: self.background,
+            image: cdvol::render::ImageSpec {
+                background: self.background,
+                sixteen_bit: self.bit_depth == 16,
+            },
             mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
         })
     }
@@ -1127,6 +1134,29 @@ pub struct AssembleArgs {
     /// #rrggbb, or transparent (RGBA: alpha is each pixel's coverage).
     #[arg(long, default_value = "black", value_parser = cdvol::render::Background::parse)]
     pub background: cdvol::render::Background,
+    /// Bits per channel of the image: 8, or 16 (PNG and TIFF; the same
+    /// colours, rounded to 16 bits instead of 8).
+    #[arg(long, default_value_t = 8, value_parser = parse_bit_depth)]
+    pub bit_depth: u8,
+}
+
+impl AssembleArgs {
+    /// The image's background and bits.
+    pub fn image(&self) -> cdvol::render::ImageSpec {
+        cdvol::render::ImageSpec {
+            background: self.background,
+            sixteen_bit: self.bit_depth == 16,
+        }
+    }
+}
+
+/// `--bit-depth`: 8 or 16.
+fn parse_bit_depth(s: &str) -> Result<u8, String> {
+    match s.trim() {
+        "8" => Ok(8),
+        "16" => Ok(16),
+        _ => Err(format!("{s:?}: expected 8 or 16")),
+    }
 }
 
 fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {

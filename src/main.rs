@@ -227,7 +227,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 Ok(v)
             };
             check_outputs(&outputs(false)?, &a.parts, None)?;
-            a.background.check(&a.output)?;
+            a.image().check(&a.output)?;
             let parts = a
                 .parts
                 .iter()
@@ -239,7 +239,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             }
             // The image (and depth files) and the statistics as one set.
             let mut set = cdvol::fsutil::FileSet::new();
-            cdvol::render::stage_on(&frame, &a.output, &mut set, a.background)?;
+            cdvol::render::stage_on(&frame, &a.output, &mut set, a.image())?;
             if let Some(p) = &a.stats {
                 set.add_bytes(p, &serde_json::to_vec_pretty(&stats)?)?;
             }

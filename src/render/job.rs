@@ -12,7 +12,7 @@ use super::camera::{orbit_dirs, Camera, CameraError, Projection};
 use super::error::RenderError;
 use super::options::Mode;
 use super::options::RenderOptions;
-use super::output::{image_files, stage_on, Background, SaveError};
+use super::output::{image_files, stage_on, ImageSpec, SaveError};
 use super::shard::{render_part, PartError};
 use super::stats::Stats;
 use super::template::render_template;
@@ -156,9 +156,9 @@ pub struct RenderJob {
     pub shard: Option<Shard>,
     /// Worker threads (`None`: rayon's default, all cores).
     pub threads: Option<usize>,
-    /// What shows where rays cover less than the pixel (black: the image
-    /// as rendered).
-    pub background: Background,
+    /// The background where rays cover less than the pixel (black: the
+    /// image as rendered) and the bits per channel.
+    pub image: ImageSpec,
     /// Bytes the render may plan to use ([`render_memory`]); None: the
     /// default, [`crate::memory::default_limit`] (3/4 of RAM).
     pub mem_limit: Option<u64>,
@@ -280,7 +280,7 @@ impl RenderJob {
             v.extend(image_files(&self.output, depth)?);
         }
         if self.shard.is_none() || self.frames > 1 {
-            self.background.check(&self.output)?;
+            self.image.check(&self.output)?;
         }
         v.extend(self.stats.iter().cloned());
         Ok(v)
@@ -391,7 +391,7 @@ fn image(
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
     let (frame, stats) = render_one(vol, None, camera, job, progress)?;
     let mut set = FileSet::new();
-    stage_on(&frame, &job.output, &mut set, job.background)?;
+    stage_on(&frame, &job.output, &mut set, job.image)?;
     if let Some(p) = &job.stats {
         add_json(&mut set, p, &stats)?;
     }
@@ -436,7 +436,7 @@ fn turntable(
             vol.header().orientation.as_ref(),
         )?;
         let (frame, stats) = render_one(vol, Some(&cache), &cam, job, progress)?;
-        stage_on(&frame, &numbered(&job.output, f), &mut set, job.background)?;
+        stage_on(&frame, &numbered(&job.output, f), &mut set, job.image)?;
         total.merge(&stats);
         per_frame.push(stats);
     }

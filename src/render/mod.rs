@@ -51,7 +51,7 @@ pub use options::{
 };
 pub use output::{
     image_files, save, save_on, stage, stage_on, Background, BackgroundError, Colouring, Frame,
-    SaveError,
+    ImageSpec, SaveError,
 };
 pub use shard::{render_part, render_part_in};
 pub use stats::Stats;

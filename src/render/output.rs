@@ -62,6 +62,10 @@ pub struct Frame {
     /// hit and 0 on a miss otherwise; 255 everywhere in a cost map. The
     /// output's [`Background`] shows through the rest.
     pub alpha: Vec<u8>,
+    /// `rgb` and `alpha` at 16 bits (`--bit-depth 16`), rounded from the
+    /// same values.
+    pub rgb16: Vec<u16>,
+    pub alpha16: Vec<u16>,
     /// Depth mode: hit distance in mm, NaN where the ray misses.
     pub depth: Option<Vec<f32>>,
     /// Steps per pixel.
@@ -110,12 +114,27 @@ pub fn auto_window(px: &[Px]) -> [f64; 2] {
 pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
     let n = (w * h) as usize;
     let mut rgb = vec![0u8; 3 * n];
+    let mut rgb16 = vec![0u16; 3 * n];
     let to8 = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
-    let alpha: Vec<u8> = match kind {
-        Colouring::Rgb => px.iter().map(|p| to8(p.alpha)).collect(),
-        Colouring::Cost => vec![255; n],
+    let to16 = |x: f32| (x.clamp(0.0, 1.0) * 65535.0).round() as u16;
+    let cover: Vec<f32> = match kind {
+        Colouring::Rgb => px.iter().map(|p| p.alpha).collect(),
+        Colouring::Cost => vec![1.0; n],
         Colouring::Mip { .. } | Colouring::Depth => {
-            px.iter().map(|p| if p.hit { 255 } else { 0 }).collect()
+            px.iter().map(|p| if p.hit { 1.0 } else { 0.0 }).collect()
+        }
+    };
+    let alpha: Vec<u8> = cover.iter().map(|&a| to8(a)).collect();
+    let alpha16: Vec<u16> = cover.iter().map(|&a| to16(a)).collect();
+    // Pixel `i`, channel `k` (`None`: all three) set to `x` in [0, 1].
+    let mut put = |i: usize, k: Option<usize>, x: f32| {
+        let ks = match k {
+            Some(k) => k..k + 1,
+            None => 0..3,
+        };
+        for k in ks {
+            rgb[3 * i + k] = to8(x);
+            rgb16[3 * i + k] = to16(x);
         }
     };
     let mut depth = None;
@@ -123,7 +142,7 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
         Colouring::Rgb => {
             for (i, p) in px.iter().enumerate() {
                 for k in 0..3 {
-                    rgb[3 * i + k] = to8(p.rgb[k]);
+                    put(i, Some(k), p.rgb[k]);
                 }
             }
         }
@@ -135,14 +154,16 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
                 } else {
                     0.0
                 };
-                rgb[3 * i..3 * i + 3].fill(to8(g));
+                put(i, None, g);
             }
         }
         Colouring::Cost => {
             let max = px.iter().map(|p| p.steps).max().unwrap_or(1).max(1) as f32;
             for (i, p) in px.iter().enumerate() {
                 let c = heat(p.steps as f32 / max);
-                rgb[3 * i..3 * i + 3].copy_from_slice(&c);
+                for (k, &v) in c.iter().enumerate() {
+                    put(i, Some(k), v as f32 / 255.0);
+                }
             }
         }
         Colouring::Depth => {
@@ -159,7 +180,7 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
                 } else {
                     0.0
                 };
-                rgb[3 * i..3 * i + 3].fill(to8(g));
+                put(i, None, g);
             }
             depth = Some(d);
         }
@@ -169,6 +190,8 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
         height: h,
         rgb,
         alpha,
+        rgb16,
+        alpha16,
         depth,
         steps: px.iter().map(|p| p.steps).collect(),
     }
@@ -219,6 +242,9 @@ pub enum SaveError {
         path.display()
     )]
     Extension { path: PathBuf, found: String },
+    /// 16 bits per channel in a format without them.
+    #[error("{}: JPEG has 8 bits per channel for --bit-depth 16; use .png or .tif", path.display())]
+    No16Bit { path: PathBuf },
     /// A transparent background in a format without alpha.
     #[error(
         "{}: JPEG has no alpha channel for --background transparent; use .png or .tif",
@@ -291,13 +317,13 @@ pub fn image_files(path: &Path, depth: bool) -> Result<Vec<PathBuf>, SaveError> 
 /// (fsutil::FileSet): all are written to temporary files first, then
 /// renamed, so a failure replaces none of an older set.
 pub fn save(frame: &Frame, path: &Path) -> Result<Vec<PathBuf>, SaveError> {
-    save_on(frame, path, Background::BLACK)
+    save_on(frame, path, ImageSpec::default())
 }
 
-/// [`save`] over `bg`.
-pub fn save_on(frame: &Frame, path: &Path, bg: Background) -> Result<Vec<PathBuf>, SaveError> {
+/// [`save`] as `spec` says ([`ImageSpec`]).
+pub fn save_on(frame: &Frame, path: &Path, spec: ImageSpec) -> Result<Vec<PathBuf>, SaveError> {
     let mut set = FileSet::new();
-    let files = stage_on(frame, path, &mut set, bg)?;
+    let files = stage_on(frame, path, &mut set, spec)?;
     set.commit()?;
     Ok(files)
 }
@@ -367,6 +393,66 @@ impl Background {
     }
 }
 
+/// How an image is written beyond its format: the background and the bits
+/// per channel (`render --background`, `--bit-depth`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ImageSpec {
+    pub background: Background,
+    /// 16 bits per channel (PNG and TIFF) instead of 8.
+    pub sixteen_bit: bool,
+}
+
+impl ImageSpec {
+    /// Refuses what the format of `path` cannot hold: alpha or 16 bits in
+    /// JPEG.
+    pub fn check(self, path: &Path) -> Result<(), SaveError> {
+        self.background.check(path)?;
+        if self.sixteen_bit && image_format(path)? == image::ImageFormat::Jpeg {
+            return Err(SaveError::No16Bit {
+                path: path.to_path_buf(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// [`composited`] at 16 bits per channel.
+fn composited16(frame: &Frame, bg: Background) -> image::DynamicImage {
+    let (w, h) = (frame.width, frame.height);
+    let px = frame.rgb16.chunks_exact(3).zip(&frame.alpha16);
+    match bg {
+        Background::Colour(c) => {
+            let mut out = Vec::with_capacity(frame.rgb16.len());
+            for (rgb, &a) in px {
+                for k in 0..3 {
+                    let under = ((65535 - a as u64) * c[k] as u64 * 257 + 32767) / 65535;
+                    out.push((rgb[k] as u64 + under).min(65535) as u16);
+                }
+            }
+            image::DynamicImage::ImageRgb16(
+                image::ImageBuffer::from_raw(w, h, out).unwrap_or_default(),
+            )
+        }
+        Background::Transparent => {
+            let mut out = Vec::with_capacity(frame.rgb16.len() / 3 * 4);
+            for (rgb, &a) in px {
+                for &v in rgb {
+                    let straight = match a {
+                        0 => 0,
+                        65535 => v as u64,
+                        a => (v as u64 * 65535 + a as u64 / 2) / a as u64,
+                    };
+                    out.push(straight.min(65535) as u16);
+                }
+                out.push(a);
+            }
+            image::DynamicImage::ImageRgba16(
+                image::ImageBuffer::from_raw(w, h, out).unwrap_or_default(),
+            )
+        }
+    }
+}
+
 /// A `--background` that is none of the forms [`Background::parse`] takes.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("background {found:?}: expected black, white, transparent, R,G,B (0..=255) or #rrggbb")]
@@ -418,17 +504,17 @@ fn composited(frame: &Frame, bg: Background) -> image::DynamicImage {
 /// renamed when the caller commits the set (a turntable commits all its
 /// frames at once).
 pub fn stage(frame: &Frame, path: &Path, set: &mut FileSet) -> Result<Vec<PathBuf>, SaveError> {
-    stage_on(frame, path, set, Background::BLACK)
+    stage_on(frame, path, set, ImageSpec::default())
 }
 
-/// [`stage`] over `bg` ([`Background`]).
+/// [`stage`] as `spec` says ([`ImageSpec`]: background, bits).
 pub fn stage_on(
     frame: &Frame,
     path: &Path,
     set: &mut FileSet,
-    bg: Background,
+    spec: ImageSpec,
 ) -> Result<Vec<PathBuf>, SaveError> {
-    bg.check(path)?;
+    spec.check(path)?;
     let encode = |img: image::DynamicImage, to: &Path| -> Result<Vec<u8>, SaveError> {
         let mut buf = std::io::Cursor::new(Vec::new());
         img.write_to(&mut buf, image_format(to)?)
@@ -453,7 +539,15 @@ pub fn stage_on(
     if frame.alpha.len() * 3 != frame.rgb.len() {
         return Err(size("alpha", frame.alpha.len(), 1));
     }
-    set.add_bytes(path, &encode(composited(frame, bg), path)?)?;
+    let img = if spec.sixteen_bit {
+        if frame.rgb16.len() != frame.rgb.len() || frame.alpha16.len() != frame.alpha.len() {
+            return Err(size("rgb16", frame.rgb16.len(), 3));
+        }
+        composited16(frame, spec.background)
+    } else {
+        composited(frame, spec.background)
+    };
+    set.add_bytes(path, &encode(img, path)?)?;
     if let Some(d) = &frame.depth {
         let raw: Vec<u8> = d.iter().flat_map(|x| x.to_le_bytes()).collect();
         set.add_bytes(&files[1], &raw)?;

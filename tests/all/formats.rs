@@ -566,3 +566,83 @@ fn render_backgrounds() {
     );
     assert!(e.contains("\"pink\""), "{e}");
 }
+
+/// `--bit-depth 16`: PNG and TIFF at 16 bits per channel, the same image
+/// as the 8-bit one to within rounding, with finer steps where the 8-bit
+/// one has few (a MIP window); JPEG refused.
+#[test]
+fn render_sixteen_bit_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let head = d.join("head.json");
+    common::ok(
+        common::cdvol()
+            .args(["phantom", "ct", "-q", "--dims", "32,32,20", "-o"])
+            .arg(&head),
+    );
+    let cdv = d.join("head.cdv");
+    common::ok(
+        common::cdvol()
+            .args(["prep", "-q", "--iso", "-500"])
+            .arg(&head)
+            .arg("-o")
+            .arg(&cdv),
+    );
+    let render = |name: &str, extra: &[&str]| {
+        let out = d.join(name);
+        common::ok(
+            common::cdvol()
+                .args([
+                    "render", "-q", "--width", "40", "--height", "36", "--view", "30,20",
+                ])
+                .args(extra)
+                .arg(&cdv)
+                .arg("-o")
+                .arg(&out),
+        );
+        image::open(&out).unwrap()
+    };
+    for (mode, name) in [("surface", "s"), ("mip", "m"), ("depth", "d")] {
+        let a8 = render(&format!("{name}8.png"), &["--mode", mode]).to_rgb8();
+        // The depth mode writes PNG only (with its .f32 and .depth16.png).
+        let exts: &[&str] = if mode == "depth" {
+            &["png"]
+        } else {
+            &["png", "tif"]
+        };
+        for ext in exts {
+            let img = render(
+                &format!("{name}16.{ext}"),
+                &["--mode", mode, "--bit-depth", "16"],
+            );
+            let a16 = img.as_rgb16().expect("16-bit RGB").clone();
+            let mut finer = false;
+            for (p8, p16) in a8.pixels().zip(a16.pixels()) {
+                for k in 0..3 {
+                    let down = (p16[k] as f64 / 257.0).round() as i32;
+                    assert!(
+                        (down - p8[k] as i32).abs() <= 1,
+                        "{mode} {ext}: {p8:?} {p16:?}"
+                    );
+                    finer |= p16[k] % 257 != 0;
+                }
+            }
+            if mode != "surface" {
+                assert!(finer, "{mode} {ext}: no level between the 8-bit ones");
+            }
+        }
+    }
+    let t = render(
+        "t16.png",
+        &["--bit-depth", "16", "--background", "transparent"],
+    );
+    assert!(t.as_rgba16().is_some());
+    let e = common::fails(
+        common::cdvol()
+            .args(["render", "-q", "--bit-depth", "16"])
+            .arg(&cdv)
+            .arg("-o")
+            .arg(d.join("x.jpg")),
+    );
+    assert!(e.contains("8 bits per channel"), "{e}");
+}
