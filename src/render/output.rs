@@ -416,43 +416,6 @@ impl ImageSpec {
     }
 }
 
-/// [`composited`] at 16 bits per channel.
-fn composited16(frame: &Frame, bg: Background) -> image::DynamicImage {
-    let (w, h) = (frame.width, frame.height);
-    let px = frame.rgb16.chunks_exact(3).zip(&frame.alpha16);
-    match bg {
-        Background::Colour(c) => {
-            let mut out = Vec::with_capacity(frame.rgb16.len());
-            for (rgb, &a) in px {
-                for k in 0..3 {
-                    let under = ((65535 - a as u64) * c[k] as u64 * 257 + 32767) / 65535;
-                    out.push((rgb[k] as u64 + under).min(65535) as u16);
-                }
-            }
-            image::DynamicImage::ImageRgb16(
-                image::ImageBuffer::from_raw(w, h, out).unwrap_or_default(),
-            )
-        }
-        Background::Transparent => {
-            let mut out = Vec::with_capacity(frame.rgb16.len() / 3 * 4);
-            for (rgb, &a) in px {
-                for &v in rgb {
-                    let straight = match a {
-                        0 => 0,
-                        65535 => v as u64,
-                        a => (v as u64 * 65535 + a as u64 / 2) / a as u64,
-                    };
-                    out.push(straight.min(65535) as u16);
-                }
-                out.push(a);
-            }
-            image::DynamicImage::ImageRgba16(
-                image::ImageBuffer::from_raw(w, h, out).unwrap_or_default(),
-            )
-        }
-    }
-}
-
 /// A `--background` that is none of the forms [`Background::parse`] takes.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("background {found:?}: expected black, white, transparent, R,G,B (0..=255) or #rrggbb")]
@@ -461,41 +424,62 @@ pub struct BackgroundError {
     pub found: String,
 }
 
-/// `frame`'s colour over `bg`: RGB over a colour (`rgb + (1 - alpha) *
-/// bg`, the premultiplied "over"), or straight (not premultiplied) RGBA.
-fn composited(frame: &Frame, bg: Background) -> image::DynamicImage {
+/// `frame`'s colour over `bg` at 8 or 16 bits per channel: RGB over a
+/// colour (`rgb + (1 - alpha) * bg`, the premultiplied "over"), or
+/// straight (not premultiplied) RGBA.
+fn composited(frame: &Frame, bg: Background, sixteen_bit: bool) -> image::DynamicImage {
+    use image::DynamicImage as D;
     let (w, h) = (frame.width, frame.height);
-    let px = frame.rgb.chunks_exact(3).zip(&frame.alpha);
+    if sixteen_bit {
+        let widen = |v: &[u16]| v.iter().map(|&x| x as u64).collect::<Vec<_>>();
+        let (px, rgba) = over(&widen(&frame.rgb16), &widen(&frame.alpha16), 65535, bg);
+        let px: Vec<u16> = px.into_iter().map(|x| x as u16).collect();
+        match rgba {
+            false => D::ImageRgb16(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
+            true => D::ImageRgba16(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
+        }
+    } else {
+        let widen = |v: &[u8]| v.iter().map(|&x| x as u64).collect::<Vec<_>>();
+        let (px, rgba) = over(&widen(&frame.rgb), &widen(&frame.alpha), 255, bg);
+        let px: Vec<u8> = px.into_iter().map(|x| x as u8).collect();
+        match rgba {
+            false => D::ImageRgb8(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
+            true => D::ImageRgba8(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
+        }
+    }
+}
+
+/// Channels `rgb` (premultiplied, 3 a pixel) with coverage `alpha`, both
+/// in `0..=max`, over `bg`: the output channels, each at most `max`, and
+/// whether they are RGBA (a transparent background) rather than RGB.
+fn over(rgb: &[u64], alpha: &[u64], max: u64, bg: Background) -> (Vec<u64>, bool) {
+    let px = rgb.chunks_exact(3).zip(alpha);
     match bg {
-        Background::Colour([0, 0, 0]) => image::DynamicImage::ImageRgb8(
-            image::RgbImage::from_raw(w, h, frame.rgb.clone()).unwrap_or_default(),
-        ),
         Background::Colour(c) => {
-            let mut out = Vec::with_capacity(frame.rgb.len());
-            for (rgb, &a) in px {
+            // The background's 8-bit channels at `max` (255 -> 65535).
+            let c = c.map(|x| x as u64 * max / 255);
+            let mut out = Vec::with_capacity(rgb.len());
+            for (p, &a) in px {
                 for k in 0..3 {
-                    let under = ((255 - a as u32) * c[k] as u32 + 127) / 255;
-                    out.push((rgb[k] as u32 + under).min(255) as u8);
+                    out.push((p[k] + ((max - a) * c[k] + max / 2) / max).min(max));
                 }
             }
-            image::DynamicImage::ImageRgb8(image::RgbImage::from_raw(w, h, out).unwrap_or_default())
+            (out, false)
         }
         Background::Transparent => {
-            let mut out = Vec::with_capacity(frame.rgb.len() / 3 * 4);
-            for (rgb, &a) in px {
-                for &v in rgb {
+            let mut out = Vec::with_capacity(rgb.len() / 3 * 4);
+            for (p, &a) in px {
+                for &v in p {
                     let straight = match a {
                         0 => 0,
-                        255 => v as u32,
-                        a => (v as u32 * 255 + a as u32 / 2) / a as u32,
+                        a if a == max => v,
+                        a => (v * max + a / 2) / a,
                     };
-                    out.push(straight.min(255) as u8);
+                    out.push(straight.min(max));
                 }
                 out.push(a);
             }
-            image::DynamicImage::ImageRgba8(
-                image::RgbaImage::from_raw(w, h, out).unwrap_or_default(),
-            )
+            (out, true)
         }
     }
 }
@@ -539,14 +523,12 @@ pub fn stage_on(
     if frame.alpha.len() * 3 != frame.rgb.len() {
         return Err(size("alpha", frame.alpha.len(), 1));
     }
-    let img = if spec.sixteen_bit {
-        if frame.rgb16.len() != frame.rgb.len() || frame.alpha16.len() != frame.alpha.len() {
-            return Err(size("rgb16", frame.rgb16.len(), 3));
-        }
-        composited16(frame, spec.background)
-    } else {
-        composited(frame, spec.background)
-    };
+    if spec.sixteen_bit
+        && (frame.rgb16.len() != frame.rgb.len() || frame.alpha16.len() != frame.alpha.len())
+    {
+        return Err(size("rgb16", frame.rgb16.len(), 3));
+    }
+    let img = composited(frame, spec.background, spec.sixteen_bit);
     set.add_bytes(path, &encode(img, path)?)?;
     if let Some(d) = &frame.depth {
         let raw: Vec<u8> = d.iter().flat_map(|x| x.to_le_bytes()).collect();

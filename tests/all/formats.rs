@@ -332,20 +332,7 @@ fn cli_prep_reads_nrrd() {
 #[test]
 fn render_output_format_follows_the_extension() {
     let dir = tempfile::tempdir().unwrap();
-    let head = dir.path().join("head.json");
-    common::ok(
-        common::cdvol()
-            .args(["phantom", "ct", "-q", "--dims", "24,24,16", "-o"])
-            .arg(&head),
-    );
-    let cdv = dir.path().join("head.cdv");
-    common::ok(
-        common::cdvol()
-            .args(["prep", "-q", "--iso", "300"])
-            .arg(&head)
-            .arg("-o")
-            .arg(&cdv),
-    );
+    let cdv = small_head(dir.path(), "24,24,16", "300", "head");
     let render = |name: &str, extra: &[&str]| {
         let out = dir.path().join(name);
         let mut c = common::cdvol();
@@ -394,20 +381,7 @@ fn render_output_format_follows_the_extension() {
 #[test]
 fn render_onto_its_packed_file_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let head = dir.path().join("head.json");
-    common::ok(
-        common::cdvol()
-            .args(["phantom", "ct", "-q", "--dims", "16,16,12", "-o"])
-            .arg(&head),
-    );
-    let cdv = dir.path().join("r.cdv");
-    common::ok(
-        common::cdvol()
-            .args(["prep", "-q", "--iso", "300"])
-            .arg(&head)
-            .arg("-o")
-            .arg(&cdv),
-    );
+    let cdv = small_head(dir.path(), "16,16,12", "300", "r");
     let before = std::fs::read(&cdv).unwrap();
     let e = common::fails(
         common::cdvol()
@@ -428,20 +402,7 @@ fn render_onto_its_packed_file_is_refused() {
 fn render_backgrounds() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let head = d.join("head.json");
-    common::ok(
-        common::cdvol()
-            .args(["phantom", "ct", "-q", "--dims", "24,24,16", "-o"])
-            .arg(&head),
-    );
-    let cdv = d.join("head.cdv");
-    common::ok(
-        common::cdvol()
-            .args(["prep", "-q", "--iso", "-500"])
-            .arg(&head)
-            .arg("-o")
-            .arg(&cdv),
-    );
+    let cdv = small_head(d, "24,24,16", "-500", "head");
     let tf = d.join("tf.json");
     std::fs::write(
         &tf,
@@ -574,20 +535,7 @@ fn render_backgrounds() {
 fn render_sixteen_bit_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let head = d.join("head.json");
-    common::ok(
-        common::cdvol()
-            .args(["phantom", "ct", "-q", "--dims", "32,32,20", "-o"])
-            .arg(&head),
-    );
-    let cdv = d.join("head.cdv");
-    common::ok(
-        common::cdvol()
-            .args(["prep", "-q", "--iso", "-500"])
-            .arg(&head)
-            .arg("-o")
-            .arg(&cdv),
-    );
+    let cdv = small_head(d, "32,32,20", "-500", "head");
     let render = |name: &str, extra: &[&str]| {
         let out = d.join(name);
         common::ok(
@@ -645,4 +593,24 @@ fn render_sixteen_bit_outputs() {
             .arg(d.join("x.jpg")),
     );
     assert!(e.contains("8 bits per channel"), "{e}");
+}
+
+/// A CT phantom of `dims` (`X,Y,Z`) in `dir`, prepared at `iso` as
+/// `NAME.cdv`; its path.
+fn small_head(dir: &Path, dims: &str, iso: &str, name: &str) -> PathBuf {
+    let head = dir.join("head.json");
+    common::ok(
+        common::cdvol()
+            .args(["phantom", "ct", "-q", "--dims", dims, "-o"])
+            .arg(&head),
+    );
+    let cdv = dir.join(format!("{name}.cdv"));
+    common::ok(
+        common::cdvol()
+            .args(["prep", "-q", "--iso", iso])
+            .arg(&head)
+            .arg("-o")
+            .arg(&cdv),
+    );
+    cdv
 }
