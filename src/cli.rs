@@ -675,10 +675,13 @@ pub struct RenderArgs {
     /// 1 on a surface).
     #[arg(long, default_value = "black", value_parser = cdvol::render::Background::parse)]
     pub background: cdvol::render::Background,
-    /// Bits per channel of the image: 8, or 16 (PNG and TIFF; the same
-    /// colours, rounded to 16 bits instead of 8).
-    #[arg(long, default_value_t = 8, value_parser = parse_bit_depth)]
-    pub bit_depth: u8,
+    /// Bits per channel of the image: 8; 16 (PNG and TIFF; the same
+    /// colours, rounded to 16 bits instead of 8); or 32, float32 TIFF:
+    /// the colour unrounded in surface and composite, the data itself in
+    /// one channel in depth (mm), MIP (data units, whatever the window)
+    /// and cost (steps), NaN where a ray misses.
+    #[arg(long, default_value = "8", value_parser = parse_bit_depth)]
+    pub bit_depth: cdvol::render::Bits,
     #[arg(long, value_enum, default_value = "surface")]
     pub mode: ModeArg,
     /// Ray generator (paper section 5): chessboard distance (default),
@@ -1061,7 +1064,7 @@ impl RenderArgs {
             threads: self.threads,
             image: cdvol::render::ImageSpec {
                 background: self.background,
-                sixteen_bit: self.bit_depth == 16,
+                bits: self.bit_depth,
             },
             mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
         })
@@ -1134,10 +1137,13 @@ pub struct AssembleArgs {
     /// #rrggbb, or transparent (RGBA: alpha is each pixel's coverage).
     #[arg(long, default_value = "black", value_parser = cdvol::render::Background::parse)]
     pub background: cdvol::render::Background,
-    /// Bits per channel of the image: 8, or 16 (PNG and TIFF; the same
-    /// colours, rounded to 16 bits instead of 8).
-    #[arg(long, default_value_t = 8, value_parser = parse_bit_depth)]
-    pub bit_depth: u8,
+    /// Bits per channel of the image: 8; 16 (PNG and TIFF; the same
+    /// colours, rounded to 16 bits instead of 8); or 32, float32 TIFF:
+    /// the colour unrounded in surface and composite, the data itself in
+    /// one channel in depth (mm), MIP (data units, whatever the window)
+    /// and cost (steps), NaN where a ray misses.
+    #[arg(long, default_value = "8", value_parser = parse_bit_depth)]
+    pub bit_depth: cdvol::render::Bits,
 }
 
 impl AssembleArgs {
@@ -1145,17 +1151,19 @@ impl AssembleArgs {
     pub fn image(&self) -> cdvol::render::ImageSpec {
         cdvol::render::ImageSpec {
             background: self.background,
-            sixteen_bit: self.bit_depth == 16,
+            bits: self.bit_depth,
         }
     }
 }
 
-/// `--bit-depth`: 8 or 16.
-fn parse_bit_depth(s: &str) -> Result<u8, String> {
+/// `--bit-depth`: 8, 16 or 32 (float, TIFF).
+fn parse_bit_depth(s: &str) -> Result<cdvol::render::Bits, String> {
+    use cdvol::render::Bits;
     match s.trim() {
-        "8" => Ok(8),
-        "16" => Ok(16),
-        _ => Err(format!("{s:?}: expected 8 or 16")),
+        "8" => Ok(Bits::Eight),
+        "16" => Ok(Bits::Sixteen),
+        "32" => Ok(Bits::Float),
+        _ => Err(format!("{s:?}: expected 8, 16 or 32 (float, TIFF only)")),
     }
 }
 

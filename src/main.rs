@@ -222,7 +222,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             // Outputs first (none may be a part), then the depth mode's
             // companions once the parts say which mode they are.
             let outputs = |depth| -> Result<Vec<_>> {
-                let mut v = cdvol::render::image_files(&a.output, depth)?;
+                let mut v = cdvol::render::image_files(&a.output, depth, a.image().bits)?;
                 v.extend(a.stats.iter().cloned());
                 Ok(v)
             };

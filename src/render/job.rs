@@ -271,13 +271,17 @@ impl RenderJob {
         if self.frames > 1 {
             for f in 0..self.frames {
                 if self.shard.is_none_or(|s| f % s.n == s.k) {
-                    v.extend(image_files(&numbered(&self.output, f), depth)?);
+                    v.extend(image_files(
+                        &numbered(&self.output, f),
+                        depth,
+                        self.image.bits,
+                    )?);
                 }
             }
         } else if self.shard.is_some() {
             v.push(self.output.clone());
         } else {
-            v.extend(image_files(&self.output, depth)?);
+            v.extend(image_files(&self.output, depth, self.image.bits)?);
         }
         if self.shard.is_none() || self.frames > 1 {
             self.image.check(&self.output)?;

@@ -50,8 +50,8 @@ pub use options::{
     MAX_PIXELS, MIN_STEP_MM,
 };
 pub use output::{
-    image_files, save, save_on, stage, stage_on, Background, BackgroundError, Colouring, Frame,
-    ImageSpec, SaveError,
+    image_files, save, save_on, stage, stage_on, Background, BackgroundError, Bits, Colouring,
+    Frame, ImageSpec, SaveError,
 };
 pub use shard::{render_part, render_part_in};
 pub use stats::Stats;

@@ -49,8 +49,8 @@ impl Colouring {
     }
 }
 
-/// A rendered image: RGB8 for display, plus per-pixel data of the depth
-/// and cost modes.
+/// A rendered image: RGB8 for display, its colour in f32 for 16-bit and
+/// float outputs, plus per-pixel data of the depth, MIP and cost modes.
 #[derive(Debug, Clone)]
 pub struct Frame {
     pub width: u32,
@@ -62,12 +62,17 @@ pub struct Frame {
     /// hit and 0 on a miss otherwise; 255 everywhere in a cost map. The
     /// output's [`Background`] shows through the rest.
     pub alpha: Vec<u8>,
-    /// `rgb` and `alpha` at 16 bits (`--bit-depth 16`), rounded from the
-    /// same values.
-    pub rgb16: Vec<u16>,
-    pub alpha16: Vec<u16>,
+    /// `rgb` and `alpha` before rounding, 4 a pixel (red, green, blue
+    /// premultiplied, coverage), each in [0, 1]: `--bit-depth 16` rounds
+    /// these to 16 bits and `--bit-depth 32` writes them as they are.
+    pub linear: Vec<f32>,
     /// Depth mode: hit distance in mm, NaN where the ray misses.
     pub depth: Option<Vec<f32>>,
+    /// What a float32 TIFF of a data mode holds, one a pixel: the depth
+    /// (mm) or MIP maximum (rescaled data units, whatever the window),
+    /// NaN where the ray misses, or the cost map's steps. `None` in the
+    /// colour modes (surface, composite).
+    pub values: Option<Vec<f32>>,
     /// Steps per pixel.
     pub steps: Vec<u32>,
 }
@@ -113,31 +118,28 @@ pub fn auto_window(px: &[Px]) -> [f64; 2] {
 /// Colours the pixels `px` of a `w` x `h` image.
 pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
     let n = (w * h) as usize;
-    let mut rgb = vec![0u8; 3 * n];
-    let mut rgb16 = vec![0u16; 3 * n];
-    let to8 = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
-    let to16 = |x: f32| (x.clamp(0.0, 1.0) * 65535.0).round() as u16;
-    let cover: Vec<f32> = match kind {
-        Colouring::Rgb => px.iter().map(|p| p.alpha).collect(),
-        Colouring::Cost => vec![1.0; n],
-        Colouring::Mip { .. } | Colouring::Depth => {
-            px.iter().map(|p| if p.hit { 1.0 } else { 0.0 }).collect()
+    let mut linear = vec![0f32; 4 * n];
+    for (i, p) in px.iter().enumerate() {
+        linear[4 * i + 3] = match kind {
+            Colouring::Rgb => p.alpha,
+            Colouring::Cost => 1.0,
+            Colouring::Mip { .. } | Colouring::Depth => f32::from(u8::from(p.hit)),
         }
-    };
-    let alpha: Vec<u8> = cover.iter().map(|&a| to8(a)).collect();
-    let alpha16: Vec<u16> = cover.iter().map(|&a| to16(a)).collect();
+        .clamp(0.0, 1.0);
+    }
     // Pixel `i`, channel `k` (`None`: all three) set to `x` in [0, 1].
     let mut put = |i: usize, k: Option<usize>, x: f32| {
         let ks = match k {
             Some(k) => k..k + 1,
             None => 0..3,
         };
+        let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
         for k in ks {
-            rgb[3 * i + k] = to8(x);
-            rgb16[3 * i + k] = to16(x);
+            linear[4 * i + k] = x;
         }
     };
-    let mut depth = None;
+    let miss_nan = |p: &Px, x: f32| if p.hit { x } else { f32::NAN };
+    let (mut depth, mut values) = (None, None);
     match kind {
         Colouring::Rgb => {
             for (i, p) in px.iter().enumerate() {
@@ -156,6 +158,7 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
                 };
                 put(i, None, g);
             }
+            values = Some(px.iter().map(|p| miss_nan(p, p.rgb[0])).collect());
         }
         Colouring::Cost => {
             let max = px.iter().map(|p| p.steps).max().unwrap_or(1).max(1) as f32;
@@ -165,6 +168,7 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
                     put(i, Some(k), v as f32 / 255.0);
                 }
             }
+            values = Some(px.iter().map(|p| p.steps as f32).collect());
         }
         Colouring::Depth => {
             let d: Vec<f32> = px.iter().map(|p| p.depth).collect();
@@ -182,17 +186,24 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
                 };
                 put(i, None, g);
             }
+            values = Some(d.clone());
             depth = Some(d);
         }
     }
+    let to8 = |x: &f32| (x * 255.0).round() as u8;
+    let rgb = linear
+        .chunks_exact(4)
+        .flat_map(|c| c[..3].iter().map(to8))
+        .collect();
+    let alpha = linear.chunks_exact(4).map(|c| to8(&c[3])).collect();
     Frame {
         width: w,
         height: h,
         rgb,
         alpha,
-        rgb16,
-        alpha16,
+        linear,
         depth,
+        values,
         steps: px.iter().map(|p| p.steps).collect(),
     }
 }
@@ -251,12 +262,23 @@ pub enum SaveError {
         path.display()
     )]
     NoAlpha { path: PathBuf },
-    /// A depth image must be PNG (its 16-bit and f32 companions are).
+    /// A depth image must be PNG (its 16-bit and f32 companions are), or
+    /// a float32 TIFF of the depths themselves.
     #[error(
-        "{}: the depth mode writes a PNG (and .f32 and .depth16.png beside it); use a .png name",
+        "{}: the depth mode writes a PNG (and .f32 and .depth16.png beside it) or, with \
+         --bit-depth 32, a float32 TIFF of the depths in mm; use a .png name or --bit-depth 32",
         path.display()
     )]
     DepthFormat { path: PathBuf },
+    /// 32-bit float channels in a format without them.
+    #[error("{}: --bit-depth 32 (float) is written as TIFF only; use .tif or .tiff", path.display())]
+    NoFloat { path: PathBuf },
+    /// Float TIFF encoding failed.
+    #[error("{}: cannot encode the float32 TIFF: {source}", path.display())]
+    EncodeFloat {
+        path: PathBuf,
+        source: tiff::TiffError,
+    },
     /// Image encoding failed.
     #[error("{}: cannot encode the image: {source}", path.display())]
     Encode {
@@ -286,22 +308,24 @@ pub fn image_format(path: &Path) -> Result<image::ImageFormat, SaveError> {
     }
 }
 
-/// The files [`save`] writes for an image at `path`: the image and, in the
-/// depth mode (`depth`), `path` with `.f32` and `.depth16.png`. A depth
-/// image may not be named `*.f32`.
-pub fn image_files(path: &Path, depth: bool) -> Result<Vec<PathBuf>, SaveError> {
+/// The files [`save`] writes for an image at `path` with `bits` per
+/// channel: the image and, in the depth mode (`depth`) at 8 or 16 bits,
+/// `path` with `.f32` and `.depth16.png` (a float32 TIFF holds the depths
+/// itself). A depth image may not be named `*.f32`.
+pub fn image_files(path: &Path, depth: bool, bits: Bits) -> Result<Vec<PathBuf>, SaveError> {
     if depth && path.extension().is_some_and(|e| e == "f32") {
         return Err(SaveError::F32Name {
             path: path.to_path_buf(),
         });
     }
-    if image_format(path)? != image::ImageFormat::Png && depth {
+    let format = image_format(path)?;
+    if !depth || (bits == Bits::Float && format == image::ImageFormat::Tiff) {
+        return Ok(vec![path.to_path_buf()]);
+    }
+    if format != image::ImageFormat::Png {
         return Err(SaveError::DepthFormat {
             path: path.to_path_buf(),
         });
-    }
-    if !depth {
-        return Ok(vec![path.to_path_buf()]);
     }
     Ok(vec![
         path.to_path_buf(),
@@ -311,7 +335,7 @@ pub fn image_files(path: &Path, depth: bool) -> Result<Vec<PathBuf>, SaveError> 
 }
 
 /// Writes `frame` to `path` as PNG, TIFF or JPEG by its extension
-/// ([`image_format`]; 8-bit RGB); the depth mode (PNG only) also writes `path`
+/// ([`image_format`]; 8-bit RGB); the depth mode (PNG) also writes `path`
 /// with `.f32` (raw little-endian f32, NaN = miss) and a 16-bit PNG
 /// `*.depth16.png` ([`image_files`]). The files are committed as one set
 /// (fsutil::FileSet): all are written to temporary files first, then
@@ -393,22 +417,42 @@ impl Background {
     }
 }
 
+/// Bits per channel of an output image (`--bit-depth 8|16|32`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Bits {
+    /// 8-bit integers (every format).
+    #[default]
+    Eight,
+    /// 16-bit integers (PNG and TIFF): the same colours rounded to 16 bits.
+    Sixteen,
+    /// 32-bit floats (TIFF only). Surface and composite: the colour in
+    /// [0, 1] before any rounding. Depth, MIP and cost: one channel of
+    /// data ([`Frame::values`]: mm, data units, steps), NaN where a ray
+    /// misses, no background.
+    Float,
+}
+
 /// How an image is written beyond its format: the background and the bits
 /// per channel (`render --background`, `--bit-depth`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ImageSpec {
     pub background: Background,
-    /// 16 bits per channel (PNG and TIFF) instead of 8.
-    pub sixteen_bit: bool,
+    pub bits: Bits,
 }
 
 impl ImageSpec {
     /// Refuses what the format of `path` cannot hold: alpha or 16 bits in
-    /// JPEG.
+    /// JPEG, floats outside TIFF.
     pub fn check(self, path: &Path) -> Result<(), SaveError> {
         self.background.check(path)?;
-        if self.sixteen_bit && image_format(path)? == image::ImageFormat::Jpeg {
+        let format = image_format(path)?;
+        if self.bits == Bits::Sixteen && format == image::ImageFormat::Jpeg {
             return Err(SaveError::No16Bit {
+                path: path.to_path_buf(),
+            });
+        }
+        if self.bits == Bits::Float && format != image::ImageFormat::Tiff {
+            return Err(SaveError::NoFloat {
                 path: path.to_path_buf(),
             });
         }
@@ -431,8 +475,14 @@ fn composited(frame: &Frame, bg: Background, sixteen_bit: bool) -> image::Dynami
     use image::DynamicImage as D;
     let (w, h) = (frame.width, frame.height);
     if sixteen_bit {
-        let widen = |v: &[u16]| v.iter().map(|&x| x as u64).collect::<Vec<_>>();
-        let (px, rgba) = over(&widen(&frame.rgb16), &widen(&frame.alpha16), 65535, bg);
+        let to16 = |x: &f32| (x * 65535.0).round() as u64;
+        let rgb: Vec<u64> = frame
+            .linear
+            .chunks_exact(4)
+            .flat_map(|c| c[..3].iter().map(to16))
+            .collect();
+        let alpha: Vec<u64> = frame.linear.chunks_exact(4).map(|c| to16(&c[3])).collect();
+        let (px, rgba) = over(&rgb, &alpha, 65535, bg);
         let px: Vec<u16> = px.into_iter().map(|x| x as u16).collect();
         match rgba {
             false => D::ImageRgb16(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
@@ -447,6 +497,41 @@ fn composited(frame: &Frame, bg: Background, sixteen_bit: bool) -> image::Dynami
             true => D::ImageRgba8(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
         }
     }
+}
+
+/// The float32 TIFF of `frame` (`--bit-depth 32`): its data values in
+/// one channel when the mode has them ([`Frame::values`]), else its
+/// colour over `bg` as in [`composited`] but unrounded.
+fn float_tiff(frame: &Frame, bg: Background) -> Result<Vec<u8>, tiff::TiffError> {
+    use tiff::encoder::{colortype, TiffEncoder};
+    let (w, h) = (frame.width, frame.height);
+    let mut buf = std::io::Cursor::new(Vec::new());
+    let mut enc = TiffEncoder::new(&mut buf)?;
+    if let Some(v) = &frame.values {
+        enc.write_image::<colortype::Gray32Float>(w, h, v)?;
+        return Ok(buf.into_inner());
+    }
+    let px = frame.linear.chunks_exact(4);
+    match bg {
+        Background::Colour(c) => {
+            let c = c.map(|x| x as f32 / 255.0);
+            let out: Vec<f32> = px
+                .flat_map(|p| (0..3).map(move |k| (p[k] + (1.0 - p[3]) * c[k]).min(1.0)))
+                .collect();
+            enc.write_image::<colortype::RGB32Float>(w, h, &out)?;
+        }
+        Background::Transparent => {
+            let out: Vec<f32> = px
+                .flat_map(|p| {
+                    let a = p[3];
+                    let straight = move |x: f32| if a > 0.0 { (x / a).min(1.0) } else { 0.0 };
+                    [straight(p[0]), straight(p[1]), straight(p[2]), a]
+                })
+                .collect();
+            enc.write_image::<colortype::RGBA32Float>(w, h, &out)?;
+        }
+    }
+    Ok(buf.into_inner())
 }
 
 /// Channels `rgb` (premultiplied, 3 a pixel) with coverage `alpha`, both
@@ -516,19 +601,30 @@ pub fn stage_on(
         found,
         expected: frame.width as usize * frame.height as usize * per_px,
     };
-    let files = image_files(path, frame.depth.is_some())?;
-    if frame.rgb.len() != frame.width as usize * frame.height as usize * 3 {
+    let files = image_files(path, frame.depth.is_some(), spec.bits)?;
+    let n = frame.width as usize * frame.height as usize;
+    if frame.rgb.len() != n * 3 {
         return Err(size("rgb", frame.rgb.len(), 3));
     }
-    if frame.alpha.len() * 3 != frame.rgb.len() {
+    if frame.alpha.len() != n {
         return Err(size("alpha", frame.alpha.len(), 1));
     }
-    if spec.sixteen_bit
-        && (frame.rgb16.len() != frame.rgb.len() || frame.alpha16.len() != frame.alpha.len())
-    {
-        return Err(size("rgb16", frame.rgb16.len(), 3));
+    if frame.linear.len() != n * 4 {
+        return Err(size("linear", frame.linear.len(), 4));
     }
-    let img = composited(frame, spec.background, spec.sixteen_bit);
+    if let Some(v) = frame.values.as_ref().filter(|v| v.len() != n) {
+        return Err(size("values", v.len(), 1));
+    }
+    if spec.bits == Bits::Float {
+        let bytes =
+            float_tiff(frame, spec.background).map_err(|source| SaveError::EncodeFloat {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        set.add_bytes(path, &bytes)?;
+        return Ok(files);
+    }
+    let img = composited(frame, spec.background, spec.bits == Bits::Sixteen);
     set.add_bytes(path, &encode(img, path)?)?;
     if let Some(d) = &frame.depth {
         let raw: Vec<u8> = d.iter().flat_map(|x| x.to_le_bytes()).collect();

@@ -595,6 +595,150 @@ fn render_sixteen_bit_outputs() {
     assert!(e.contains("8 bits per channel"), "{e}");
 }
 
+/// One channel of float32 TIFF `path` (`--bit-depth 32` in the depth,
+/// MIP and cost modes), read by the tiff crate.
+fn gray_f32(path: &Path) -> (u32, u32, Vec<f32>) {
+    let mut dec = tiff::decoder::Decoder::new(std::fs::File::open(path).unwrap()).unwrap();
+    assert_eq!(dec.colortype().unwrap(), tiff::ColorType::Gray(32));
+    let (w, h) = dec.dimensions().unwrap();
+    match dec.read_image().unwrap() {
+        tiff::decoder::DecodingResult::F32(v) => (w, h, v),
+        _ => panic!("{}: not float32", path.display()),
+    }
+}
+
+/// `--bit-depth 32`: float32 TIFFs holding the data of the depth (mm),
+/// MIP (data units) and cost (steps) modes, NaN where rays miss, and the
+/// unrounded colour of surface and composite, each checked against an
+/// independent output of the same render: the depth mode's raw `.f32`,
+/// a 16-bit MIP through a known window, `--stats` steps, the 8-bit image.
+#[test]
+fn render_float_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cdv = small_head(d, "32,32,20", "-500", "head");
+    let render = |name: &str, extra: &[&str]| {
+        let out = d.join(name);
+        common::ok(
+            common::cdvol()
+                .args([
+                    "render", "-q", "--width", "40", "--height", "36", "--view", "30,20",
+                ])
+                .args(extra)
+                .arg(&cdv)
+                .arg("-o")
+                .arg(&out),
+        );
+        out
+    };
+    // Depth: the TIFF holds exactly the raw .f32 beside a PNG render, and
+    // is written alone.
+    let png = render("d.png", &["--mode", "depth"]);
+    let raw: Vec<f32> = std::fs::read(png.with_extension("f32"))
+        .unwrap()
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    let tif = render("dt.tif", &["--mode", "depth", "--bit-depth", "32"]);
+    let (w, h, v) = gray_f32(&tif);
+    assert_eq!((w, h), (40, 36));
+    assert_eq!(v.len(), raw.len());
+    for (a, b) in v.iter().zip(&raw) {
+        assert!(a.to_bits() == b.to_bits(), "depth {a} vs .f32 {b}");
+    }
+    assert!(v.iter().any(|x| x.is_nan()) && v.iter().any(|x| x.is_finite()));
+    assert!(!tif.with_extension("f32").exists());
+    // MIP: data values; a 16-bit image through the window 0..4000 gives
+    // each hit pixel's value to within 4000 / 65535 (plus f32 rounding),
+    // and misses (alpha 0 over transparent) are NaN.
+    let m16 = render(
+        "m16.png",
+        &[
+            "--mode",
+            "mip",
+            "--window",
+            "4000",
+            "--level",
+            "2000",
+            "--bit-depth",
+            "16",
+            "--background",
+            "transparent",
+        ],
+    );
+    let m16 = image::open(&m16).unwrap().to_rgba16();
+    let (_, _, mv) = gray_f32(&render("m.tif", &["--mode", "mip", "--bit-depth", "32"]));
+    let mut hits = 0;
+    for (p, &x) in m16.pixels().zip(&mv) {
+        if p[3] == 0 {
+            assert!(x.is_nan(), "miss holds {x}");
+            continue;
+        }
+        hits += 1;
+        let from16 = p[0] as f64 / 65535.0 * 4000.0;
+        if p[0] > 0 && p[0] < 65535 {
+            assert!(
+                (x as f64 - from16).abs() <= 0.07,
+                "MIP {x} vs 16-bit {from16}"
+            );
+        }
+    }
+    assert!(hits > 100, "{hits} hits");
+    // Cost: steps per pixel, summing to the statistics' steps.
+    let stats = d.join("c.json");
+    let c = render(
+        "c.tif",
+        &[
+            "--mode",
+            "cost",
+            "--bit-depth",
+            "32",
+            "--stats",
+            stats.to_str().unwrap(),
+        ],
+    );
+    let (_, _, cv) = gray_f32(&c);
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+    let sum: f64 = cv.iter().map(|&x| x as f64).sum();
+    assert_eq!(sum, json["steps"].as_f64().unwrap());
+    // Surface: RGB float within half a level of the 8-bit PNG; RGBA over
+    // a transparent background.
+    let s8 = image::open(render("s.png", &[])).unwrap().to_rgb8();
+    let sf = image::open(render("s.tif", &["--bit-depth", "32"])).unwrap();
+    let sf = sf.as_rgb32f().expect("float RGB").clone();
+    for (p8, pf) in s8.pixels().zip(sf.pixels()) {
+        for k in 0..3 {
+            assert!(
+                (pf[k] * 255.0 - p8[k] as f32).abs() <= 0.5 + 1e-3,
+                "{p8:?} {pf:?}"
+            );
+        }
+    }
+    let t = image::open(render(
+        "t.tif",
+        &["--bit-depth", "32", "--background", "transparent"],
+    ))
+    .unwrap();
+    assert!(t.as_rgba32f().is_some());
+    // Refused before any ray: float outside TIFF; a depth TIFF at 8 bits.
+    let e = common::fails(
+        common::cdvol()
+            .args(["render", "-q", "--bit-depth", "32"])
+            .arg(&cdv)
+            .arg("-o")
+            .arg(d.join("x.png")),
+    );
+    assert!(e.contains("TIFF only"), "{e}");
+    let e = common::fails(
+        common::cdvol()
+            .args(["render", "-q", "--mode", "depth"])
+            .arg(&cdv)
+            .arg("-o")
+            .arg(d.join("x.tif")),
+    );
+    assert!(e.contains("--bit-depth 32"), "{e}");
+}
+
 /// A CT phantom of `dims` (`X,Y,Z`) in `dir`, prepared at `iso` as
 /// `NAME.cdv`; its path.
 fn small_head(dir: &Path, dims: &str, iso: &str, name: &str) -> PathBuf {
