@@ -124,7 +124,7 @@ fn bench(c: &mut Criterion) {
         g.bench_function(format!("{name}/rbrick_decode"), |b| {
             b.iter(|| {
                 for &i in &ids {
-                    black_box(RBrick::decode(&vol, i, Planes::NONE).expect("decode"));
+                    black_box(RBrick::decode(&vol, i, Planes::NONE, false).expect("decode"));
                 }
             })
         });

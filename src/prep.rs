@@ -589,8 +589,9 @@ pub fn prep(
                     raw_len,
                     no_object,
                     min_code,
+                    value_max,
                 } => {
-                    writer.put_brick(id, &compressed, no_object.then_some(min_code))?;
+                    writer.put_brick(id, &compressed, no_object.then_some(min_code), value_max)?;
                     summary.raw_payload_bytes += raw_len;
                 }
             }
@@ -660,7 +661,38 @@ enum BrickOut {
         raw_len: u64,
         no_object: bool,
         min_code: u32,
+        value_max: Option<f64>,
     },
+}
+
+/// The largest rescaled value among the words of a brick's samples
+/// `x0..=x1`, `y0..=y1` and slab slices `0..=nzc` that are not codes
+/// (NaN ignored); `None` when none is a number.
+fn brick_value_max<W: Word>(
+    h: &Header,
+    words: &[W],
+    [x0, x1]: [usize; 2],
+    [y0, y1]: [usize; 2],
+    nzc: usize,
+) -> Option<f64> {
+    let [nx, ny, _] = h.dims.map(|d| d as usize);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for k in 0..=nzc {
+        for y in y0..=y1 {
+            let row = &words[(k * ny + y) * nx..];
+            for w in &row[x0..=x1] {
+                if w.as_code(&h.codes).is_none() {
+                    let v = w.to_raw();
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+        }
+    }
+    // The rescale may have a negative slope: the largest rescaled value
+    // is that of one of the raw extremes.
+    let m = h.rescale.apply(lo).max(h.rescale.apply(hi));
+    (lo <= hi && !m.is_nan()).then_some(m)
 }
 
 /// Reads the slab's samples, embeds codes and compresses its bricks.
@@ -798,6 +830,11 @@ fn emit_slab<W: Word>(
                     .min()
                     .unwrap_or(u8::MAX);
                 let no_object = min_d > 0;
+                // The largest value of a brick with 1-cells (index flag
+                // FLAG_VALUE_MAX): its words that are not codes, rescaled.
+                let value_max = (!no_object)
+                    .then(|| brick_value_max(h, words, [x0, x1], [y0, y1], nzc))
+                    .flatten();
                 // The smallest code the brick's cells read back as: a cell
                 // whose code is not embedded reads as code 0.
                 let min_code = if min_d >= embed_min {
@@ -812,6 +849,7 @@ fn emit_slab<W: Word>(
                         raw_len,
                         no_object,
                         min_code,
+                        value_max,
                     },
                 )
             },

@@ -25,8 +25,13 @@ use crate::input::{Dtype, Rescale};
 pub const MAGIC: &[u8; 8] = b"CDVOLPK\x01";
 /// Last 8 bytes of every complete packed file.
 pub const END_MAGIC: &[u8; 8] = b"CDVOLEND";
-/// Format version written by this crate; readers refuse others.
-pub const FORMAT_VERSION: u32 = 1;
+/// Format version written by this crate. Version 2 adds the index's
+/// brick value maxima ([`FLAG_VALUE_MAX`]); readers take every version
+/// from [`OLDEST_READ_VERSION`] to this one and refuse others.
+pub const FORMAT_VERSION: u32 = 2;
+/// The oldest format version this crate reads (version 1: no value
+/// maxima in the index).
+pub const OLDEST_READ_VERSION: u32 = 1;
 /// Bytes before the first payload.
 pub const PREAMBLE_LEN: u64 = 16;
 /// Bytes of the footer.
@@ -241,10 +246,14 @@ pub struct IndexEntry {
     pub crc32: u32,
     /// Bit 0: uniform (no payload; every cell is a 0-cell with
     /// `uniform_code`). Bit 1: no 1-cell in the brick; `uniform_code` is
-    /// then the smallest code of its cells.
+    /// then the smallest code of its cells. Bit 2 ([`FLAG_VALUE_MAX`],
+    /// version 2): `value_max` holds the brick's largest value.
     pub flags: u32,
     pub uniform_code: u32,
-    pub reserved: u64,
+    /// With [`FLAG_VALUE_MAX`]: the bits of an f64, the largest rescaled
+    /// value of the brick's samples that hold values (the apron
+    /// included; NaN samples ignored). 0 otherwise.
+    pub value_max: u64,
 }
 
 pub const FLAG_UNIFORM: u32 = 1;
@@ -252,6 +261,11 @@ pub const FLAG_UNIFORM: u32 = 1;
 /// codes (on write: set by prep from the distances; on read: a hint that
 /// lets the renderer skip values and classification).
 pub const FLAG_NO_OBJECT: u32 = 2;
+/// Index flag bit 2 (format version 2): the entry's `value_max` holds the
+/// largest value of the brick, set by prep on every stored brick with
+/// 1-cells. A render at an iso value above it knows, without reading the
+/// brick, that none of its cells is a 1-cell of the scene (render/scene.rs).
+pub const FLAG_VALUE_MAX: u32 = 4;
 
 impl IndexEntry {
     pub fn is_uniform(&self) -> bool {
@@ -263,6 +277,12 @@ impl IndexEntry {
         self.flags & FLAG_NO_OBJECT != 0
     }
 
+    /// The brick's largest value, when the index records it
+    /// ([`FLAG_VALUE_MAX`]).
+    pub fn value_max(&self) -> Option<f64> {
+        (self.flags & FLAG_VALUE_MAX != 0).then(|| f64::from_bits(self.value_max))
+    }
+
     pub fn to_bytes(&self) -> [u8; INDEX_ENTRY_LEN] {
         let mut b = [0u8; INDEX_ENTRY_LEN];
         b[0..8].copy_from_slice(&self.offset.to_le_bytes());
@@ -270,7 +290,7 @@ impl IndexEntry {
         b[12..16].copy_from_slice(&self.crc32.to_le_bytes());
         b[16..20].copy_from_slice(&self.flags.to_le_bytes());
         b[20..24].copy_from_slice(&self.uniform_code.to_le_bytes());
-        b[24..32].copy_from_slice(&self.reserved.to_le_bytes());
+        b[24..32].copy_from_slice(&self.value_max.to_le_bytes());
         b
     }
 
@@ -283,7 +303,7 @@ impl IndexEntry {
             crc32: u32_at(12),
             flags: u32_at(16),
             uniform_code: u32_at(20),
-            reserved: u64_at(24),
+            value_max: u64_at(24),
         }
     }
 }
@@ -300,7 +320,10 @@ pub enum FormatError {
     },
     #[error("{}: not a cdvol packed file (magic {found:02x?}, expected {:02x?})", path.display(), MAGIC)]
     NotPacked { path: PathBuf, found: Vec<u8> },
-    #[error("{}: format version {found}, this cdvol reads version {FORMAT_VERSION}", path.display())]
+    #[error(
+        "{}: format version {found}, this cdvol reads versions {OLDEST_READ_VERSION} to {FORMAT_VERSION}",
+        path.display()
+    )]
     Version { path: PathBuf, found: u32 },
     #[error("{}: truncated or incomplete: {msg}", path.display())]
     Truncated { path: PathBuf, msg: String },

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use super::brick::{dda_planes, decode_words, octant_codes, Values};
 use super::{
     FormatError, Header, IndexEntry, END_MAGIC, FOOTER_LEN, FORMAT_VERSION, INDEX_ENTRY_LEN, MAGIC,
-    MAX_HEADER_LEN, PREAMBLE_LEN,
+    MAX_HEADER_LEN, OLDEST_READ_VERSION, PREAMBLE_LEN,
 };
 pub use crate::classify::CellClass;
 
@@ -126,7 +126,7 @@ impl PackedVolume {
             });
         }
         let version = u32::from_le_bytes(pre[8..12].try_into().expect("4 bytes"));
-        if version != FORMAT_VERSION {
+        if !(OLDEST_READ_VERSION..=FORMAT_VERSION).contains(&version) {
             return Err(FormatError::Version {
                 path: p(),
                 found: version,
@@ -185,6 +185,15 @@ impl PackedVolume {
             path: p(),
             msg: e.to_string(),
         })?;
+        if header.format_version != version {
+            return Err(FormatError::Header {
+                path: p(),
+                msg: format!(
+                    "header says format version {}, preamble {version}",
+                    header.format_version
+                ),
+            });
+        }
         if ilen != header.brick_count() * INDEX_ENTRY_LEN as u64 {
             return Err(FormatError::Header {
                 path: p(),
@@ -201,14 +210,27 @@ impl PackedVolume {
             .collect();
         let max_code = header.codes.max_code();
         for (i, e) in index.iter().enumerate() {
-            let known = super::FLAG_UNIFORM | super::FLAG_NO_OBJECT;
+            let mut known = super::FLAG_UNIFORM | super::FLAG_NO_OBJECT;
+            if version >= 2 {
+                known |= super::FLAG_VALUE_MAX;
+            }
             let entry_err = if e.flags & !known != 0 {
                 Some(format!(
-                    "index flags {:#x}, expected bits of {known:#x}",
+                    "index flags {:#x}, expected bits of {known:#x} (format version {version})",
                     e.flags
                 ))
-            } else if e.reserved != 0 {
-                Some(format!("index reserved {:#x}, expected 0", e.reserved))
+            } else if e.value_max().is_none() && e.value_max != 0 {
+                Some(format!(
+                    "index value maximum {:#x} without its flag, expected 0",
+                    e.value_max
+                ))
+            } else if e.value_max().is_some_and(f64::is_nan) {
+                Some("index value maximum NaN, expected a number".into())
+            } else if e.value_max().is_some() && (e.is_uniform() || e.has_no_object()) {
+                Some(format!(
+                    "index flags {:#x}: a value maximum on a brick without 1-cells",
+                    e.flags
+                ))
             } else if e.is_uniform() && (e.length != 0 || e.crc32 != 0 || !e.has_no_object()) {
                 Some(format!(
                     "uniform brick with length {}, crc {:08x}, flags {:#x}: expected \
@@ -424,11 +446,11 @@ fn check_header(h: &Header) -> Result<(), HeaderInvalid> {
             expected,
         })
     };
-    if h.format_version != FORMAT_VERSION {
+    if !(OLDEST_READ_VERSION..=FORMAT_VERSION).contains(&h.format_version) {
         return bad(
             "format_version".into(),
             h.format_version.to_string(),
-            FORMAT_VERSION.to_string(),
+            format!("{OLDEST_READ_VERSION} to {FORMAT_VERSION}"),
         );
     }
     for k in 0..3 {

@@ -8,8 +8,8 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use super::{
-    FormatError, Header, IndexEntry, END_MAGIC, FLAG_NO_OBJECT, FLAG_UNIFORM, FORMAT_VERSION,
-    MAGIC, PREAMBLE_LEN,
+    FormatError, Header, IndexEntry, END_MAGIC, FLAG_NO_OBJECT, FLAG_UNIFORM, FLAG_VALUE_MAX,
+    FORMAT_VERSION, MAGIC, PREAMBLE_LEN,
 };
 
 pub struct PackedWriter {
@@ -56,12 +56,14 @@ impl PackedWriter {
 
     /// Appends the compressed payload of brick `id`. `no_object` is the
     /// smallest code of its cells when the brick holds no 1-cell (index
-    /// flag bit 1, code in `uniform_code`).
+    /// flag bit 1, code in `uniform_code`); `value_max`, for a brick with
+    /// 1-cells, its largest value (index flag bit 2, [`FLAG_VALUE_MAX`]).
     pub fn put_brick(
         &mut self,
         id: u64,
         compressed: &[u8],
         no_object: Option<u32>,
+        value_max: Option<f64>,
     ) -> Result<(), FormatError> {
         let length = u32::try_from(compressed.len()).map_err(|_| FormatError::Brick {
             path: self.target.clone(),
@@ -79,13 +81,16 @@ impl PackedWriter {
             offset: self.pos,
             length,
             crc32: crc32fast::hash(compressed),
-            flags: if no_object.is_some() {
-                FLAG_NO_OBJECT
-            } else {
-                0
+            flags: match (no_object, value_max) {
+                (Some(_), _) => FLAG_NO_OBJECT,
+                (None, Some(_)) => FLAG_VALUE_MAX,
+                (None, None) => 0,
             },
             uniform_code: no_object.unwrap_or(0),
-            reserved: 0,
+            value_max: match (no_object, value_max) {
+                (None, Some(v)) => v.to_bits(),
+                _ => 0,
+            },
         };
         self.pos += compressed.len() as u64;
         Ok(())
@@ -100,7 +105,7 @@ impl PackedWriter {
             crc32: 0,
             flags: FLAG_UNIFORM | FLAG_NO_OBJECT,
             uniform_code: code,
-            reserved: 0,
+            value_max: 0,
         };
     }
 

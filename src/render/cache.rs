@@ -166,6 +166,7 @@ impl RBrick {
         vol: &PackedVolume,
         id: u64,
         planes: Planes,
+        scene_free: bool,
     ) -> Result<(RBrick, u64), FormatError> {
         let h = vol.header();
         let e = vol.index()[id as usize];
@@ -185,8 +186,36 @@ impl RBrick {
             return Ok((RBrick::uniform(h, id, e.uniform_code), 0));
         }
         Ok(READ.with_borrow(|r| {
-            let b = RBrick::from_payload(h, id, e.has_no_object(), &r.raw, planes);
-            (b, r.raw.len() as u64)
+            let len = r.raw.len() as u64;
+            // A brick free of the scene needs its codes only.
+            let no_object = e.has_no_object() || scene_free;
+            let Some(iso) = planes.narrow else {
+                return (RBrick::from_payload(h, id, no_object, &r.raw, planes), len);
+            };
+            // Narrowed: codes and values for the file's classification,
+            // rewritten for the scene (render/scene.rs), then the planes
+            // built from them.
+            let first = Planes {
+                narrow: None,
+                octree: false,
+                block_max: false,
+                ..planes
+            };
+            let mut b = RBrick::from_payload(h, id, no_object, &r.raw, first);
+            let edge = super::scene::Edge::of(vol, id, iso);
+            if scene_free {
+                super::scene::tighten(&mut b, &edge);
+            } else {
+                super::scene::narrow(&mut b, iso, h.gradient_halo, &edge);
+            }
+            let rest = Planes {
+                octants: false,
+                dda: false,
+                narrow: None,
+                ..planes
+            };
+            b.add_planes(h, id, &[], rest);
+            (b, len)
         }))
     }
 
@@ -339,9 +368,6 @@ impl RBrick {
     fn add_planes(&mut self, h: &crate::format::Header, id: u64, raw: &[u8], planes: Planes) {
         let coords = h.brick_coords(id);
         let b = self;
-        if let Some(iso) = planes.narrow {
-            super::scene::narrow(b, iso, h.gradient_halo);
-        }
         if planes.octants {
             if let Some(o) = octant_codes(h, coords, raw) {
                 b.octants = o.into_iter().map(|c| c.map(|x| x.min(254))).collect();
@@ -797,18 +823,25 @@ impl<'v> BrickCache<'v> {
         let lazy = !e.is_uniform()
             && e.has_no_object()
             && lazy_min.is_some_and(|m| e.uniform_code >= m as u32);
+        // A brick whose largest value lies below the scene's iso value
+        // holds none of the scene's 1-cells: it stands in unread
+        // (render/scene.rs, `scene_free`).
+        let free = match (self.planes.narrow, e.value_max()) {
+            (Some(iso), Some(m)) => to_f32(m) < iso,
+            _ => false,
+        };
         let key = id * 2 + lazy as u64;
         if let Some(b) = self.lru.lock().unwrap_or_else(|e| e.into_inner()).get(key) {
             c.cache_hits += 1;
             return Ok(b);
         }
         c.cache_misses += 1;
-        let b = if lazy {
+        let b = if lazy && !free {
             c.bricks_skipped += 1;
             RBrick::uniform(self.vol.header(), id, e.uniform_code)
         } else {
             let t = std::time::Instant::now();
-            let r = RBrick::decode(self.vol, id, self.planes);
+            let r = RBrick::decode(self.vol, id, self.planes, free);
             c.decode_seconds += t.elapsed().as_secs_f64();
             let (b, raw) = r?;
             c.bytes_decompressed += raw;

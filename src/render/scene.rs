@@ -42,13 +42,87 @@
 //! prepared at the scene's iso value (tests/all/scene.rs); cost maps differ
 //! by design, since they show the steps.
 
-use super::cache::{Accessor, Codes, RBrick};
+use super::cache::{to_f32, Accessor, Codes, RBrick};
 use super::traverse::OBJECT;
+use crate::format::reader::PackedVolume;
+
+/// What a narrowed brick knows of the world around it, from the index
+/// alone: per neighbour brick, a lower bound of the chessboard distance
+/// from each of its cells to the nearest 1-cell of the scene, and the
+/// largest code the file's encoding holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Edge {
+    /// Indexed `(dz + 1) * 9 + (dy + 1) * 3 + (dx + 1)` for the neighbour
+    /// brick at brick offset `(dx, dy, dz)` (13: the brick itself, unused):
+    /// - [`FAR`] outside the volume (the file's codes count cells outside
+    ///   as empty, module dt);
+    /// - the smallest code of its cells plus one for a brick the index
+    ///   marks as holding no 1-cell of the file (code `c` means no 1-cell
+    ///   within chessboard distance `c`);
+    /// - 1 for a brick whose index value maximum lies below the scene's iso
+    ///   value (no scene 1-cell in it);
+    /// - 0 otherwise (it may hold one).
+    pub(crate) pads: [u8; 27],
+    /// The file's largest code ([`crate::format::CodeEncoding::max_code`]).
+    pub(crate) max_code: u8,
+}
+
+impl Edge {
+    /// Brick `id`'s neighbourhood for the scene's iso value `iso`.
+    pub(crate) fn of(vol: &PackedVolume, id: u64, iso: f32) -> Edge {
+        let h = vol.header();
+        let c = h.brick_coords(id);
+        let mut pads = [0u8; 27];
+        for (i, pad) in pads.iter_mut().enumerate() {
+            let d = [i % 3, i / 3 % 3, i / 9].map(|k| k as i64 - 1);
+            let n: [i64; 3] = std::array::from_fn(|k| c[k] as i64 + d[k]);
+            if (0..3).any(|k| n[k] < 0 || n[k] >= h.bricks[k] as i64) {
+                *pad = FAR;
+                continue;
+            }
+            let e = vol.index()[h.brick_id(n.map(|x| x as u64)) as usize];
+            *pad = if e.has_no_object() {
+                e.uniform_code.saturating_add(1).min(FAR as u32) as u8
+            } else if e.value_max().is_some_and(|m| to_f32(m) < iso) {
+                1
+            } else {
+                0
+            };
+        }
+        Edge {
+            pads,
+            max_code: h.codes.max_code().min(FAR as u32 - 1) as u8,
+        }
+    }
+
+    /// No knowledge: every neighbour may hold a scene 1-cell.
+    #[cfg(test)]
+    pub(crate) const BLIND: Edge = Edge {
+        pads: [0; 27],
+        max_code: 253,
+    };
+}
+
+/// Brick `b`, decoded without values because the scene has none of its
+/// 1-cells in it (its index value maximum lies below the scene's iso
+/// value): each cell's code becomes the larger of its file code and its
+/// local chessboard distance minus one ([`local_distances`] with no 1-cell
+/// inside and `edge`'s lower bounds outside), what [`narrow`] would make
+/// of it from its values.
+pub(crate) fn tighten(b: &mut RBrick, edge: &Edge) {
+    let Codes::Plane(plane) = &mut b.codes else {
+        return;
+    };
+    let local = local_distances(&vec![0u8; plane.len()], b.cells, &edge.pads);
+    for (c, d) in plane.iter_mut().zip(local) {
+        *c = (*c).max((d - 1).min(edge.max_code));
+    }
+}
 
 /// Rewrites brick `b` (decoded for the file's classification) for the
-/// scene's iso value `iso` (module docs). `halo`: the file was prepared
-/// with `--gradient-halo`.
-pub(crate) fn narrow(b: &mut RBrick, iso: f32, halo: bool) {
+/// scene's iso value `iso` (module docs); `edge`: what the index says of
+/// its neighbours. `halo`: the file was prepared with `--gradient-halo`.
+pub(crate) fn narrow(b: &mut RBrick, iso: f32, halo: bool, edge: &Edge) {
     if b.values.is_empty() {
         // No 1-cell of the file's: none of the scene's; codes stand.
         return;
@@ -58,32 +132,30 @@ pub(crate) fn narrow(b: &mut RBrick, iso: f32, halo: bool) {
     };
     let [cx, cy, cz] = b.cells.map(|c| c as usize);
     let (sx, sy) = (cx + 1, cy + 1);
-    // NaN compares false: never above.
-    let above: Vec<bool> = b.values.iter().map(|&v| v >= iso).collect();
+    // Per cell, whether one of its 8 vertices is at or above `iso` (NaN
+    // compares false: never above): OR over x, then y, then z, each over
+    // whole rows or slices so that it vectorises.
+    let above: Vec<u8> = b.values.iter().map(|&v| u8::from(v >= iso)).collect();
+    let sz = cz + 1;
+    let mut ox = vec![0u8; cx * sy * sz];
+    for (o, r) in ox.chunks_exact_mut(cx).zip(above.chunks_exact(sx)) {
+        or2(&r[..cx], &r[1..], o);
+    }
+    let mut oxy = vec![0u8; cx * cy * sz];
+    for (o, sl) in oxy.chunks_exact_mut(cx * cy).zip(ox.chunks_exact(cx * sy)) {
+        or2(&sl[..cx * cy], &sl[cx..], o);
+    }
+    let n = cx * cy * cz;
+    let mut cell_above = vec![0u8; n];
+    or2(&oxy[..n], &oxy[cx * cy..], &mut cell_above);
     let (mut any, mut demoted) = (false, 0usize);
-    for z in 0..cz {
-        for y in 0..cy {
-            for x in 0..cx {
-                let i = (z * cy + y) * cx + x;
-                if plane[i] != OBJECT {
-                    continue;
-                }
-                let s = (z * sy + y) * sx + x;
-                let (r, l) = (sx, sx * sy);
-                let obj = above[s]
-                    | above[s + 1]
-                    | above[s + r]
-                    | above[s + r + 1]
-                    | above[s + l]
-                    | above[s + l + 1]
-                    | above[s + l + r]
-                    | above[s + l + r + 1];
-                if obj {
-                    any = true;
-                } else {
-                    plane[i] = 0;
-                    demoted += 1;
-                }
+    for (c, &a) in plane.iter_mut().zip(&cell_above) {
+        if *c == OBJECT {
+            if a != 0 {
+                any = true;
+            } else {
+                *c = 0;
+                demoted += 1;
             }
         }
     }
@@ -93,7 +165,7 @@ pub(crate) fn narrow(b: &mut RBrick, iso: f32, halo: bool) {
         // next to it, as [`scene_code_at_least_1`] relies on).
         return;
     }
-    let local = local_distances(plane, b.cells);
+    let local = local_distances(plane, b.cells, &edge.pads);
     let min_embedded = if halo { 2 } else { 1 };
     for z in 0..cz {
         for y in 0..cy {
@@ -102,7 +174,7 @@ pub(crate) fn narrow(b: &mut RBrick, iso: f32, halo: bool) {
                 if plane[i] == OBJECT {
                     continue;
                 }
-                let code = plane[i].max(local[i] - 1);
+                let code = plane[i].max((local[i] - 1).min(edge.max_code));
                 plane[i] = code;
                 if any && code >= min_embedded {
                     b.values[(z * sy + y) * sx + x] = f32::NAN;
@@ -121,19 +193,44 @@ pub(crate) const FAR: u8 = 254;
 
 /// The chessboard distance of every cell of a brick (`cells` per axis, x
 /// fastest; `plane[i] == OBJECT` marks a 1-cell) to the nearest 1-cell,
-/// counting every cell outside the brick as a 1-cell: 0 for a 1-cell, 1
-/// on the brick's outer layer, at most [`FAR`].
+/// where the cells of the layer around the brick count as 1-cells at the
+/// distances `pads` gives (lower bounds, per neighbour brick, indexed as
+/// [`Edge::pads`]; all 0: everything outside is a 1-cell): 0 for a
+/// 1-cell, at most [`FAR`]. The result is a lower bound of the true
+/// distance whenever the pads are: a chessboard geodesic from a cell to a
+/// 1-cell outside the brick passes through the layer around it.
 ///
 /// Two raster passes with the 3x3x3 mask of unit weights (Rosenfeld and
 /// Pfaltz's sequential chessboard transform in 3D), exact for the
 /// chessboard metric; each pass takes per cell the smallest of the 3x3
 /// eroded slice before, the 3-eroded row before and the cell before, plus
-/// one. The brick is padded by one layer of 1-cells, the outside.
-pub(crate) fn local_distances(plane: &[u8], cells: [u32; 3]) -> Vec<u8> {
+/// one. The layer around the brick is the padding, never updated.
+pub(crate) fn local_distances(plane: &[u8], cells: [u32; 3], pads: &[u8; 27]) -> Vec<u8> {
     let [cx, cy, cz] = cells.map(|c| c as usize);
     let (px, py, pz) = (cx + 2, cy + 2, cz + 2);
     let at = |x: usize, y: usize, z: usize| (z * py + y) * px + x;
+    // Padding: the side (0, 1, 2 for below, inside, above) per axis.
+    let side = |v: usize, n: usize| {
+        if v == 0 {
+            0
+        } else if v == n + 1 {
+            2
+        } else {
+            1
+        }
+    };
     let mut d = vec![0u8; px * py * pz];
+    for z in 0..pz {
+        for y in 0..py {
+            let (sy, sz) = (side(y, cy), side(z, cz));
+            let row = &mut d[at(0, y, z)..at(0, y, z) + px];
+            row[0] = pads[sz * 9 + sy * 3].min(FAR);
+            row[px - 1] = pads[sz * 9 + sy * 3 + 2].min(FAR);
+            if sy != 1 || sz != 1 {
+                row[1..px - 1].fill(pads[sz * 9 + sy * 3 + 1].min(FAR));
+            }
+        }
+    }
     for z in 0..cz {
         for y in 0..cy {
             let row = &plane[(z * cy + y) * cx..(z * cy + y + 1) * cx];
@@ -143,53 +240,106 @@ pub(crate) fn local_distances(plane: &[u8], cells: [u32; 3]) -> Vec<u8> {
             }
         }
     }
+    // The first step in from the layer around: each cell of the brick's
+    // outer layer starts at most one more than its neighbours there. The
+    // passes below are exact for starting values inside the (convex)
+    // brick, but a geodesic from the layer may need its steps in an order
+    // that leaves the brick, which they would not find when the layer's
+    // values differ (all 0, the sweeps alone suffice).
+    if pads.iter().any(|&p| p != 0) {
+        // The pad directions next to a cell, per axis: 0 (1 inside), and
+        // 0 or 2 on the brick's low or high side.
+        let sides = |v: usize, n: usize| -> ([usize; 3], usize) {
+            match (v == 1, v == n) {
+                (true, true) => ([1, 0, 2], 3),
+                (true, false) => ([1, 0, 0], 2),
+                (false, true) => ([1, 2, 0], 2),
+                (false, false) => ([1, 0, 0], 1),
+            }
+        };
+        for z in 1..=cz {
+            let (oz, nz) = sides(z, cz);
+            for y in 1..=cy {
+                let (oy, ny) = sides(y, cy);
+                let inner_row = nz == 1 && ny == 1;
+                let step = if inner_row { cx.max(2) - 1 } else { 1 };
+                for x in (1..=cx).step_by(step) {
+                    let (ox, nx) = sides(x, cx);
+                    let mut m = FAR;
+                    for &sz in &oz[..nz] {
+                        for &sy in &oy[..ny] {
+                            for &sx in &ox[..nx] {
+                                if (sx, sy, sz) != (1, 1, 1) {
+                                    m = m.min(pads[sz * 9 + sy * 3 + sx]);
+                                }
+                            }
+                        }
+                    }
+                    let i = at(x, y, z);
+                    d[i] = d[i].min(m.saturating_add(1).min(FAR));
+                }
+            }
+        }
+    }
     // Per pass and slice: the slice before it (in the pass's order),
-    // eroded over its 3x3 neighbourhoods; per row, the row before it
-    // eroded over x, merged with that into `cand`, then the sweep along
-    // x, which alone carries a dependency from cell to cell.
-    let mut ex = vec![0u8; px * py];
-    let mut exy = vec![0u8; px * py];
-    let mut prev = vec![0u8; px];
+    // eroded over its 3x3 neighbourhoods (flat over the slice: the ends
+    // of each row are padding, never read back as inside); per row, the
+    // row before it eroded over x, merged with that into `cand`, then the
+    // sweep along x, which alone carries a dependency from cell to cell.
+    let n = px * py;
+    let mut ex = vec![0u8; n];
+    let mut exy = vec![0u8; n];
     let mut cand = vec![0u8; px];
     for forward in [true, false] {
         for zi in 0..cz {
             let z = if forward { 1 + zi } else { cz - zi };
             let zn = if forward { z - 1 } else { z + 1 };
-            let slice = &d[at(0, 0, zn)..at(0, 0, zn) + px * py];
-            for (src, dst) in slice.chunks_exact(px).zip(ex.chunks_exact_mut(px)) {
-                erode3(src, dst);
-            }
-            for y in 1..=cy {
-                let (a, b, c) = (
-                    &ex[(y - 1) * px..y * px],
-                    &ex[y * px..(y + 1) * px],
-                    &ex[(y + 1) * px..(y + 2) * px],
-                );
-                for (o, ((&a, &b), &c)) in exy[y * px..(y + 1) * px]
-                    .iter_mut()
-                    .zip(a.iter().zip(b).zip(c))
-                {
-                    *o = a.min(b).min(c);
-                }
-            }
+            let slice = &d[at(0, 0, zn)..at(0, 0, zn) + n];
+            min3(
+                &slice[..n - 2],
+                &slice[1..n - 1],
+                &slice[2..],
+                &mut ex[1..n - 1],
+            );
+            min3(
+                &ex[..n - 2 * px],
+                &ex[px..n - px],
+                &ex[2 * px..],
+                &mut exy[px..n - px],
+            );
             for yi in 0..cy {
                 let y = if forward { 1 + yi } else { cy - yi };
                 let yn = if forward { y - 1 } else { y + 1 };
-                erode3(&d[at(0, yn, z)..at(0, yn, z) + px], &mut prev);
-                for (o, (&a, &b)) in cand
-                    .iter_mut()
-                    .zip(exy[y * px..(y + 1) * px].iter().zip(&prev))
-                {
-                    *o = a.min(b) + 1;
+                let (r, rn) = (at(0, y, z), at(0, yn, z));
+                let prev = &d[rn..rn + px];
+                min3(
+                    &prev[..px - 2],
+                    &prev[1..px - 1],
+                    &prev[2..],
+                    &mut cand[1..px - 1],
+                );
+                let row = &mut d[r..r + px];
+                let (o, c, e) = (
+                    &mut row[1..px - 1],
+                    &cand[1..px - 1],
+                    &exy[y * px + 1..(y + 1) * px - 1],
+                );
+                assert!(c.len() == o.len() && e.len() == o.len());
+                for i in 0..o.len() {
+                    o[i] = o[i].min(c[i].min(e[i]) + 1);
                 }
-                let row = &mut d[at(0, y, z)..at(0, y, z) + px];
+                // Values stay at most FAR (254), so `m + 1` never wraps.
                 if forward {
-                    for x in 1..=cx {
-                        row[x] = row[x].min(cand[x]).min(row[x - 1] + 1);
+                    let mut m = row[0];
+                    for v in &mut row[1..=cx] {
+                        m = (m + 1).min(*v);
+                        *v = m;
                     }
                 } else {
-                    for x in (1..=cx).rev() {
-                        row[x] = row[x].min(cand[x]).min(row[x + 1] + 1);
+                    let mut m = row[cx + 1];
+                    for v in row[1..=cx].iter_mut().rev() {
+                        m = (m + 1).min(*v);
+                        *v = m;
                     }
                 }
             }
@@ -205,13 +355,22 @@ pub(crate) fn local_distances(plane: &[u8], cells: [u32; 3]) -> Vec<u8> {
     out
 }
 
-/// `out[x] = min(row[x - 1], row[x], row[x + 1])` for the interior `x`;
-/// the ends copy `row` (they are the padding).
-fn erode3(row: &[u8], out: &mut [u8]) {
-    let n = row.len();
-    out[..n].copy_from_slice(row);
-    for x in 1..n - 1 {
-        out[x] = row[x - 1].min(row[x]).min(row[x + 1]);
+/// `out[i] = a[i] | b[i]` over `out`'s length.
+fn or2(a: &[u8], b: &[u8], out: &mut [u8]) {
+    let n = out.len();
+    let (a, b) = (&a[..n], &b[..n]);
+    for i in 0..n {
+        out[i] = a[i] | b[i];
+    }
+}
+
+/// `out[i] = min(a[i], b[i], c[i])`: one step of an erosion, over whole
+/// slices so that it vectorises.
+fn min3(a: &[u8], b: &[u8], c: &[u8], out: &mut [u8]) {
+    let n = out.len();
+    let (a, b, c) = (&a[..n], &b[..n], &c[..n]);
+    for i in 0..n {
+        out[i] = a[i].min(b[i]).min(c[i]);
     }
 }
 
@@ -281,23 +440,41 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    /// Chessboard distance by brute force, outside the brick a 1-cell.
-    fn brute(plane: &[u8], c: [usize; 3]) -> Vec<u8> {
+    /// Chessboard distance by brute force: to the brick's 1-cells, and to
+    /// every cell `q` of the layer around the brick plus its pad value.
+    fn brute(plane: &[u8], c: [usize; 3], pads: &[u8; 27]) -> Vec<u8> {
         let mut out = vec![0u8; plane.len()];
+        let ci = c.map(|x| x as i64);
         for z in 0..c[2] {
             for y in 0..c[1] {
                 for x in 0..c[0] {
-                    let p = [x, y, z];
-                    // Distance to the outside: one step past the nearest face.
-                    let mut best = (0..3).map(|k| p[k].min(c[k] - 1 - p[k]) + 1).min().unwrap();
-                    for (i, &v) in plane.iter().enumerate() {
-                        if v == OBJECT {
-                            let q = [i % c[0], i / c[0] % c[1], i / (c[0] * c[1])];
-                            let d = (0..3).map(|k| p[k].abs_diff(q[k])).max().unwrap();
-                            best = best.min(d);
+                    let p = [x, y, z].map(|v| v as i64);
+                    let mut best = u64::MAX;
+                    for qz in -1..=ci[2] {
+                        for qy in -1..=ci[1] {
+                            for qx in -1..=ci[0] {
+                                let q = [qx, qy, qz];
+                                let d = (0..3).map(|k| p[k].abs_diff(q[k])).max().unwrap();
+                                let side = |k: usize| match q[k] {
+                                    -1 => 0,
+                                    v if v == ci[k] => 2,
+                                    _ => 1,
+                                };
+                                let sides = [side(0), side(1), side(2)];
+                                let v = if sides == [1, 1, 1] {
+                                    let i = ((qz * ci[1] + qy) * ci[0] + qx) as usize;
+                                    if plane[i] != OBJECT {
+                                        continue;
+                                    }
+                                    0
+                                } else {
+                                    pads[sides[2] * 9 + sides[1] * 3 + sides[0]] as u64
+                                };
+                                best = best.min(v + d);
+                            }
                         }
                     }
-                    out[(z * c[1] + y) * c[0] + x] = best.min(254) as u8;
+                    out[(z * c[1] + y) * c[0] + x] = best.min(FAR as u64) as u8;
                 }
             }
         }
@@ -310,6 +487,8 @@ mod tests {
             c in prop::array::uniform3(1usize..12),
             density in 0.0f64..0.05,
             seed in any::<u64>(),
+            pads in prop::array::uniform27(prop_oneof![Just(0u8), Just(FAR), 0u8..=FAR]),
+            blind in any::<bool>(),
         ) {
             let n = c[0] * c[1] * c[2];
             let mut s = seed | 1;
@@ -321,16 +500,23 @@ mod tests {
                     if ((s >> 11) as f64 / (1u64 << 53) as f64) < density { OBJECT } else { 3 }
                 })
                 .collect();
-            let got = local_distances(&plane, c.map(|x| x as u32));
-            prop_assert_eq!(got, brute(&plane, c));
+            let pads = if blind { [0; 27] } else { pads };
+            let got = local_distances(&plane, c.map(|x| x as u32), &pads);
+            prop_assert_eq!(got, brute(&plane, c, &pads));
         }
     }
 
     #[test]
     fn an_empty_cube_counts_to_its_centre() {
         let c = [9u32, 9, 9];
-        let d = local_distances(&vec![0u8; 729], c);
+        let d = local_distances(&vec![0u8; 729], c, &Edge::BLIND.pads);
         assert_eq!(d[(4 * 9 + 4) * 9 + 4], 5);
         assert_eq!(d[0], 1);
+        // Far neighbours on every side but one face (x below, at 2).
+        let mut pads = [FAR; 27];
+        pads[9 + 3] = 2;
+        let d = local_distances(&vec![0u8; 729], c, &pads);
+        assert_eq!(d[(4 * 9 + 4) * 9 + 8], 2 + 9);
+        assert_eq!(d[(4 * 9 + 4) * 9], 3);
     }
 }
