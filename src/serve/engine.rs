@@ -151,7 +151,9 @@ impl<'v> Engine<'v> {
             cache_bytes,
             slot: Mutex::new(None),
             sessions: Mutex::new(HashMap::new()),
-            pool: rayon::ThreadPoolBuilder::new().num_threads(threads).build()?,
+            pool: rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()?,
             counters: Counters::default(),
         })
     }
@@ -170,7 +172,9 @@ impl<'v> Engine<'v> {
         self.leave(req.session.as_deref(), &stop);
         match &result {
             Ok(_) => self.counters.frames.fetch_add(1, Ordering::Relaxed),
-            Err(Failure::Cancelled { .. }) => self.counters.cancelled.fetch_add(1, Ordering::Relaxed),
+            Err(Failure::Cancelled { .. }) => {
+                self.counters.cancelled.fetch_add(1, Ordering::Relaxed)
+            }
             Err(_) => self.counters.refused.fetch_add(1, Ordering::Relaxed),
         };
         result

@@ -97,7 +97,9 @@ impl<'v> Server<'v> {
         let url = rq.url();
         let (path, query) = url.split_once('?').unwrap_or((url, ""));
         match path {
-            "/" | "/index.html" => with_type(Response::from_string(PAGE), "text/html; charset=utf-8"),
+            "/" | "/index.html" => {
+                with_type(Response::from_string(PAGE), "text/html; charset=utf-8")
+            }
             "/api/info" => json(&self.info()),
             "/api/status" => json(&self.engine.counters),
             "/api/image" => self.image(query),
@@ -155,6 +157,7 @@ impl<'v> Server<'v> {
                     "name": p.name, "modality": p.modality.name(),
                     "description": p.description, "iso": p.iso,
                     "window": p.window.map(|w| [w.width, w.level]),
+                    "support": p.support(),
                 })
             })
             .collect();
@@ -186,7 +189,10 @@ fn ascii_json(s: &str) -> String {
 }
 
 fn with_type(mut r: Reply, content_type: &str) -> Reply {
-    for (k, v) in [("Cache-Control", "no-store"), ("Content-Type", content_type)] {
+    for (k, v) in [
+        ("Cache-Control", "no-store"),
+        ("Content-Type", content_type),
+    ] {
         if let Ok(h) = Header::from_bytes(k, v) {
             r.add_header(h);
         }
@@ -195,8 +201,11 @@ fn with_type(mut r: Reply, content_type: &str) -> Reply {
 }
 
 fn text(status: u16, msg: &str) -> Reply {
-    with_type(Response::from_string(format!("{msg}\n")), "text/plain; charset=utf-8")
-        .with_status_code(status)
+    with_type(
+        Response::from_string(format!("{msg}\n")),
+        "text/plain; charset=utf-8",
+    )
+    .with_status_code(status)
 }
 
 fn json(v: &impl serde::Serialize) -> Reply {

@@ -172,7 +172,11 @@ impl ViewRequest {
         if let Some(q) = quality {
             match r.encoding {
                 Encoding::Jpeg(_) => r.encoding = Encoding::Jpeg(q),
-                _ => return Err(RequestError::Conflict("quality goes with format=jpeg".into())),
+                _ => {
+                    return Err(RequestError::Conflict(
+                        "quality goes with format=jpeg".into(),
+                    ))
+                }
             }
         }
         if r.preset.is_some() && r.iso.is_some() {
@@ -329,7 +333,12 @@ impl ViewRequest {
     /// `path` being the file as named on the server's command line.
     pub fn command(&self, path: &str, spec: &CameraSpec) -> String {
         let mut a: Vec<String> = vec!["cdvol".into(), "render".into(), quote(path)];
-        a.extend(["-o".into(), "view.png".into(), "--mode".into(), self.mode.clone()]);
+        a.extend([
+            "-o".into(),
+            "view.png".into(),
+            "--mode".into(),
+            self.mode.clone(),
+        ]);
         let mut flag = |f: &str, v: String| a.extend([f.to_string(), v]);
         if let Some(p) = &self.preset {
             flag("--preset", quote(p));
@@ -388,16 +397,14 @@ fn decode(v: &str) -> String {
     while i < b.len() {
         let hex = |c: u8| (c as char).to_digit(16);
         match b[i] {
-            b'%' if i + 2 < b.len() => {
-                match (hex(b[i + 1]), hex(b[i + 2])) {
-                    (Some(h), Some(l)) => {
-                        out.push((h * 16 + l) as u8);
-                        i += 3;
-                        continue;
-                    }
-                    _ => out.push(b'%'),
+            b'%' if i + 2 < b.len() => match (hex(b[i + 1]), hex(b[i + 2])) {
+                (Some(h), Some(l)) => {
+                    out.push((h * 16 + l) as u8);
+                    i += 3;
+                    continue;
                 }
-            }
+                _ => out.push(b'%'),
+            },
             b'+' => out.push(b' '),
             c => out.push(c),
         }
@@ -433,7 +440,11 @@ fn static_name(name: &str) -> &'static str {
 fn num(name: &'static str, v: &str, max_abs: f64) -> Result<f64, RequestError> {
     match v.parse::<f64>() {
         Ok(x) if x.is_finite() && x.abs() <= max_abs => Ok(x),
-        _ => Err(bad(name, v, format!("a finite number of at most {max_abs:e} in size"))),
+        _ => Err(bad(
+            name,
+            v,
+            format!("a finite number of at most {max_abs:e} in size"),
+        )),
     }
 }
 
@@ -447,16 +458,18 @@ fn positive(name: &'static str, v: &str) -> Result<f64, RequestError> {
 fn step(v: &str) -> Result<f64, RequestError> {
     match v.parse::<f64>() {
         Ok(x) if (STEP_MM.0..=STEP_MM.1).contains(&x) => Ok(x),
-        _ => Err(bad("step", v, format!("mm in {}..={}", STEP_MM.0, STEP_MM.1))),
+        _ => Err(bad(
+            "step",
+            v,
+            format!("mm in {}..={}", STEP_MM.0, STEP_MM.1),
+        )),
     }
 }
 
 fn pan(v: &str) -> Result<[f64; 2], RequestError> {
     let p: Vec<f64> = v.split(',').filter_map(|x| x.trim().parse().ok()).collect();
     match p[..] {
-        [x, y] if x.is_finite() && y.is_finite() && x.abs() <= 1e6 && y.abs() <= 1e6 => {
-            Ok([x, y])
-        }
+        [x, y] if x.is_finite() && y.is_finite() && x.abs() <= 1e6 && y.abs() <= 1e6 => Ok([x, y]),
         _ => Err(bad("pan", v, "DX,DY in mm, each at most 1e6 in size")),
     }
 }
