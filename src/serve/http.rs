@@ -38,7 +38,9 @@ impl<'v> Server<'v> {
             addr: cfg.bind,
             msg,
         };
-        let http = tiny_http::Server::http(cfg.bind).map_err(|e| bind_err(e.to_string()))?;
+        let listener = listen(cfg.bind).map_err(|e| bind_err(e.to_string()))?;
+        let http =
+            tiny_http::Server::from_listener(listener, None).map_err(|e| bind_err(e.to_string()))?;
         let addr = http
             .server_addr()
             .to_ip()
@@ -169,6 +171,45 @@ impl<'v> Server<'v> {
             "cache_mb": self.engine.cache_bytes >> 20,
         })
     }
+}
+
+/// A listener on `addr` whose connections send at once: without
+/// TCP_NODELAY, a keep-alive connection's response waits for the
+/// client's delayed ACK of the previous one (Nagle), about 40 ms a frame
+/// (measured: 44 ms against 6 ms for a 128^2 image). Linux gives accepted
+/// sockets the listener's TCP_NODELAY.
+fn listen(addr: SocketAddr) -> std::io::Result<std::net::TcpListener> {
+    let l = std::net::TcpListener::bind(addr)?;
+    no_delay(&l)?;
+    Ok(l)
+}
+
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn no_delay(l: &std::net::TcpListener) -> std::io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let one: libc::c_int = 1;
+    // SAFETY: the descriptor is the listener's, open for the call; the
+    // option value points at a live c_int whose size is passed with it.
+    let r = unsafe {
+        libc::setsockopt(
+            l.as_raw_fd(),
+            libc::IPPROTO_TCP,
+            libc::TCP_NODELAY,
+            (&one as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
+/// Elsewhere frames may wait for a delayed ACK (docs/SERVE.md).
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn no_delay(_: &std::net::TcpListener) -> std::io::Result<()> {
+    Ok(())
 }
 
 /// `s` with every non-ASCII character escaped (`\uXXXX`), so JSON fits
