@@ -160,6 +160,7 @@ async function main() {
     args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
       "--disable-background-networking", "--disable-component-update", "--disable-sync"],
   });
+  const rss = { anon: 0, file: 0 };
   const result = { file: opt.file, size: opt.size, mode: opt.mode, clients: opt.clients, cache_mb: opt.cacheMb };
   try {
     const pages = [];
@@ -167,15 +168,26 @@ async function main() {
     const { page } = pages[0];
     const box = await page.locator("#view").boundingBox();
 
+    // Resident memory by kind (heap vs mapped file pages), sampled.
+    const sampler = setInterval(() => {
+      try {
+        const s = readFileSync(`/proc/${proc.pid}/status`, "utf8");
+        rss.anon = Math.max(rss.anon, +s.match(/RssAnon:\s+(\d+)/)[1] / 1024);
+        rss.file = Math.max(rss.file, +s.match(/RssFile:\s+(\d+)/)[1] / 1024);
+      } catch (e) { /* the server has exited */ }
+    }, 20);
     // Warm-up drag (the cache fills), then the measured drags; with
     // several clients they all drag at once.
     await drag(page, box, 10, 2);
     const before = await page.evaluate(() => window.__cdvol.frames.length);
     const drags = [];
     for (let d = 0; d < opt.drags; d++) {
-      const all = await Promise.all(pages.map((p, i) => drag(p.page, box, opt.steps, i % 2 ? -2 : 2)));
+      // Mostly sideways, up and down in turn, so the view stays away from
+      // the poles.
+      const all = await Promise.all(pages.map((p, i) => drag(p.page, box, opt.steps, (i + d) % 2 ? -0.5 : 0.5)));
       drags.push(all[0]);
     }
+    clearInterval(sampler);
     const frames = (await page.evaluate(() => window.__cdvol.frames)).slice(before);
     const coarse = frames.filter((f) => f.kind === "coarse");
     const full = frames.filter((f) => f.kind === "full" && drags.some((d) => d.version === f.version));
@@ -186,10 +198,15 @@ async function main() {
       coarse_latency_ms_p90: pct(coarse.map((f) => f.shown - f.input), 0.9),
       coarse_round_trip_ms_median: median(coarse.map((f) => f.trip)),
       full_round_trip_ms_median: median(full.map((f) => f.trip)),
+      coarse_render_ms_median: median(coarse.map((f) => f.render)),
+      full_render_ms_median: median(full.map((f) => f.render)),
+      full_slot_wait_ms_median: median(full.map((f) => f.wait)),
       full_latency_ms_median: median(full.map((f) => f.shown - f.input)),
       full_latency_ms_max: Math.max(...full.map((f) => f.shown - f.input)),
       drag_fps_median: median(fps),
       peak_rss_mib: peakRssMib(proc.pid),
+      peak_rss_anon_mib: rss.anon,
+      peak_rss_file_mib: rss.file,
     });
 
     // The refined frame against `cdvol render` of the URL's view.
