@@ -199,6 +199,7 @@ async function main() {
       coarse_round_trip_ms_median: median(coarse.map((f) => f.trip)),
       full_round_trip_ms_median: median(full.map((f) => f.trip)),
       coarse_render_ms_median: median(coarse.map((f) => f.render)),
+      coarse_width_median: median(coarse.map((f) => f.width)),
       full_render_ms_median: median(full.map((f) => f.render)),
       full_slot_wait_ms_median: median(full.map((f) => f.wait)),
       full_latency_ms_median: median(full.map((f) => f.shown - f.input)),
