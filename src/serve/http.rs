@@ -39,8 +39,8 @@ impl<'v> Server<'v> {
             msg,
         };
         let listener = listen(cfg.bind).map_err(|e| bind_err(e.to_string()))?;
-        let http =
-            tiny_http::Server::from_listener(listener, None).map_err(|e| bind_err(e.to_string()))?;
+        let http = tiny_http::Server::from_listener(listener, None)
+            .map_err(|e| bind_err(e.to_string()))?;
         let addr = http
             .server_addr()
             .to_ip()
