@@ -96,6 +96,15 @@ impl<'v> Server<'v> {
         if *rq.method() != Method::Get {
             return text(405, "only GET is served");
         }
+        if let Some(host) = self.foreign_host(rq) {
+            return text(
+                403,
+                &format!(
+                    "Host {host:?} refused: a server on a loopback address answers only to \
+                     localhost, 127.0.0.1 or [::1] (another name may be a DNS rebinding page)"
+                ),
+            );
+        }
         let url = rq.url();
         let (path, query) = url.split_once('?').unwrap_or((url, ""));
         match path {
@@ -113,6 +122,28 @@ impl<'v> Server<'v> {
                 ),
             ),
         }
+    }
+
+    /// The request's `Host` when the server listens on a loopback
+    /// address and the name is not a loopback one: a page from elsewhere
+    /// whose name was rebound to 127.0.0.1 could otherwise read the
+    /// images.
+    fn foreign_host(&self, rq: &Request) -> Option<String> {
+        if !self.addr.ip().is_loopback() {
+            return None;
+        }
+        let host = rq
+            .headers()
+            .iter()
+            .find(|h| h.field.equiv("Host"))?
+            .value
+            .as_str()
+            .to_ascii_lowercase();
+        let name = match host.strip_prefix('[') {
+            Some(v6) => v6.split(']').next().unwrap_or(""),
+            None => host.split(':').next().unwrap_or(""),
+        };
+        (!matches!(name, "localhost" | "127.0.0.1" | "::1")).then_some(host)
     }
 
     fn image(&self, query: &str) -> Reply {

@@ -74,8 +74,13 @@ impl Reply {
 
 /// GET `target` (path and query, sent as is) over HTTP/1.0.
 fn get(addr: &str, target: &str) -> Reply {
+    get_as(addr, target, addr)
+}
+
+/// [`get`] with `host` as the Host header.
+fn get_as(addr: &str, target: &str, host: &str) -> Reply {
     let mut s = TcpStream::connect(addr).unwrap();
-    write!(s, "GET {target} HTTP/1.0\r\nHost: {addr}\r\n\r\n").unwrap();
+    write!(s, "GET {target} HTTP/1.0\r\nHost: {host}\r\n\r\n").unwrap();
     let mut raw = Vec::new();
     s.read_to_end(&mut raw).unwrap();
     let split = raw
@@ -262,6 +267,13 @@ fn bad_requests_are_refused_with_a_message() {
         assert!(r.text().contains(says), "{target}: {:?}", r.text());
         assert!(!r.text().contains("root:"), "{target} leaked a file");
     }
+    // DNS rebinding: a foreign name for the loopback server is refused.
+    let port = srv.addr.rsplit(':').next().unwrap();
+    let r = get_as(&srv.addr, "/api/info", &format!("evil.example:{port}"));
+    assert_eq!(r.status, 403, "{}", r.text());
+    assert!(r.text().contains("rebinding"), "{}", r.text());
+    let local = format!("localhost:{port}");
+    assert_eq!(get_as(&srv.addr, "/api/info", &local).status, 200);
     let long = format!("/api/image?session={}", "a".repeat(3000));
     assert_eq!(get(&srv.addr, &long).status, 400);
     // The server still answers after all that.
