@@ -59,6 +59,37 @@ pub enum Command {
     /// Reproducible measurements, written as reports under docs/.
     #[command(subcommand)]
     Experiment(ExperimentCmd),
+    /// Serve a browser viewer of packed files: orbit, zoom, presets, live
+    /// renders through one shared brick cache (docs/SERVE.md).
+    Serve(ServeArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ServeArgs {
+    /// Packed files to offer (the page picks one by its index).
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Address to listen on (localhost by default; port 0: any free port).
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    pub bind: std::net::SocketAddr,
+    /// Brick cache budget in MiB, shared by every request.
+    #[arg(long, default_value_t = 512)]
+    pub cache_mb: usize,
+    /// Render worker threads (default: all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+}
+
+impl ServeArgs {
+    /// The library's configuration.
+    pub fn config(&self) -> cdvol::serve::ServeConfig {
+        cdvol::serve::ServeConfig {
+            files: self.files.clone(),
+            bind: self.bind,
+            cache_mb: self.cache_mb,
+            threads: self.threads,
+        }
+    }
 }
 
 #[derive(Subcommand, Debug)]

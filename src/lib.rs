@@ -62,5 +62,7 @@ pub mod prep;
 pub mod presets;
 pub mod progress;
 pub mod render;
+#[cfg(feature = "serve")]
+pub mod serve;
 #[cfg(feature = "tools")]
 pub mod tools;

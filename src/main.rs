@@ -259,7 +259,21 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             let path = cdvol::tools::experiment::paper::run(&e.paper_job()?, progress)?;
             println!("wrote {}", path.display());
         }
+        Command::Serve(a) => serve(&a.config())?,
     }
+    Ok(())
+}
+
+/// `cdvol serve`: opens the files, binds, says where on stderr, and
+/// answers until Ctrl-C or SIGTERM.
+fn serve(cfg: &cdvol::serve::ServeConfig) -> Result<()> {
+    cfg.check()?;
+    let files = cdvol::serve::open_files(&cfg.files)?;
+    let server = cdvol::serve::Server::bind(&files, cfg)?;
+    cdvol::serve::stop_on_signals(server.stop_flag())?;
+    eprintln!("cdvol serve: listening on http://{}/", server.local_addr());
+    server.run();
+    eprintln!("cdvol serve: stopped");
     Ok(())
 }
 

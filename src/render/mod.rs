@@ -55,4 +55,4 @@ pub use output::{
 };
 pub use shard::{render_part, render_part_in};
 pub use stats::Stats;
-pub use tiles::{render, render_in, Shard, ShardLayout, ShardParseError, TilePx};
+pub use tiles::{render, render_in, render_in_until, Shard, ShardLayout, ShardParseError, TilePx};

@@ -6,6 +6,7 @@
 //! the output is the same whatever the thread count, tile size or cache
 //! budget. Tiles are then placed and coloured (output.rs).
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -59,6 +60,31 @@ pub fn render_in(
     Ok((frame, stats))
 }
 
+/// [`render_in`] that gives up when `stop` is set: tiles not yet started
+/// are skipped (a tile in flight finishes), and the render returns `None`
+/// instead of a frame. For `cdvol serve`, where a newer request makes an
+/// older one's frame worthless. A render that is not stopped returns the
+/// same frame and counters as [`render_in`].
+pub fn render_in_until(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    progress: &dyn Progress,
+    stop: &AtomicBool,
+) -> Result<Option<(Frame, Stats)>, RenderError> {
+    let t0 = Instant::now();
+    let (tiles, stats) =
+        render_shard_until(vol, cache, camera, opts, Shard::WHOLE, progress, Some(stop))?;
+    if stop.load(Ordering::Relaxed) {
+        return Ok(None);
+    }
+    let colouring = Colouring::of(vol, opts);
+    let (frame, mut stats) = finish(&colouring, camera.width, camera.height, tiles, stats);
+    stats.seconds_total = t0.elapsed().as_secs_f64();
+    Ok(Some((frame, stats)))
+}
+
 /// Renders the tiles of `shard` after checking the options: their pixels
 /// before colouring, and the summed counters (`width` and `height` set).
 /// The common core of [`render_in`] and
@@ -71,6 +97,19 @@ pub(crate) fn render_shard(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<(Vec<TilePx>, Stats), RenderError> {
+    render_shard_until(vol, cache, camera, opts, shard, progress, None)
+}
+
+/// [`render_shard`], skipping the tiles not yet started once `stop` is set.
+fn render_shard_until(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+    stop: Option<&AtomicBool>,
+) -> Result<(Vec<TilePx>, Stats), RenderError> {
     let t0 = Instant::now();
     check_render(vol, camera, opts)?;
     if shard.n == 0 || shard.k >= shard.n {
@@ -82,8 +121,8 @@ pub(crate) fn render_shard(
     }
     let (w, hgt) = (camera.width, camera.height);
     let results = match opts.precision {
-        Precision::F64 => render_tiles::<f64>(vol, cache, camera, opts, shard, progress),
-        Precision::F32 => render_tiles::<f32>(vol, cache, camera, opts, shard, progress),
+        Precision::F64 => render_tiles::<f64>(vol, cache, camera, opts, shard, progress, stop),
+        Precision::F32 => render_tiles::<f32>(vol, cache, camera, opts, shard, progress, stop),
     };
 
     // Merge counters; keep the tiles' pixels for colouring.
@@ -227,6 +266,7 @@ fn render_tiles<T: Real>(
     opts: &RenderOptions,
     shard: Shard,
     progress: &dyn Progress,
+    stop: Option<&AtomicBool>,
 ) -> Vec<TileOut> {
     let h = vol.header();
     let grid = TGrid::<T>::new(&h.axes);
@@ -251,6 +291,9 @@ fn render_tiles<T: Real>(
     let results = tiles
         .par_iter()
         .map(|&(tx, ty)| {
+            if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+                return TileOut::skipped(tx * ts, ty * ts);
+            }
             let r = render_tile(&ctx, cache, tx * ts, ty * ts, ts);
             progress.advance(1);
             r
@@ -284,6 +327,23 @@ struct TileOut {
     hits: u64,
     time: TileTime,
     error: Option<FormatError>,
+}
+
+impl TileOut {
+    /// A tile left out of a stopped render: no pixels, no counts.
+    fn skipped(x0: u32, y0: u32) -> TileOut {
+        TileOut {
+            x0,
+            y0,
+            w: 1,
+            pixels: Vec::new(),
+            steps: StepCounts::default(),
+            cache: CacheCounters::default(),
+            hits: 0,
+            time: TileTime::default(),
+            error: None,
+        }
+    }
 }
 
 /// Renders the tile at `(x0, y0)`, at most `ts` pixels square, with one

@@ -95,6 +95,17 @@ const RULES: &[(&str, &[&str])] = &[
         ],
     ),
     ("render/", &["crate::prep", "crate::batch", "crate::export"]),
+    // The viewer renders packed files it was given: never prep, batch,
+    // export or raw inputs (no URL reaches an input path).
+    (
+        "serve/",
+        &[
+            "crate::prep",
+            "crate::batch",
+            "crate::export",
+            "crate::input",
+        ],
+    ),
     // The walkers know the grid and nothing of bricks, caches or pixels.
     (
         "render/traverse/",

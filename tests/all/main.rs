@@ -40,6 +40,7 @@ mod real_data;
 mod reference;
 mod render;
 mod scene;
+mod serve;
 mod shard;
 mod template;
 mod traverse;

@@ -1,0 +1,576 @@
+//! What a browser may ask of `cdvol serve`: the query string of an image
+//! request parsed into a checked [`ViewRequest`], every number bounded, and
+//! its conversion into the renderer's [`CameraSpec`] and
+//! [`RenderOptions`] with the defaults of `cdvol render` (so the image is
+//! the one `cdvol render` writes for [`ViewRequest::command`]).
+//!
+//! Files are addressed by their index on the server's command line: no
+//! text of the URL ever names a path.
+
+use crate::format::reader::PackedVolume;
+use crate::orient::NamedView;
+use crate::render::camera::Camera;
+use crate::render::job::{CameraSpec, View};
+use crate::render::shade::HitMethod;
+use crate::render::traverse::{Method, TGrid};
+use crate::render::{Mode, RenderOptions, Window};
+
+/// Largest image edge the server renders: a frame then needs at most
+/// 1024^2 x [`RENDER_BYTES_PER_PIXEL`](crate::render::job::RENDER_BYTES_PER_PIXEL)
+/// = 64 MiB besides the cache (`cdvol render` makes bigger images).
+pub const MAX_SIDE: u32 = 1024;
+/// Longest query string accepted.
+pub const MAX_QUERY: usize = 2048;
+/// Angles beyond this many degrees are refused (no view needs them).
+pub const MAX_ANGLE_DEG: f64 = 3600.0;
+/// Composite sample distances, mm.
+pub const STEP_MM: (f64, f64) = (0.05, 20.0);
+
+/// An image request that failed its checks: the 400 message.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RequestError {
+    /// A parameter the server does not know.
+    #[error("unknown parameter {name:?}; known: {KNOWN}")]
+    Unknown { name: String },
+    /// A parameter given twice.
+    #[error("parameter {name:?} given twice, expected once")]
+    Repeated { name: String },
+    /// A value out of its range or of the wrong form.
+    #[error("{name}={value:?}: expected {expected}")]
+    Bad {
+        name: &'static str,
+        value: String,
+        expected: String,
+    },
+    /// The query string is longer than [`MAX_QUERY`].
+    #[error("query of {len} bytes, expected at most {MAX_QUERY}")]
+    TooLong { len: usize },
+    /// Two parameters that exclude each other.
+    #[error("{0}")]
+    Conflict(String),
+}
+
+const KNOWN: &str = "file, mode, preset, iso, window, level, shadows, hit, view, az, el, \
+                     frame, pan, w, h, step, format, quality, session";
+
+/// Image encodings the page may choose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Encoding {
+    /// The bytes `cdvol render -o x.png` writes.
+    Png,
+    /// Lossy, with this quality (1..=100).
+    Jpeg(u8),
+    /// Lossless WebP (the `image` crate's encoder is lossless only).
+    WebP,
+}
+
+/// A checked image request.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewRequest {
+    /// Index of the file on the server's command line.
+    pub file: usize,
+    /// `surface`, `mip`, `composite` or `cost`.
+    pub mode: String,
+    pub preset: Option<String>,
+    pub iso: Option<f64>,
+    /// MIP window width and level.
+    pub window: Option<(f64, f64)>,
+    pub shadows: bool,
+    pub hit: HitMethod,
+    /// A named view, else `az`/`el`.
+    pub view: Option<NamedView>,
+    pub az_deg: f64,
+    pub el_deg: f64,
+    /// Orthographic frame height (zoom), mm; `None`: the whole volume.
+    pub frame_mm: Option<f64>,
+    /// Pan in mm along the image's right and up.
+    pub pan_mm: Option<[f64; 2]>,
+    pub width: u32,
+    pub height: u32,
+    pub step_mm: f64,
+    pub encoding: Encoding,
+    /// The client's session: a newer request of it cancels this one.
+    pub session: Option<String>,
+}
+
+impl ViewRequest {
+    /// Parses the query string `q` (without `?`), for a server of `files`
+    /// files.
+    pub fn parse(q: &str, files: usize) -> Result<ViewRequest, RequestError> {
+        if q.len() > MAX_QUERY {
+            return Err(RequestError::TooLong { len: q.len() });
+        }
+        let mut r = ViewRequest {
+            file: 0,
+            mode: "surface".into(),
+            preset: None,
+            iso: None,
+            window: None,
+            shadows: false,
+            hit: HitMethod::Int,
+            view: None,
+            az_deg: 0.0,
+            el_deg: 0.0,
+            frame_mm: None,
+            pan_mm: None,
+            width: 512,
+            height: 512,
+            step_mm: 0.5,
+            encoding: Encoding::Png,
+            session: None,
+        };
+        let mut seen = Vec::new();
+        let (mut window, mut level, mut quality) = (None, None, None);
+        for pair in q.split('&').filter(|p| !p.is_empty()) {
+            let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
+            let v = decode(v);
+            if seen.contains(&k) {
+                return Err(RequestError::Repeated { name: k.into() });
+            }
+            seen.push(k);
+            match k {
+                "file" => r.file = int(k, &v, 0, files.saturating_sub(1) as u64)? as usize,
+                "mode" => r.mode = one_of("mode", &v, &["surface", "mip", "composite", "cost"])?,
+                "preset" => r.preset = Some(preset(&v)?),
+                "iso" => r.iso = Some(num("iso", &v, f64::MAX)?),
+                "window" => window = Some(num("window", &v, f64::MAX)?),
+                "level" => level = Some(num("level", &v, f64::MAX)?),
+                "shadows" => r.shadows = one_of("shadows", &v, &["0", "1"])? == "1",
+                "hit" => r.hit = hit(&v)?,
+                "view" => r.view = Some(view(&v)?),
+                "az" => r.az_deg = num("az", &v, MAX_ANGLE_DEG)?,
+                "el" => r.el_deg = num("el", &v, MAX_ANGLE_DEG)?,
+                "frame" => r.frame_mm = Some(positive("frame", &v)?),
+                "pan" => r.pan_mm = Some(pan(&v)?),
+                "w" => r.width = int("w", &v, 1, MAX_SIDE as u64)? as u32,
+                "h" => r.height = int("h", &v, 1, MAX_SIDE as u64)? as u32,
+                "step" => r.step_mm = step(&v)?,
+                "format" => {
+                    r.encoding = match one_of("format", &v, &["png", "jpeg", "webp"])?.as_str() {
+                        "jpeg" => Encoding::Jpeg(85),
+                        "webp" => Encoding::WebP,
+                        _ => Encoding::Png,
+                    }
+                }
+                "quality" => quality = Some(int("quality", &v, 1, 100)? as u8),
+                "session" => r.session = Some(session(&v)?),
+                _ => return Err(RequestError::Unknown { name: k.into() }),
+            }
+        }
+        if !seen.contains(&"file") && files == 0 {
+            return Err(RequestError::Conflict("the server has no files".into()));
+        }
+        r.window = match (window, level) {
+            (Some(w), Some(l)) if w > 0.0 => Some((w, l)),
+            (None, None) => None,
+            _ => {
+                return Err(RequestError::Conflict(
+                    "window and level go together, the width positive".into(),
+                ))
+            }
+        };
+        if let Some(q) = quality {
+            match r.encoding {
+                Encoding::Jpeg(_) => r.encoding = Encoding::Jpeg(q),
+                _ => {
+                    return Err(RequestError::Conflict(
+                        "quality goes with format=jpeg".into(),
+                    ))
+                }
+            }
+        }
+        if r.preset.is_some() && r.iso.is_some() {
+            return Err(RequestError::Conflict(
+                "preset and iso exclude each other: a preset brings its iso value".into(),
+            ));
+        }
+        if r.view.is_some() && (seen.contains(&"az") || seen.contains(&"el")) {
+            return Err(RequestError::Conflict(
+                "view (a named view) excludes az and el".into(),
+            ));
+        }
+        Ok(r)
+    }
+
+    /// The render options: `cdvol render`'s defaults with this request's
+    /// mode, scene and window.
+    pub fn options(&self, cache_bytes: usize) -> Result<RenderOptions, RequestError> {
+        let preset = match &self.preset {
+            Some(p) => Some(crate::presets::get(p).map_err(|e| RequestError::Bad {
+                name: "preset",
+                value: p.clone(),
+                expected: e.to_string(),
+            })?),
+            None => None,
+        };
+        let mode = match self.mode.as_str() {
+            "mip" => Mode::Mip,
+            "cost" => Mode::Cost,
+            "composite" => match &preset {
+                Some(p) => Mode::Composite {
+                    tf: p.tf.clone(),
+                    step_mm: self.step_mm,
+                },
+                None => {
+                    return Err(RequestError::Conflict(
+                        "mode=composite needs a preset (its transfer function)".into(),
+                    ))
+                }
+            },
+            _ => Mode::Surface {
+                hit: self.hit,
+                shadows: self.shadows,
+            },
+        };
+        let mut o = RenderOptions::new(mode, Method::Cd { min_leap: 1 });
+        o.cache_bytes = cache_bytes;
+        o.iso = self.iso;
+        if let Some(p) = &preset {
+            match self.mode.as_str() {
+                "surface" | "cost" => {
+                    o.iso = Some(p.iso.ok_or_else(|| RequestError::Bad {
+                        name: "preset",
+                        value: p.name.clone(),
+                        expected: format!("a preset with an iso value for mode={}", self.mode),
+                    })?)
+                }
+                "mip" => {
+                    if let Some(w) = p.window {
+                        o.window = Window::Fixed {
+                            width: w.width,
+                            level: w.level,
+                        }
+                    }
+                }
+                _ => o.look.shade = p.shade,
+            }
+        }
+        if let Some((width, level)) = self.window {
+            o.window = Window::Fixed { width, level };
+        }
+        Ok(o)
+    }
+
+    /// The camera: an orbit or named view, or, when panned, the same
+    /// view's eye and target shifted (`--eye --target --up`).
+    pub fn camera(&self, vol: &PackedVolume) -> Result<CameraSpec, RequestError> {
+        let view = match self.view {
+            Some(v) => View::Named(v),
+            None => View::Orbit {
+                az_deg: self.az_deg,
+                el_deg: self.el_deg,
+            },
+        };
+        let spec = CameraSpec {
+            view,
+            persp_fov_deg: None,
+            frame_mm: self.frame_mm,
+            width: self.width,
+            height: self.height,
+        };
+        let Some([dx, dy]) = self.pan_mm.filter(|p| *p != [0.0, 0.0]) else {
+            return Ok(spec);
+        };
+        let mirrored = vol
+            .header()
+            .orientation
+            .as_ref()
+            .is_some_and(|o| o.nearest().det() < 0.0);
+        if mirrored {
+            return Err(RequestError::Conflict(
+                "pan: this file's sample axes are mirrored in the patient, and a mirrored \
+                 view has no --eye/--target/--up equivalent; orbit and zoom only"
+                    .into(),
+            ));
+        }
+        let cam = self.place(vol, &spec)?;
+        let bounds = TGrid::<f64>::new(&vol.header().axes).bounds();
+        let shift = dx * cam.right + dy * cam.up;
+        let eye = cam.eye + shift;
+        let dist = (0..3)
+            .map(|k| (bounds.1[k] - bounds.0[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let target = eye + cam.forward * dist;
+        let frame = match cam.projection {
+            crate::render::camera::Projection::Ortho { frame_mm } => frame_mm,
+            crate::render::camera::Projection::Persp { .. } => dist,
+        };
+        Ok(CameraSpec {
+            view: View::LookAt {
+                eye: eye.to_array(),
+                target: target.to_array(),
+                up: cam.up.to_array(),
+            },
+            frame_mm: Some(frame),
+            ..spec
+        })
+    }
+
+    /// `spec` placed against `vol`.
+    pub fn place(&self, vol: &PackedVolume, spec: &CameraSpec) -> Result<Camera, RequestError> {
+        let bounds = TGrid::<f64>::new(&vol.header().axes).bounds();
+        spec.place(bounds, 0.0, vol.header().orientation.as_ref())
+            .map_err(|e| self.bad_view(e.to_string()))
+    }
+
+    fn bad_view(&self, why: String) -> RequestError {
+        RequestError::Bad {
+            name: "view",
+            value: format!(
+                "{} az={} el={} frame={:?} pan={:?}",
+                self.view.map_or("orbit", |v| v.name()),
+                self.az_deg,
+                self.el_deg,
+                self.frame_mm,
+                self.pan_mm
+            ),
+            expected: why,
+        }
+    }
+
+    /// The `cdvol render` command that writes this image as `view.png`,
+    /// `path` being the file as named on the server's command line.
+    pub fn command(&self, path: &str, spec: &CameraSpec) -> String {
+        let mut a: Vec<String> = vec!["cdvol".into(), "render".into(), quote(path)];
+        a.extend([
+            "-o".into(),
+            "view.png".into(),
+            "--mode".into(),
+            self.mode.clone(),
+        ]);
+        let mut flag = |f: &str, v: String| a.extend([f.to_string(), v]);
+        if let Some(p) = &self.preset {
+            flag("--preset", quote(p));
+        }
+        if let Some(v) = self.iso {
+            flag("--iso", v.to_string());
+        }
+        if self.mode == "surface" && self.hit != HitMethod::Int {
+            flag("--hit", hit_name(self.hit).into());
+        }
+        if let Some((w, l)) = self.window.filter(|_| self.mode == "mip") {
+            flag("--window", w.to_string());
+            flag("--level", l.to_string());
+        }
+        if self.mode == "composite" {
+            flag("--step", self.step_mm.to_string());
+        }
+        flag("--width", self.width.to_string());
+        flag("--height", self.height.to_string());
+        match spec.view {
+            View::Named(v) => flag("--view", v.name().into()),
+            View::Orbit { az_deg, el_deg } => flag("--view", format!("{az_deg},{el_deg}")),
+            View::LookAt { eye, target, up } => {
+                let t = |p: [f64; 3]| format!("{},{},{}", p[0], p[1], p[2]);
+                flag("--eye", t(eye));
+                flag("--target", t(target));
+                flag("--up", t(up));
+            }
+        }
+        if let Some(f) = spec.frame_mm {
+            flag("--frame", f.to_string());
+        }
+        if self.shadows && self.mode == "surface" {
+            a.push("--shadows".into());
+        }
+        a.join(" ")
+    }
+}
+
+/// `s` quoted for a POSIX shell when it needs it.
+fn quote(s: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "/._-+,=:@".contains(c);
+    if !s.is_empty() && s.chars().all(plain) {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', "'\\''"))
+    }
+}
+
+/// Percent-decoding of a query value (`+` is a space); invalid escapes
+/// stay as they are, and the value is then refused by its own check.
+fn decode(v: &str) -> String {
+    let b = v.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        match b[i] {
+            b'%' if i + 2 < b.len() => match (hex(b[i + 1]), hex(b[i + 2])) {
+                (Some(h), Some(l)) => {
+                    out.push((h * 16 + l) as u8);
+                    i += 3;
+                    continue;
+                }
+                _ => out.push(b'%'),
+            },
+            b'+' => out.push(b' '),
+            c => out.push(c),
+        }
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+fn bad(name: &'static str, v: &str, expected: impl Into<String>) -> RequestError {
+    RequestError::Bad {
+        name,
+        value: v.chars().take(80).collect(),
+        expected: expected.into(),
+    }
+}
+
+fn int(name: &str, v: &str, lo: u64, hi: u64) -> Result<u64, RequestError> {
+    let name = static_name(name);
+    match v.parse::<u64>() {
+        Ok(n) if (lo..=hi).contains(&n) => Ok(n),
+        _ => Err(bad(name, v, format!("a whole number in {lo}..={hi}"))),
+    }
+}
+
+/// The parameter's name as a `&'static str` (they are all in [`KNOWN`]).
+fn static_name(name: &str) -> &'static str {
+    KNOWN
+        .split(", ")
+        .find(|k| *k == name)
+        .unwrap_or("parameter")
+}
+
+fn num(name: &'static str, v: &str, max_abs: f64) -> Result<f64, RequestError> {
+    match v.parse::<f64>() {
+        Ok(x) if x.is_finite() && x.abs() <= max_abs => Ok(x),
+        _ => Err(bad(
+            name,
+            v,
+            format!("a finite number of at most {max_abs:e} in size"),
+        )),
+    }
+}
+
+fn positive(name: &'static str, v: &str) -> Result<f64, RequestError> {
+    match v.parse::<f64>() {
+        Ok(x) if x > 0.0 && x <= 1e6 => Ok(x),
+        _ => Err(bad(name, v, "a number of mm in (0, 1e6]")),
+    }
+}
+
+fn step(v: &str) -> Result<f64, RequestError> {
+    match v.parse::<f64>() {
+        Ok(x) if (STEP_MM.0..=STEP_MM.1).contains(&x) => Ok(x),
+        _ => Err(bad(
+            "step",
+            v,
+            format!("mm in {}..={}", STEP_MM.0, STEP_MM.1),
+        )),
+    }
+}
+
+fn pan(v: &str) -> Result<[f64; 2], RequestError> {
+    let p: Vec<f64> = v.split(',').filter_map(|x| x.trim().parse().ok()).collect();
+    match p[..] {
+        [x, y] if x.is_finite() && y.is_finite() && x.abs() <= 1e6 && y.abs() <= 1e6 => Ok([x, y]),
+        _ => Err(bad("pan", v, "DX,DY in mm, each at most 1e6 in size")),
+    }
+}
+
+fn one_of(name: &'static str, v: &str, allowed: &[&str]) -> Result<String, RequestError> {
+    if allowed.contains(&v) {
+        Ok(v.to_string())
+    } else {
+        Err(bad(name, v, format!("one of {}", allowed.join(", "))))
+    }
+}
+
+fn preset(v: &str) -> Result<String, RequestError> {
+    crate::presets::get(v)
+        .map(|p| p.name)
+        .map_err(|e| bad("preset", v, e.to_string()))
+}
+
+fn hit(v: &str) -> Result<HitMethod, RequestError> {
+    Ok(
+        match one_of("hit", v, &["int", "bisect", "newton", "exact"])?.as_str() {
+            "bisect" => HitMethod::Bisect,
+            "newton" => HitMethod::Newton,
+            "exact" => HitMethod::Exact,
+            _ => HitMethod::Int,
+        },
+    )
+}
+
+/// The `cdvol render --hit` name of `h`.
+pub fn hit_name(h: HitMethod) -> &'static str {
+    match h {
+        HitMethod::Int => "int",
+        HitMethod::Bisect => "bisect",
+        HitMethod::Newton => "newton",
+        HitMethod::Exact => "exact",
+    }
+}
+
+fn view(v: &str) -> Result<NamedView, RequestError> {
+    NamedView::parse(v).ok_or_else(|| bad("view", v, NamedView::NAMES))
+}
+
+fn session(v: &str) -> Result<String, RequestError> {
+    let ok = |c: char| c.is_ascii_alphanumeric() || c == '-' || c == '_';
+    if (1..=64).contains(&v.len()) && v.chars().all(ok) {
+        Ok(v.to_string())
+    } else {
+        Err(bad("session", v, "1 to 64 letters, digits, - or _"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_and_bounds() {
+        let r = ViewRequest::parse("", 1).unwrap();
+        assert_eq!((r.width, r.height, r.mode.as_str()), (512, 512, "surface"));
+        for bad in [
+            "w=0",
+            "w=1025",
+            "h=-3",
+            "az=nan",
+            "az=1e9",
+            "frame=0",
+            "file=1",
+            "mode=depth",
+            "hit=magic",
+            "preset=..%2Fetc",
+            "view=up",
+            "pan=1",
+            "step=0",
+            "quality=50",
+            "session=a%20b",
+            "w=1&w=2",
+            "path=/etc/passwd",
+            "window=3",
+            "iso=1&preset=ct-bone",
+        ] {
+            assert!(ViewRequest::parse(bad, 1).is_err(), "{bad} accepted");
+        }
+        let long = "a".repeat(MAX_QUERY + 1);
+        assert!(matches!(
+            ViewRequest::parse(&long, 1),
+            Err(RequestError::TooLong { .. })
+        ));
+    }
+
+    #[test]
+    fn decodes_percent_and_plus() {
+        assert_eq!(decode("a%2Cb+c%zz%4"), "a,b c%zz%4");
+        let r = ViewRequest::parse("pan=1.5%2C-2&format=jpeg&quality=70", 1).unwrap();
+        assert_eq!(r.pan_mm, Some([1.5, -2.0]));
+        assert_eq!(r.encoding, Encoding::Jpeg(70));
+    }
+
+    #[test]
+    fn quotes_for_the_shell() {
+        assert_eq!(quote("a/b.cdv"), "a/b.cdv");
+        assert_eq!(quote("it's here"), "'it'\\''s here'");
+    }
+}

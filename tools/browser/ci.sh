@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# The `cdvol serve` page in headless Chromium (issue 18), for .ci/run:
+# installs Debian's chromium and the script's one npm package
+# (playwright-core, which drives the installed browser and downloads
+# none), prepares the real CT, and runs view-test.mjs twice: one client
+# at 1024^2 (the refined frame must equal `cdvol render`; latency and
+# drag fps reported), and four clients at once (peak RSS reported).
+#
+# usage: tools/browser/ci.sh [CDVOL] [CT_SIDECAR]   (defaults:
+#        target/debug/cdvol as `cargo test` left it, target/ct/cranium.json)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+cdvol=$(realpath "${1:-$root/target/debug/cdvol}")
+ct=$(realpath "${2:-$root/target/ct/cranium.json}")
+if ! command -v chromium >/dev/null; then
+    as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
+    as_root apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -q chromium >/dev/null
+fi
+cd "$root/tools/browser"
+npm ci --no-audit --no-fund --silent
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+"$cdvol" -q prep "$ct" --iso 300 -o "$work/ct.cdv" >/dev/null
+node view-test.mjs --cdvol "$cdvol" --file "$work/ct.cdv" --size 1024 --out "$work/one"
+node view-test.mjs --cdvol "$cdvol" --file "$work/ct.cdv" --size 512 --clients 4 \
+    --drags 2 --cache-mb 64 --out "$work/four"
