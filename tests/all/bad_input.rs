@@ -334,6 +334,7 @@ fn inconsistent_headers_with_valid_checksums_are_refused() {
     let first_entry = trailer + hlen;
     b[first_entry..first_entry + 8].copy_from_slice(&u64::MAX.to_le_bytes());
     b[first_entry + 16..first_entry + 20].copy_from_slice(&0u32.to_le_bytes()); // not uniform
+    b[first_entry + 24..first_entry + 32].fill(0); // and no value maximum
     let b = rewrite_header(&b, |_| {});
     std::fs::write(&bad, b).unwrap();
     let m = PackedVolume::open(&bad).err().unwrap().to_string();

@@ -13,8 +13,9 @@ use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
+use cdvol::render::cache::{BrickCache, CacheCounters, Planes, RBrick};
 use cdvol::render::shade::HitMethod;
-use cdvol::render::traverse::Method;
+use cdvol::render::traverse::{Method, OBJECT};
 use cdvol::render::{render, Mode, Normals, RenderOptions};
 use cdvol::tools::phantom;
 
@@ -449,4 +450,93 @@ fn batch_envelope_auto_picks_each_inputs_modality() {
         .or_else(|| again["inputs"].as_array())
         .unwrap();
     assert!(rows.iter().all(|r| r["status"] == "skipped"), "{again}");
+}
+
+/// `file` (format version 2) as format version 1 wrote it: no index value
+/// maxima, version 1 in preamble, header and footer, the CRC rewritten.
+fn as_version(file: &[u8], version: u32) -> Vec<u8> {
+    use cdvol::format::{FOOTER_LEN, INDEX_ENTRY_LEN};
+    let mut f = file.to_vec();
+    let foot = f.len() - FOOTER_LEN as usize;
+    let u = |f: &[u8], i: usize| u64::from_le_bytes(f[foot + i..foot + i + 8].try_into().unwrap());
+    let (trailer, hlen, ilen) = (u(&f, 0) as usize, u(&f, 8) as usize, u(&f, 16) as usize);
+    if version == 1 {
+        for e in f[trailer + hlen..trailer + hlen + ilen].chunks_exact_mut(INDEX_ENTRY_LEN) {
+            let flags = u32::from_le_bytes(e[16..20].try_into().unwrap()) & !4;
+            e[16..20].copy_from_slice(&flags.to_le_bytes());
+            e[24..32].fill(0);
+        }
+    }
+    f[8..12].copy_from_slice(&version.to_le_bytes());
+    let mut f = common::rewrite_header(&f, |h| h["format_version"] = version.into());
+    let n = f.len();
+    f[n - 12..n - 8].copy_from_slice(&version.to_le_bytes());
+    f
+}
+
+/// Format version 2's index value maxima: a render at an iso above a
+/// brick's maximum reads it for its codes only. At an iso exactly equal to
+/// one brick's maximum (the boundary: a vertex at the iso value makes a
+/// 1-cell), images still match a file prepared at that iso, and so do
+/// those of the same file rewritten as format version 1, which has no
+/// maxima; version 3 is refused by name.
+#[test]
+fn index_value_maxima_skip_values_and_version_1_still_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ct = common::real_ct();
+    let env = packed_with(&ct, &d.join("env.cdv"), 300.0, |_| {});
+    let mut maxima: Vec<f64> = env.index().iter().filter_map(|e| e.value_max()).collect();
+    maxima.sort_by(f64::total_cmp);
+    assert!(maxima.len() > 10, "{} bricks with maxima", maxima.len());
+    let v = maxima[maxima.len() / 2];
+    assert!(v > 300.0 && maxima[0] < v, "maxima {maxima:?}");
+    let own = packed_with(&ct, &d.join("own.cdv"), v, |_| {});
+    same_as_own(&env, &own, v, "version 2, iso at a brick maximum");
+    // Brick by brick, the scene's 1-cells in the narrowed envelope are
+    // those prep found for `v` (a cell with a vertex exactly at `v` is
+    // one: images alone would not show a brick wrongly skipped there).
+    let narrowed = BrickCache::with_planes(
+        &env,
+        64 << 20,
+        Planes {
+            narrow: Some(v as f32),
+            ..Planes::NONE
+        },
+    );
+    let plain = BrickCache::with_planes(&own, 64 << 20, Planes::NONE);
+    let mut c = CacheCounters::default();
+    let mut at_max = 0;
+    for id in 0..env.index().len() as u64 {
+        let (a, b) = (
+            narrowed.get(id, None, &mut c).unwrap(),
+            plain.get(id, None, &mut c).unwrap(),
+        );
+        let objects = |r: &RBrick| -> Vec<[u32; 3]> {
+            let [x, y, z] = r.cells;
+            (0..z)
+                .flat_map(|k| (0..y).flat_map(move |j| (0..x).map(move |i| [i, j, k])))
+                .filter(|&l| r.code(l) == OBJECT)
+                .collect()
+        };
+        assert_eq!(objects(&a), objects(&b), "brick {id}: the scene's 1-cells");
+        at_max += usize::from(env.index()[id as usize].value_max() == Some(v));
+    }
+    assert!(at_max >= 1);
+
+    let bytes = std::fs::read(d.join("env.cdv")).unwrap();
+    let v1 = d.join("v1.cdv");
+    std::fs::write(&v1, as_version(&bytes, 1)).unwrap();
+    let old = PackedVolume::open(&v1).unwrap();
+    assert_eq!(old.header().format_version, 1);
+    assert!(old.index().iter().all(|e| e.value_max().is_none()));
+    same_as_own(&old, &own, v, "version 1");
+
+    let v3 = d.join("v3.cdv");
+    std::fs::write(&v3, as_version(&bytes, 3)).unwrap();
+    let e = PackedVolume::open(&v3).err().unwrap().to_string();
+    assert!(
+        e.contains("format version 3") && e.contains("versions 1 to 2"),
+        "{e}"
+    );
 }
