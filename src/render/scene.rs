@@ -187,29 +187,37 @@ pub(crate) fn narrow(b: &mut RBrick, iso: f32, halo: bool, edge: &Edge) {
     }
 }
 
-/// The largest distance [`local_distances`] gives: every value then stays
-/// below 255 after adding one, so its sweeps need no saturation.
+/// A neighbour bound ([`Edge::pads`]) for "no 1-cell in reach": outside
+/// the volume, or the largest code plus one.
 pub(crate) const FAR: u8 = 254;
+
+/// How far [`local_distances`] looks: distances above it read as
+/// `REACH + 1`, so a narrowed code is at most `REACH` (where the file's
+/// own code is not larger). 8 keeps 3 leaps of 17 cells in a 32-cell
+/// brick for a tenth of the work of an unbounded transform (docs/
+/// BENCHMARKS.md, "Render-time iso").
+pub(crate) const REACH: u8 = 8;
 
 /// The chessboard distance of every cell of a brick (`cells` per axis, x
 /// fastest; `plane[i] == OBJECT` marks a 1-cell) to the nearest 1-cell,
 /// where the cells of the layer around the brick count as 1-cells at the
 /// distances `pads` gives (lower bounds, per neighbour brick, indexed as
-/// [`Edge::pads`]; all 0: everything outside is a 1-cell): 0 for a
-/// 1-cell, at most [`FAR`]. The result is a lower bound of the true
-/// distance whenever the pads are: a chessboard geodesic from a cell to a
-/// 1-cell outside the brick passes through the layer around it.
+/// [`Edge::pads`]; all 0: everything outside is a 1-cell), capped at
+/// [`REACH`]` + 1`: 0 for a 1-cell. The result is a lower bound of the
+/// true distance whenever the pads are: a chessboard geodesic from a cell
+/// to a 1-cell outside the brick passes through the layer around it, and
+/// a cell with none within `REACH` is at least `REACH + 1` away.
 ///
-/// Two raster passes with the 3x3x3 mask of unit weights (Rosenfeld and
-/// Pfaltz's sequential chessboard transform in 3D), exact for the
-/// chessboard metric; each pass takes per cell the smallest of the 3x3
-/// eroded slice before, the 3-eroded row before and the cell before, plus
-/// one. The layer around the brick is the padding, never updated.
+/// `REACH` rounds of min-plus dilation with the 3x3x3 cube, each one
+/// erosion per axis over the whole padded brick (flat loops that
+/// vectorise) and `d = min(d, eroded + 1)` inside, the layer around held
+/// at its bounds: after `k` rounds a cell holds the exact distance to the
+/// 1-cells and layer cells within `k`.
 pub(crate) fn local_distances(plane: &[u8], cells: [u32; 3], pads: &[u8; 27]) -> Vec<u8> {
     let [cx, cy, cz] = cells.map(|c| c as usize);
     let (px, py, pz) = (cx + 2, cy + 2, cz + 2);
+    let (n, slice) = (px * py * pz, px * py);
     let at = |x: usize, y: usize, z: usize| (z * py + y) * px + x;
-    // Padding: the side (0, 1, 2 for below, inside, above) per axis.
     let side = |v: usize, n: usize| {
         if v == 0 {
             0
@@ -219,130 +227,65 @@ pub(crate) fn local_distances(plane: &[u8], cells: [u32; 3], pads: &[u8; 27]) ->
             1
         }
     };
-    let mut d = vec![0u8; px * py * pz];
+    let cap = REACH + 1;
+    // `fixed`: the layer's bounds (capped), and INSIDE for the brick.
+    const INSIDE: u8 = u8::MAX;
+    let mut fixed = vec![INSIDE; n];
     for z in 0..pz {
         for y in 0..py {
             let (sy, sz) = (side(y, cy), side(z, cz));
-            let row = &mut d[at(0, y, z)..at(0, y, z) + px];
-            row[0] = pads[sz * 9 + sy * 3].min(FAR);
-            row[px - 1] = pads[sz * 9 + sy * 3 + 2].min(FAR);
+            let row = &mut fixed[at(0, y, z)..at(0, y, z) + px];
+            row[0] = pads[sz * 9 + sy * 3].min(cap);
+            row[px - 1] = pads[sz * 9 + sy * 3 + 2].min(cap);
             if sy != 1 || sz != 1 {
-                row[1..px - 1].fill(pads[sz * 9 + sy * 3 + 1].min(FAR));
+                row[1..px - 1].fill(pads[sz * 9 + sy * 3 + 1].min(cap));
             }
         }
     }
+    let mut d: Vec<u8> = fixed
+        .iter()
+        .map(|&f| if f == INSIDE { cap } else { f })
+        .collect();
+    let keep: Vec<u8> = fixed
+        .iter()
+        .map(|&f| if f == INSIDE { 0xff } else { 0 })
+        .collect();
+    let bound: Vec<u8> = fixed
+        .iter()
+        .map(|&f| if f == INSIDE { 0 } else { f })
+        .collect();
     for z in 0..cz {
         for y in 0..cy {
             let row = &plane[(z * cy + y) * cx..(z * cy + y + 1) * cx];
             let o = at(1, y + 1, z + 1);
             for (dst, &c) in d[o..o + cx].iter_mut().zip(row) {
-                *dst = if c == OBJECT { 0 } else { FAR };
-            }
-        }
-    }
-    // The first step in from the layer around: each cell of the brick's
-    // outer layer starts at most one more than its neighbours there. The
-    // passes below are exact for starting values inside the (convex)
-    // brick, but a geodesic from the layer may need its steps in an order
-    // that leaves the brick, which they would not find when the layer's
-    // values differ (all 0, the sweeps alone suffice).
-    if pads.iter().any(|&p| p != 0) {
-        // The pad directions next to a cell, per axis: 0 (1 inside), and
-        // 0 or 2 on the brick's low or high side.
-        let sides = |v: usize, n: usize| -> ([usize; 3], usize) {
-            match (v == 1, v == n) {
-                (true, true) => ([1, 0, 2], 3),
-                (true, false) => ([1, 0, 0], 2),
-                (false, true) => ([1, 2, 0], 2),
-                (false, false) => ([1, 0, 0], 1),
-            }
-        };
-        for z in 1..=cz {
-            let (oz, nz) = sides(z, cz);
-            for y in 1..=cy {
-                let (oy, ny) = sides(y, cy);
-                let inner_row = nz == 1 && ny == 1;
-                let step = if inner_row { cx.max(2) - 1 } else { 1 };
-                for x in (1..=cx).step_by(step) {
-                    let (ox, nx) = sides(x, cx);
-                    let mut m = FAR;
-                    for &sz in &oz[..nz] {
-                        for &sy in &oy[..ny] {
-                            for &sx in &ox[..nx] {
-                                if (sx, sy, sz) != (1, 1, 1) {
-                                    m = m.min(pads[sz * 9 + sy * 3 + sx]);
-                                }
-                            }
-                        }
-                    }
-                    let i = at(x, y, z);
-                    d[i] = d[i].min(m.saturating_add(1).min(FAR));
+                if c == OBJECT {
+                    *dst = 0;
                 }
             }
         }
     }
-    // Per pass and slice: the slice before it (in the pass's order),
-    // eroded over its 3x3 neighbourhoods (flat over the slice: the ends
-    // of each row are padding, never read back as inside); per row, the
-    // row before it eroded over x, merged with that into `cand`, then the
-    // sweep along x, which alone carries a dependency from cell to cell.
-    let n = px * py;
-    let mut ex = vec![0u8; n];
-    let mut exy = vec![0u8; n];
-    let mut cand = vec![0u8; px];
-    for forward in [true, false] {
-        for zi in 0..cz {
-            let z = if forward { 1 + zi } else { cz - zi };
-            let zn = if forward { z - 1 } else { z + 1 };
-            let slice = &d[at(0, 0, zn)..at(0, 0, zn) + n];
-            min3(
-                &slice[..n - 2],
-                &slice[1..n - 1],
-                &slice[2..],
-                &mut ex[1..n - 1],
-            );
-            min3(
-                &ex[..n - 2 * px],
-                &ex[px..n - px],
-                &ex[2 * px..],
-                &mut exy[px..n - px],
-            );
-            for yi in 0..cy {
-                let y = if forward { 1 + yi } else { cy - yi };
-                let yn = if forward { y - 1 } else { y + 1 };
-                let (r, rn) = (at(0, y, z), at(0, yn, z));
-                let prev = &d[rn..rn + px];
-                min3(
-                    &prev[..px - 2],
-                    &prev[1..px - 1],
-                    &prev[2..],
-                    &mut cand[1..px - 1],
-                );
-                let row = &mut d[r..r + px];
-                let (o, c, e) = (
-                    &mut row[1..px - 1],
-                    &cand[1..px - 1],
-                    &exy[y * px + 1..(y + 1) * px - 1],
-                );
-                assert!(c.len() == o.len() && e.len() == o.len());
-                for i in 0..o.len() {
-                    o[i] = o[i].min(c[i].min(e[i]) + 1);
-                }
-                // Values stay at most FAR (254), so `m + 1` never wraps.
-                if forward {
-                    let mut m = row[0];
-                    for v in &mut row[1..=cx] {
-                        m = (m + 1).min(*v);
-                        *v = m;
-                    }
-                } else {
-                    let mut m = row[cx + 1];
-                    for v in row[1..=cx].iter_mut().rev() {
-                        m = (m + 1).min(*v);
-                        *v = m;
-                    }
-                }
-            }
+    // Erosions along x, y, z read across row and slice ends only for the
+    // layer's cells, whose values `fixed` restores.
+    let (mut t1, mut t2) = (vec![0u8; n], vec![0u8; n]);
+    for _ in 0..REACH {
+        min3(&d[..n - 2], &d[1..n - 1], &d[2..], &mut t1[1..n - 1]);
+        min3(
+            &t1[..n - 2 * px],
+            &t1[px..n - px],
+            &t1[2 * px..],
+            &mut t2[px..n - px],
+        );
+        min3(
+            &t2[..n - 2 * slice],
+            &t2[slice..n - slice],
+            &t2[2 * slice..],
+            &mut t1[slice..n - slice],
+        );
+        // Inside `(grown & 0xff) | 0`, on the layer `(grown & 0) | bound`:
+        // branch-free, so that it vectorises.
+        for (((v, &e), &k), &b) in d.iter_mut().zip(&t1).zip(&keep).zip(&bound) {
+            *v = ((*v).min(e + 1) & k) | b;
         }
     }
     let mut out = Vec::with_capacity(cx * cy * cz);
@@ -484,7 +427,7 @@ mod tests {
     proptest! {
         #[test]
         fn local_distances_are_the_chessboard_distances(
-            c in prop::array::uniform3(1usize..12),
+            c in prop::array::uniform3(1usize..22),
             density in 0.0f64..0.05,
             seed in any::<u64>(),
             pads in prop::array::uniform27(prop_oneof![Just(0u8), Just(FAR), 0u8..=FAR]),
@@ -502,7 +445,8 @@ mod tests {
                 .collect();
             let pads = if blind { [0; 27] } else { pads };
             let got = local_distances(&plane, c.map(|x| x as u32), &pads);
-            prop_assert_eq!(got, brute(&plane, c, &pads));
+            let want: Vec<u8> = brute(&plane, c, &pads).iter().map(|&d| d.min(REACH + 1)).collect();
+            prop_assert_eq!(got, want);
         }
     }
 
@@ -512,11 +456,13 @@ mod tests {
         let d = local_distances(&vec![0u8; 729], c, &Edge::BLIND.pads);
         assert_eq!(d[(4 * 9 + 4) * 9 + 4], 5);
         assert_eq!(d[0], 1);
-        // Far neighbours on every side but one face (x below, at 2).
+        // Far neighbours on every side but one face (x below, at 2): 11
+        // cells away at the far side, read as REACH + 1.
         let mut pads = [FAR; 27];
         pads[9 + 3] = 2;
         let d = local_distances(&vec![0u8; 729], c, &pads);
-        assert_eq!(d[(4 * 9 + 4) * 9 + 8], 2 + 9);
+        assert_eq!(d[(4 * 9 + 4) * 9 + 8], REACH + 1);
+        assert_eq!(d[(4 * 9 + 4) * 9 + 4], 2 + 5);
         assert_eq!(d[(4 * 9 + 4) * 9], 3);
     }
 }
