@@ -19,10 +19,15 @@
 //!    single step each, and a scene much narrower than the envelope (bone
 //!    from a file prepared for skin) would walk cell by cell through
 //!    what it no longer shows. So each brick gets its own chessboard
-//!    distance transform ([`local_distances`]), with every cell outside the
-//!    brick counted as a 1-cell: a lower bound of the true distance, hence
-//!    conservative. Each 0-cell keeps the larger of its file code and the
-//!    local one; both are conservative, so the larger is.
+//!    distance transform ([`local_distances`]), reaching [`REACH`] cells,
+//!    with the cells around the brick at lower bounds the index gives
+//!    ([`Edge`]: 0 where a neighbour may hold a scene 1-cell): a lower
+//!    bound of the true distance, hence conservative. Each 0-cell keeps
+//!    the larger of its file code and the local one; both are
+//!    conservative, so the larger is. A brick whose index value maximum
+//!    (format version 2) lies below the scene's iso value has no scene
+//!    1-cell: it is decoded for its codes only and tightened the same way
+//!    ([`tighten`]).
 //! 3. **What a file prepared for C' would hold.** A brick left without
 //!    1-cells drops its values (a reader decodes such a brick without
 //!    them), and the minimum corner of a 0-cell whose code is now at least
