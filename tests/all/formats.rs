@@ -536,20 +536,8 @@ fn render_sixteen_bit_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cdv = small_head(d, "32,32,20", "-500", "head");
-    let render = |name: &str, extra: &[&str]| {
-        let out = d.join(name);
-        common::ok(
-            common::cdvol()
-                .args([
-                    "render", "-q", "--width", "40", "--height", "36", "--view", "30,20",
-                ])
-                .args(extra)
-                .arg(&cdv)
-                .arg("-o")
-                .arg(&out),
-        );
-        image::open(&out).unwrap()
-    };
+    let render =
+        |name: &str, extra: &[&str]| image::open(render_40x36(&cdv, &d.join(name), extra)).unwrap();
     for (mode, name) in [("surface", "s"), ("mip", "m"), ("depth", "d")] {
         let a8 = render(&format!("{name}8.png"), &["--mode", mode]).to_rgb8();
         // The depth mode writes PNG only (with its .f32 and .depth16.png).
@@ -595,6 +583,22 @@ fn render_sixteen_bit_outputs() {
     assert!(e.contains("8 bits per channel"), "{e}");
 }
 
+/// `cdvol render` of `cdv` at 40 x 36, view 30,20, with `extra`, into
+/// `out`; `out`.
+fn render_40x36(cdv: &Path, out: &Path, extra: &[&str]) -> PathBuf {
+    common::ok(
+        common::cdvol()
+            .args([
+                "render", "-q", "--width", "40", "--height", "36", "--view", "30,20",
+            ])
+            .args(extra)
+            .arg(cdv)
+            .arg("-o")
+            .arg(out),
+    );
+    out.to_path_buf()
+}
+
 /// One channel of float32 TIFF `path` (`--bit-depth 32` in the depth,
 /// MIP and cost modes), read by the tiff crate.
 fn gray_f32(path: &Path) -> (u32, u32, Vec<f32>) {
@@ -617,20 +621,7 @@ fn render_float_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cdv = small_head(d, "32,32,20", "-500", "head");
-    let render = |name: &str, extra: &[&str]| {
-        let out = d.join(name);
-        common::ok(
-            common::cdvol()
-                .args([
-                    "render", "-q", "--width", "40", "--height", "36", "--view", "30,20",
-                ])
-                .args(extra)
-                .arg(&cdv)
-                .arg("-o")
-                .arg(&out),
-        );
-        out
-    };
+    let render = |name: &str, extra: &[&str]| render_40x36(&cdv, &d.join(name), extra);
     // Depth: the TIFF holds exactly the raw .f32 beside a PNG render, and
     // is written alone.
     let png = render("d.png", &["--mode", "depth"]);
