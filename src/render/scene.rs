@@ -202,10 +202,10 @@ pub(crate) const FAR: u8 = 254;
 
 /// How far [`local_distances`] looks: distances above it read as
 /// `REACH + 1`, so a narrowed code is at most `REACH` (where the file's
-/// own code is not larger). 8 cost 0.2 % more steps than an unbounded
-/// transform on the 512^3 phantom, for about half its work (docs/
-/// BENCHMARKS.md, "Render-time iso").
-pub(crate) const REACH: u8 = 8;
+/// own code is not larger). 6 costs 0.5 % more steps than an unbounded
+/// transform on the 512^3 phantom (1 % on the real CT) for well under
+/// half its work (docs/BENCHMARKS.md, "Render-time iso").
+pub(crate) const REACH: u8 = 6;
 
 /// The chessboard distance of every cell of a brick (`cells` per axis, x
 /// fastest; `plane[i] == OBJECT` marks a 1-cell) to the nearest 1-cell,
