@@ -6,7 +6,6 @@
 //! A brick is read (positioned read, CRC check, zstd) only when a ray asks
 //! for one of its cells, so a scene loads only the bricks it needs.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 
 use crate::classify::CellClass;
@@ -621,71 +620,167 @@ impl CacheCounters {
     }
 }
 
-/// Least-recently-used map under a byte budget: O(log n) per lookup,
-/// insertion and eviction (a recency-ordered `BTreeMap` beside the
-/// entries), so a full cache of thousands of bricks costs each miss no
-/// scan while it holds the lock.
+/// Least-recently-used map under a byte budget, for keys below a bound
+/// known up front (a brick id times 2, plus 1 for a stand-in): O(1) per
+/// lookup, insertion and eviction, and no hashing. Keys index a table of
+/// slots; the slots form a doubly linked list in recency order. A lookup
+/// runs under the shared cache's lock on every brick an accessor's own
+/// few do not hold (docs/BENCHMARKS.md, "Render-time iso": the
+/// recency-ordered B-tree this replaces took 15 % of a cold frame).
 struct Lru<V> {
-    /// key -> (value, bytes, last use)
-    map: HashMap<u64, (V, usize, u64)>,
-    /// last use -> key, oldest first
-    order: BTreeMap<u64, u64>,
-    clock: u64,
+    /// key -> slot in `slots`, or [`NIL`].
+    index: Vec<u32>,
+    slots: Vec<Slot<V>>,
+    /// Slots of evicted entries, for reuse.
+    free: Vec<u32>,
+    /// Most and least recently used slots ([`NIL`] when empty).
+    newest: u32,
+    oldest: u32,
     bytes: usize,
     peak: usize,
-    /// Keys ever inserted.
-    seen: HashSet<u64>,
+    /// Keys ever inserted, one bit each.
+    seen: Vec<u64>,
+}
+
+/// No slot.
+const NIL: u32 = u32::MAX;
+
+struct Slot<V> {
+    key: u64,
+    value: Option<V>,
+    bytes: usize,
+    /// Towards the newest and the oldest entry.
+    newer: u32,
+    older: u32,
 }
 
 impl<V: Clone> Lru<V> {
-    fn new() -> Lru<V> {
+    /// An empty map for keys `0..keys`.
+    fn new(keys: u64) -> Lru<V> {
         Lru {
-            map: HashMap::new(),
-            order: BTreeMap::new(),
-            clock: 0,
+            index: vec![NIL; keys as usize],
+            slots: Vec::new(),
+            free: Vec::new(),
+            newest: NIL,
+            oldest: NIL,
             bytes: 0,
             peak: 0,
-            seen: HashSet::new(),
+            seen: vec![0; (keys as usize).div_ceil(64)],
         }
+    }
+
+    /// Takes slot `i` out of the recency list.
+    fn unlink(&mut self, i: u32) {
+        let (newer, older) = (self.slots[i as usize].newer, self.slots[i as usize].older);
+        match newer {
+            NIL => self.newest = older,
+            n => self.slots[n as usize].older = older,
+        }
+        match older {
+            NIL => self.oldest = newer,
+            o => self.slots[o as usize].newer = newer,
+        }
+    }
+
+    /// Puts slot `i` at the newest end of the recency list.
+    fn push_newest(&mut self, i: u32) {
+        let s = &mut self.slots[i as usize];
+        s.newer = NIL;
+        s.older = self.newest;
+        match self.newest {
+            NIL => self.oldest = i,
+            n => self.slots[n as usize].newer = i,
+        }
+        self.newest = i;
     }
 
     /// The value of `key`, now the most recently used.
     fn get(&mut self, key: u64) -> Option<V> {
-        let e = self.map.get_mut(&key)?;
-        self.clock += 1;
-        self.order.remove(&e.2);
-        e.2 = self.clock;
-        self.order.insert(self.clock, key);
-        Some(e.0.clone())
+        let i = *self.index.get(key as usize)?;
+        if i == NIL {
+            return None;
+        }
+        if self.newest != i {
+            self.unlink(i);
+            self.push_newest(i);
+        }
+        self.slots[i as usize].value.clone()
     }
 
-    /// Inserts `key` (absent) holding `bytes`, first evicting least
-    /// recently used entries until it fits in `budget`; a value larger
-    /// than the whole budget is not kept.
+    /// Inserts `key` (absent, below the bound) holding `bytes`, first
+    /// evicting least recently used entries until it fits in `budget`; a
+    /// value larger than the whole budget is not kept.
     fn insert(&mut self, key: u64, v: V, bytes: usize, budget: usize) {
-        self.seen.insert(key);
+        let k = key as usize;
+        if k >= self.index.len() || self.index[k] != NIL {
+            return;
+        }
+        self.seen[k / 64] |= 1 << (k % 64);
         if bytes > budget {
             return;
         }
-        while self.bytes + bytes > budget {
-            let Some((_, old)) = self.order.pop_first() else {
-                break;
-            };
-            if let Some((_, ob, _)) = self.map.remove(&old) {
-                self.bytes -= ob;
-            }
+        while self.bytes + bytes > budget && self.oldest != NIL {
+            let o = self.oldest;
+            self.unlink(o);
+            let s = &mut self.slots[o as usize];
+            self.index[s.key as usize] = NIL;
+            s.value = None;
+            self.bytes -= s.bytes;
+            self.free.push(o);
         }
-        self.clock += 1;
-        self.order.insert(self.clock, key);
-        self.map.insert(key, (v, bytes, self.clock));
+        let slot = Slot {
+            key,
+            value: Some(v),
+            bytes,
+            newer: NIL,
+            older: NIL,
+        };
+        let i = match self.free.pop() {
+            Some(i) => {
+                self.slots[i as usize] = slot;
+                i
+            }
+            None => {
+                self.slots.push(slot);
+                (self.slots.len() - 1) as u32
+            }
+        };
+        self.push_newest(i);
+        self.index[k] = i;
         self.bytes += bytes;
         self.peak = self.peak.max(self.bytes);
     }
+
+    /// Keys ever inserted that satisfy `f`.
+    fn count_seen(&self, f: impl Fn(u64) -> bool) -> u64 {
+        let mut n = 0;
+        for (w, &bits) in self.seen.iter().enumerate() {
+            let mut b = bits;
+            while b != 0 {
+                let k = w as u64 * 64 + b.trailing_zeros() as u64;
+                n += u64::from(f(k));
+                b &= b - 1;
+            }
+        }
+        n
+    }
+
+    /// The keys held, oldest first.
+    #[cfg(test)]
+    fn by_age(&self) -> Vec<u64> {
+        let mut v = Vec::new();
+        let mut i = self.oldest;
+        while i != NIL {
+            v.push(self.slots[i as usize].key);
+            i = self.slots[i as usize].newer;
+        }
+        v
+    }
 }
 
-/// What one cache entry costs besides its brick: the `Arc` counts (16),
-/// the hash map slot at its worst load (2 x 40) and the recency map's
-/// share of a B-tree node (about 32). Counted against the budget because
+/// What one cache entry costs besides its brick: the `Arc` counts (16)
+/// and its slot (48), rounded up generously (the table of slots by key,
+/// 4 bytes a key, is the volume's, not the entries'). Counted against the budget because
 /// uniform and lazily stood-in bricks are tiny and a big volume crosses
 /// hundreds of thousands of them.
 const ENTRY_BYTES: usize = 128;
@@ -774,7 +869,7 @@ impl<'v> BrickCache<'v> {
         BrickCache {
             vol,
             budget: budget_bytes,
-            lru: Mutex::new(Lru::new()),
+            lru: Mutex::new(Lru::new(vol.header().brick_count() * 2)),
             planes,
             pyramid: (planes.octree && bs.is_power_of_two()).then(|| BrickPyramid::new(vol)),
         }
@@ -797,7 +892,7 @@ impl<'v> BrickCache<'v> {
     pub fn distinct_read(&self) -> u64 {
         let l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
         // Keys are id * 2 + lazy; lazy stand-ins read nothing.
-        l.seen.iter().filter(|k| *k % 2 == 0).count() as u64
+        l.count_seen(|k| k % 2 == 0)
     }
 
     /// Largest number of bytes the cache held at once.
@@ -1228,7 +1323,7 @@ mod tests {
             budget in 1usize..64,
             ops in proptest::collection::vec((any::<bool>(), 0u64..12, 1usize..20), 1..200),
         ) {
-            let mut lru: Lru<u64> = Lru::new();
+            let mut lru: Lru<u64> = Lru::new(12);
             let mut model: Vec<(u64, usize)> = Vec::new();
             for (is_get, key, bytes) in ops {
                 let pos = model.iter().position(|e| e.0 == key);
@@ -1248,14 +1343,10 @@ mod tests {
                         model.push((key, bytes));
                     }
                 }
-                let mut keys: Vec<u64> = lru.map.keys().copied().collect();
-                keys.sort_unstable();
-                let mut want: Vec<u64> = model.iter().map(|e| e.0).collect();
-                want.sort_unstable();
-                prop_assert_eq!(keys, want);
-                let by_age: Vec<u64> = lru.order.values().copied().collect();
                 let model_age: Vec<u64> = model.iter().map(|e| e.0).collect();
-                prop_assert_eq!(by_age, model_age);
+                prop_assert_eq!(lru.by_age(), model_age);
+                let held = (0..12).filter(|&k| lru.index[k as usize] != super::NIL).count();
+                prop_assert_eq!(held, model.len());
                 prop_assert_eq!(lru.bytes, model.iter().map(|e| e.1).sum::<usize>());
                 prop_assert!(lru.bytes <= budget && lru.peak <= budget);
             }
