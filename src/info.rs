@@ -271,9 +271,9 @@ impl Info {
 /// Rows of the text histogram of values.
 const VALUE_ROWS: usize = 16;
 
-/// A number for a table: integers without decimals, others with up to 3
-/// significant decimals.
-fn num(v: f64) -> String {
+/// A number for a table or a plot label: integers without decimals,
+/// others with up to 3 decimals.
+pub(crate) fn num(v: f64) -> String {
     if v == v.round() && v.abs() < 1e15 {
         format!("{v:.0}")
     } else {

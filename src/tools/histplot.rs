@@ -13,6 +13,7 @@ use plotters::prelude::*;
 use crate::classify::Classification;
 use crate::format::histogram::ValueHistogram;
 use crate::format::Header;
+use crate::info::num;
 use crate::presets::Preset;
 
 /// The image format, from the output's extension.
@@ -142,17 +143,6 @@ pub fn plot(
     };
     crate::fsutil::write_atomic(out, &bytes)?;
     Ok(())
-}
-
-/// A number for a label: integers without decimals, else up to 3
-/// decimals.
-fn num(v: f64) -> String {
-    if v == v.round() && v.abs() < 1e15 {
-        format!("{v:.0}")
-    } else {
-        let s = format!("{v:.3}");
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
-    }
 }
 
 /// The x range: the data's bins, widened to show the file's iso value or

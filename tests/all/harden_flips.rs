@@ -51,23 +51,16 @@ fn try_render(file: &Path) -> Result<Frame, (bool, String)> {
         .map_err(|e| (false, e.to_string()))
 }
 
-/// Where the header and the index lie: `(trailer, hlen, ilen)`.
-fn trailer(file: &[u8]) -> (usize, usize, usize) {
-    let foot = &file[file.len() - FOOTER_LEN as usize..];
-    let u = |i: usize| u64::from_le_bytes(foot[i..i + 8].try_into().unwrap()) as usize;
-    (u(0), u(8), u(16))
-}
-
 /// Rewrites the footer's CRC-32 over header and index, as the writer does.
 fn fix_crc(file: &mut [u8]) {
-    let (t, h, i) = trailer(file);
+    let (t, h, i) = crate::common::footer(file);
     let crc = crc32fast::hash(&file[t..t + h + i]);
     let at = file.len() - FOOTER_LEN as usize + 24;
     file[at..at + 4].copy_from_slice(&crc.to_le_bytes());
 }
 
 fn sweep(dir: &Path, good: &[u8], want: &Frame, recrc: bool) -> (Counts, Vec<String>) {
-    let (t, h, i) = trailer(good);
+    let (t, h, i) = crate::common::footer(good);
     let p = dir.join(if recrc { "recrc.cdv" } else { "flip.cdv" });
     let mut c = Counts::default();
     let mut bad = Vec::new();
@@ -143,7 +136,7 @@ fn every_bit_flip_of_header_and_index_is_refused_or_harmless() {
         want.rgb.iter().any(|&x| x > 0),
         "the render shows the surface"
     );
-    let (t, h, i) = trailer(&good);
+    let (t, h, i) = crate::common::footer(&good);
     assert!(t > 16, "bricks with payloads");
     let t0 = std::time::Instant::now();
     println!("flip sweep: header {h} bytes, index {i} bytes, trailer at {t}");

@@ -8,36 +8,10 @@
 use std::path::Path;
 
 use cdvol::format::reader::PackedVolume;
-use cdvol::format::FOOTER_LEN;
 use cdvol::progress::NoProgress;
 use cdvol::tools::phantom;
 
-use crate::common::packed;
-
-/// `file` with its JSON header replaced by `edit(header)` and the footer
-/// (lengths, CRC-32 of header + index) rewritten as the writer does.
-pub fn with_header(file: &[u8], edit: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
-    let len = file.len();
-    let foot = &file[len - FOOTER_LEN as usize..];
-    let u64_at = |i: usize| u64::from_le_bytes(foot[i..i + 8].try_into().unwrap()) as usize;
-    let (trailer, hlen, ilen) = (u64_at(0), u64_at(8), u64_at(16));
-    let mut h: serde_json::Value = serde_json::from_slice(&file[trailer..trailer + hlen]).unwrap();
-    edit(&mut h);
-    let json = serde_json::to_vec(&h).unwrap();
-    let idx = &file[trailer + hlen..trailer + hlen + ilen];
-    let mut crc = crc32fast::Hasher::new();
-    crc.update(&json);
-    crc.update(idx);
-    let mut out = file[..trailer].to_vec();
-    out.extend_from_slice(&json);
-    out.extend_from_slice(idx);
-    out.extend_from_slice(&(trailer as u64).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u64).to_le_bytes());
-    out.extend_from_slice(&(ilen as u64).to_le_bytes());
-    out.extend_from_slice(&crc.finalize().to_le_bytes());
-    out.extend_from_slice(&foot[28..40]);
-    out
-}
+use crate::common::{packed, rewrite_header};
 
 /// A small packed CT phantom (i16 samples).
 pub fn small_packed(dir: &Path) -> std::path::PathBuf {
@@ -63,7 +37,7 @@ fn header_out_of_range_with_a_good_crc_is_refused_by_field() {
     let file = std::fs::read(&cdv).unwrap();
     // The unchanged round trip opens: the helper writes what the writer does.
     let same = dir.path().join("same.cdv");
-    std::fs::write(&same, with_header(&file, |_| {})).unwrap();
+    std::fs::write(&same, rewrite_header(&file, |_| {})).unwrap();
     PackedVolume::open(&same).unwrap();
     let h0: serde_json::Value = {
         let v = PackedVolume::open(&cdv).unwrap();
@@ -122,7 +96,7 @@ fn header_out_of_range_with_a_good_crc_is_refused_by_field() {
     let mut failures = Vec::new();
     for (what, edit, field) in cases {
         let p = dir.path().join("bad.cdv");
-        std::fs::write(&p, with_header(&file, edit)).unwrap();
+        std::fs::write(&p, rewrite_header(&file, edit)).unwrap();
         match PackedVolume::open(&p) {
             Ok(_) => failures.push(format!("{what}: accepted")),
             Err(e) => {

@@ -455,11 +455,9 @@ fn batch_envelope_auto_picks_each_inputs_modality() {
 /// `file` (format version 2) as format version 1 wrote it: no index value
 /// maxima, version 1 in preamble, header and footer, the CRC rewritten.
 fn as_version(file: &[u8], version: u32) -> Vec<u8> {
-    use cdvol::format::{FOOTER_LEN, INDEX_ENTRY_LEN};
+    use cdvol::format::INDEX_ENTRY_LEN;
     let mut f = file.to_vec();
-    let foot = f.len() - FOOTER_LEN as usize;
-    let u = |f: &[u8], i: usize| u64::from_le_bytes(f[foot + i..foot + i + 8].try_into().unwrap());
-    let (trailer, hlen, ilen) = (u(&f, 0) as usize, u(&f, 8) as usize, u(&f, 16) as usize);
+    let (trailer, hlen, ilen) = common::footer(&f);
     if version == 1 {
         for e in f[trailer + hlen..trailer + hlen + ilen].chunks_exact_mut(INDEX_ENTRY_LEN) {
             let flags = u32::from_le_bytes(e[16..20].try_into().unwrap()) & !4;

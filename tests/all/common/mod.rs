@@ -402,13 +402,20 @@ pub fn gz(b: &[u8]) -> Vec<u8> {
     e.finish().unwrap()
 }
 
+/// Where a packed file's header and index lie, from its footer:
+/// `(trailer offset, header length, index length)`.
+pub fn footer(bytes: &[u8]) -> (usize, usize, usize) {
+    let foot = &bytes[bytes.len() - 40..];
+    let u64_at = |i: usize| u64::from_le_bytes(foot[i..i + 8].try_into().unwrap()) as usize;
+    (u64_at(0), u64_at(8), u64_at(16))
+}
+
 /// Rewrites the JSON header of a packed file and fixes up the trailer
 /// checksum and footer, so only the reader's header checks can refuse it.
 pub fn rewrite_header(bytes: &[u8], f: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
     let n = bytes.len();
     let foot = &bytes[n - 40..];
-    let u64_at = |i: usize| u64::from_le_bytes(foot[i..i + 8].try_into().unwrap()) as usize;
-    let (trailer, hlen, ilen) = (u64_at(0), u64_at(8), u64_at(16));
+    let (trailer, hlen, ilen) = footer(bytes);
     let mut header: serde_json::Value =
         serde_json::from_slice(&bytes[trailer..trailer + hlen]).unwrap();
     f(&mut header);
