@@ -158,9 +158,13 @@ impl RBrick {
     /// Reads and decodes brick `id` with the format's decoder
     /// ([`crate::format::brick`]), then builds what rendering adds on top:
     /// the dense code plane, f32 values and the planes `planes` asks for.
-    /// Returns the brick and its decompressed payload size. The payload is
-    /// read into per-thread buffers with a per-thread zstd context: no
-    /// allocation per brick but the brick's own planes.
+    /// With [`Planes::narrow`] the brick is rewritten for the scene
+    /// (render/scene.rs) before the planes built from codes and values;
+    /// `scene_free`: the index says the scene has no 1-cell in it, so only
+    /// its codes are decoded. Returns the brick and its decompressed
+    /// payload size. The payload is read into per-thread buffers with a
+    /// per-thread zstd context: no allocation per brick but the brick's
+    /// own planes.
     pub fn decode(
         vol: &PackedVolume,
         id: u64,
@@ -218,8 +222,9 @@ impl RBrick {
         }))
     }
 
-    /// Brick `id` from its decompressed payload `raw`: the fast path of
-    /// [`RBrick::decode`]. Equal, plane for plane and bit for bit, to
+    /// Brick `id` from its decompressed payload `raw`, for the file's own
+    /// classification (`planes.narrow` is [`RBrick::decode`]'s business):
+    /// the fast path of [`RBrick::decode`]. Equal, plane for plane and bit for bit, to
     /// [`RBrick::from_payload_reference`] (the per-cell rule
     /// [`Classification::cell_of_words`] over f64 words; a unit test
     /// checks it on random bricks of every storage type).
@@ -918,20 +923,21 @@ impl<'v> BrickCache<'v> {
         let lazy = !e.is_uniform()
             && e.has_no_object()
             && lazy_min.is_some_and(|m| e.uniform_code >= m as u32);
-        // A brick whose largest value lies below the scene's iso value
-        // holds none of the scene's 1-cells: it stands in unread
-        // (render/scene.rs, `scene_free`).
-        let free = match (self.planes.narrow, e.value_max()) {
-            (Some(iso), Some(m)) => to_f32(m) < iso,
-            _ => false,
-        };
         let key = id * 2 + lazy as u64;
         if let Some(b) = self.lru.lock().unwrap_or_else(|e| e.into_inner()).get(key) {
             c.cache_hits += 1;
             return Ok(b);
         }
         c.cache_misses += 1;
-        let b = if lazy && !free {
+        // A brick whose largest value lies below the scene's iso value
+        // holds none of the scene's 1-cells: it is read for its codes
+        // only (render/scene.rs, `tighten`). The index gives a maximum
+        // only to bricks with 1-cells, never to those `lazy` stands in.
+        let free = match (self.planes.narrow, e.value_max()) {
+            (Some(iso), Some(m)) => to_f32(m) < iso,
+            _ => false,
+        };
+        let b = if lazy {
             c.bricks_skipped += 1;
             RBrick::uniform(self.vol.header(), id, e.uniform_code)
         } else {
