@@ -68,10 +68,10 @@ pub struct Frame {
     pub linear: Vec<f32>,
     /// Depth mode: hit distance in mm, NaN where the ray misses.
     pub depth: Option<Vec<f32>>,
-    /// What a float32 TIFF of a data mode holds, one a pixel: the depth
-    /// (mm) or MIP maximum (rescaled data units, whatever the window),
-    /// NaN where the ray misses, or the cost map's steps. `None` in the
-    /// colour modes (surface, composite).
+    /// What a float32 TIFF of MIP or cost holds, one a pixel: the MIP
+    /// maximum (rescaled data units, whatever the window), NaN where the
+    /// ray misses, or the cost map's steps. `None` in the other modes (the
+    /// depth mode's TIFF holds `depth`).
     pub values: Option<Vec<f32>>,
     /// Steps per pixel.
     pub steps: Vec<u32>,
@@ -139,7 +139,7 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
         }
     };
     let miss_nan = |p: &Px, x: f32| if p.hit { x } else { f32::NAN };
-    let (mut depth, mut values) = (None, None);
+    let (mut depth, mut values) = (None::<Vec<f32>>, None);
     match kind {
         Colouring::Rgb => {
             for (i, p) in px.iter().enumerate() {
@@ -186,7 +186,6 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
                 };
                 put(i, None, g);
             }
-            values = Some(d.clone());
             depth = Some(d);
         }
     }
@@ -500,14 +499,15 @@ fn composited(frame: &Frame, bg: Background, sixteen_bit: bool) -> image::Dynami
 }
 
 /// The float32 TIFF of `frame` (`--bit-depth 32`): its data values in
-/// one channel when the mode has them ([`Frame::values`]), else its
+/// one channel when the mode has them ([`Frame::values`], or the
+/// depths), else its
 /// colour over `bg` as in [`composited`] but unrounded.
 fn float_tiff(frame: &Frame, bg: Background) -> Result<Vec<u8>, tiff::TiffError> {
     use tiff::encoder::{colortype, TiffEncoder};
     let (w, h) = (frame.width, frame.height);
     let mut buf = std::io::Cursor::new(Vec::new());
     let mut enc = TiffEncoder::new(&mut buf)?;
-    if let Some(v) = &frame.values {
+    if let Some(v) = frame.values.as_ref().or(frame.depth.as_ref()) {
         enc.write_image::<colortype::Gray32Float>(w, h, v)?;
         return Ok(buf.into_inner());
     }
@@ -612,8 +612,10 @@ pub fn stage_on(
     if frame.linear.len() != n * 4 {
         return Err(size("linear", frame.linear.len(), 4));
     }
-    if let Some(v) = frame.values.as_ref().filter(|v| v.len() != n) {
-        return Err(size("values", v.len(), 1));
+    for (what, v) in [("values", &frame.values), ("depth", &frame.depth)] {
+        if let Some(v) = v.as_ref().filter(|v| v.len() != n) {
+            return Err(size(what, v.len(), 1));
+        }
     }
     if spec.bits == Bits::Float {
         let bytes =
