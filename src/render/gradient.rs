@@ -187,7 +187,9 @@ pub(crate) fn vertex_gradients_in(
     let mut f = [f32::NAN; 64];
     // Block entries outside the hit cell's brick (bit per entry).
     let mut todo = 0u64;
-    {
+    // The hit cell's place in its brick, and whether the brick's
+    // samples hold values.
+    let (lc, cells, has) = {
         let (b, l) = acc.brick(cell);
         let has = !b.values.is_empty();
         let sx = b.cells[0] as usize + 1;
@@ -219,7 +221,8 @@ pub(crate) fn vertex_gradients_in(
                 }
             }
         }
-    }
+        (lc, b.cells.map(|x| x as usize), has)
+    };
     while todo != 0 {
         let i = todo.trailing_zeros() as usize;
         todo &= todo - 1;
@@ -239,18 +242,27 @@ pub(crate) fn vertex_gradients_in(
         let sy = b.cells[1] as usize + 1;
         f[i] = b.values[(ls[2] * sy + ls[1]) * sx + ls[0]];
     }
-    if let Some(iso) = narrow {
+    if narrow.is_some() {
         // Only a sample two past the cell can be a code in a file
         // prepared for the scene and a value in this one: its cell is at
         // chessboard distance 2 from this 1-cell (module scene). The
-        // bricks' narrowing already removed those inside a brick.
+        // bricks' narrowing already removed those inside a brick: a value
+        // left at the minimum corner of a cell of the hit brick off its
+        // outer layer is no code's (`scene_code_at_least_1`'s rule,
+        // without its brick lookup).
         for i in CROSS {
             let o = [i & 3, i >> 2 & 3, i >> 4];
             if !(o.contains(&3) && f[i].is_finite()) {
                 continue;
             }
+            let in_brick = |k: usize| {
+                (1..cells[k].saturating_sub(1)).contains(&(lc[k] + o[k]).wrapping_sub(1))
+            };
+            if has && (0..3).all(in_brick) {
+                continue;
+            }
             let s: [usize; 3] = std::array::from_fn(|k| c[k] + o[k] - 1);
-            if super::scene::scene_code_at_least_1(acc, n, s, iso) {
+            if super::scene::scene_code_at_least_1(acc, n, s) {
                 f[i] = f32::NAN;
             }
         }

@@ -329,16 +329,11 @@ fn min3(a: &[u8], b: &[u8], c: &[u8], out: &mut [u8]) {
 /// scene code of at least 1 (no scene 1-cell within chessboard distance
 /// 1), so that a file prepared for the scene would carry a code in `s`'s
 /// word; false when `s` is the minimum corner of no cell. Called only in
-/// narrowed renders (bricks rewritten by [`narrow`]). Where the cell's
-/// code cannot tell, reads the samples `s - 1 ..= s + 2` per axis (the
-/// vertices of the 27 cells around): a cell is a scene 1-cell when one of
-/// its vertices is at least `iso`. `n` are the samples per axis.
-pub(crate) fn scene_code_at_least_1(
-    acc: &mut Accessor,
-    n: [usize; 3],
-    s: [usize; 3],
-    iso: f32,
-) -> bool {
+/// narrowed renders, where every brick marks exactly the scene's 1-cells
+/// as [`OBJECT`]: [`narrow`] demotes the others, and a brick decoded
+/// without values ([`tighten`], or no 1-cell of the file's) or standing
+/// in by its index code has none. `n` are the samples per axis.
+pub(crate) fn scene_code_at_least_1(acc: &mut Accessor, n: [usize; 3], s: [usize; 3]) -> bool {
     if (0..3).any(|k| s[k] + 1 >= n[k]) {
         return false;
     }
@@ -358,32 +353,20 @@ pub(crate) fn scene_code_at_least_1(
     if !b.values.is_empty() && (0..3).all(|k| l[k] >= 1 && l[k] + 2 <= b.cells[k]) {
         return false;
     }
+    // The 26 cells around, those in the volume.
     let lo: [usize; 3] = std::array::from_fn(|k| s[k].saturating_sub(1));
-    let hi: [usize; 3] = std::array::from_fn(|k| (s[k] + 2).min(n[k] - 1));
+    let hi: [usize; 3] = std::array::from_fn(|k| (s[k] + 1).min(n[k] - 2));
     for z in lo[2]..=hi[2] {
         for y in lo[1]..=hi[1] {
             for x in lo[0]..=hi[0] {
-                if sample(acc, n, [x, y, z]) >= iso {
+                let (b, l) = acc.brick([x, y, z].map(|v| v as u32));
+                if b.code(l) == OBJECT {
                     return false;
                 }
             }
         }
     }
     true
-}
-
-/// Global sample `s` from the brick of cell `min(s, n - 2)` (module
-/// gradient's rule); NaN when that brick holds no values.
-fn sample(acc: &mut Accessor, n: [usize; 3], s: [usize; 3]) -> f32 {
-    let at: [u32; 3] = std::array::from_fn(|k| s[k].min(n[k] - 2) as u32);
-    let (b, l) = acc.brick(at);
-    if b.values.is_empty() {
-        return f32::NAN;
-    }
-    let ls: [usize; 3] = std::array::from_fn(|k| l[k] as usize + s[k] - at[k] as usize);
-    let sx = b.cells[0] as usize + 1;
-    let sy = b.cells[1] as usize + 1;
-    b.values[(ls[2] * sy + ls[1]) * sx + ls[0]]
 }
 
 #[cfg(test)]
@@ -441,17 +424,44 @@ mod tests {
             pads in prop::array::uniform27(prop_oneof![Just(0u8), Just(FAR), 0u8..=FAR]),
             blind in any::<bool>(),
         ) {
-            let n = c[0] * c[1] * c[2];
-            let mut s = seed | 1;
-            let plane: Vec<u8> = (0..n)
-                .map(|_| {
-                    s ^= s << 13;
-                    s ^= s >> 7;
-                    s ^= s << 17;
-                    if ((s >> 11) as f64 / (1u64 << 53) as f64) < density { OBJECT } else { 3 }
-                })
-                .collect();
+            let plane = random_plane(c, density, seed);
             let pads = if blind { [0; 27] } else { pads };
+            let got = local_distances(&plane, c.map(|x| x as u32), &pads);
+            let want: Vec<u8> = brute(&plane, c, &pads).iter().map(|&d| d.min(REACH + 1)).collect();
+            prop_assert_eq!(got, want);
+        }
+    }
+
+    /// Random 1-cells (density `density`, seeded) in a brick of `c`.
+    fn random_plane(c: [usize; 3], density: f64, seed: u64) -> Vec<u8> {
+        let mut s = seed | 1;
+        (0..c[0] * c[1] * c[2])
+            .map(|_| {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                if ((s >> 11) as f64 / (1u64 << 53) as f64) < density {
+                    OBJECT
+                } else {
+                    3
+                }
+            })
+            .collect()
+    }
+
+    proptest! {
+        /// Long rows in thin bricks: the flat erosions read across row and
+        /// slice ends, where only the layer may be read.
+        #[test]
+        fn local_distances_in_long_thin_bricks(
+            cx in 60usize..140,
+            c in prop::array::uniform2(1usize..4),
+            density in 0.0f64..0.03,
+            seed in any::<u64>(),
+            pads in prop::array::uniform27(prop_oneof![Just(0u8), Just(FAR), 0u8..=FAR]),
+        ) {
+            let c = [cx, c[0], c[1]];
+            let plane = random_plane(c, density, seed);
             let got = local_distances(&plane, c.map(|x| x as u32), &pads);
             let want: Vec<u8> = brute(&plane, c, &pads).iter().map(|&d| d.min(REACH + 1)).collect();
             prop_assert_eq!(got, want);
