@@ -713,6 +713,13 @@ pub struct RenderArgs {
     /// and cost (steps), NaN where a ray misses.
     #[arg(long, default_value = "8", value_parser = parse_bit_depth)]
     pub bit_depth: cdvol::render::Bits,
+    /// A scale bar in the lower left corner, in orthographic views:
+    /// `--scale-bar` alone picks the longest 1, 2 or 5 times a power of ten
+    /// mm within a quarter of the width; `--scale-bar=MM` sets the length.
+    #[arg(long, value_name = "MM", num_args = 0..=1, require_equals = true,
+          default_missing_value = "auto",
+          value_parser = cdvol::render::scalebar::ScaleBar::parse)]
+    pub scale_bar: Option<cdvol::render::scalebar::ScaleBar>,
     #[arg(long, value_enum, default_value = "surface")]
     pub mode: ModeArg,
     /// Ray generator (paper section 5): chessboard distance (default),
@@ -1098,6 +1105,7 @@ impl RenderArgs {
                 bits: self.bit_depth,
             },
             mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
+            scale_bar: self.scale_bar,
         })
     }
 }

@@ -12,7 +12,8 @@ use super::camera::{orbit_dirs, Camera, CameraError, Projection};
 use super::error::RenderError;
 use super::options::Mode;
 use super::options::RenderOptions;
-use super::output::{image_files, stage_on, ImageSpec, SaveError};
+use super::output::{image_files, stage_on, Bits, ImageSpec, SaveError};
+use super::scalebar::{ScaleBar, ScaleBarError};
 use super::shard::{render_part, PartError};
 use super::stats::Stats;
 use super::template::render_template;
@@ -162,6 +163,8 @@ pub struct RenderJob {
     /// Bytes the render may plan to use ([`render_memory`]); None: the
     /// default, [`crate::memory::default_limit`] (3/4 of RAM).
     pub mem_limit: Option<u64>,
+    /// A scale bar in the images (orthographic views only).
+    pub scale_bar: Option<ScaleBar>,
 }
 
 /// Why a render job failed. Fields are named as in [`RenderJob`].
@@ -191,11 +194,16 @@ pub enum JobError {
     /// before any ray).
     #[error(transparent)]
     Output(#[from] OutputError),
+    #[error(transparent)]
+    ScaleBar(#[from] ScaleBarError),
     /// Turntables orbit the volume; an exact eye cannot turn.
     #[error("frames {frames}: a turntable orbits the volume, so its view must be an orbit, not eye, target and up")]
     TurntableLookAt { frames: u32 },
     #[error("the template traversal renders whole images: it takes no shard")]
     TemplateShard,
+    /// A part file is a piece of an image; `cdvol assemble` has no camera.
+    #[error("--scale-bar: a shard of one image is a part file; draw the bar on a whole image")]
+    ScaleBarShard,
     /// A single image's shard is written as a part file.
     #[error("{}: a shard's output is a part file for `cdvol assemble`; name it NAME.cdvpart", path.display())]
     PartName { path: PathBuf },
@@ -352,6 +360,29 @@ pub fn run(
             path: job.output.clone(),
         });
     }
+    if job.scale_bar.is_some() {
+        if job.camera.persp_fov_deg.is_some() {
+            return Err(ScaleBarError::Perspective.into());
+        }
+        let data = match job.options.mode {
+            Mode::Depth { .. } => Some("depth"),
+            Mode::Mip => Some("MIP"),
+            Mode::Cost => Some("cost"),
+            _ => None,
+        };
+        if let Some(mode) = data.filter(|_| job.image.bits == Bits::Float) {
+            return Err(ScaleBarError::Data { mode }.into());
+        }
+        if job.shard.is_some() && job.frames == 1 {
+            return Err(JobError::ScaleBarShard);
+        }
+        // The bar must fit before any ray.
+        if let (Some(bar), Projection::Ortho { frame_mm }) = (job.scale_bar, camera.projection) {
+            let mm_per_px = frame_mm / height as f64;
+            let mm = bar.length_mm(width, mm_per_px);
+            super::scalebar::layout(mm, mm_per_px, width, height)?;
+        }
+    }
     crate::fsutil::check_outputs(&job.outputs()?, &[vol.path().to_path_buf()], None)?;
     let work = || {
         if job.frames > 1 {
@@ -393,13 +424,29 @@ fn image(
     camera: &Camera,
     progress: &dyn Progress,
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
-    let (frame, stats) = render_one(vol, None, camera, job, progress)?;
+    let (mut frame, stats) = render_one(vol, None, camera, job, progress)?;
+    add_scale_bar(&mut frame, camera, job.scale_bar)?;
     let mut set = FileSet::new();
     stage_on(&frame, &job.output, &mut set, job.image)?;
     if let Some(p) = &job.stats {
         add_json(&mut set, p, &stats)?;
     }
     Ok((set.commit()?, stats))
+}
+
+/// Draws `bar` into `frame` as seen by `cam` (orthographic: checked in
+/// [`run`]).
+fn add_scale_bar(
+    frame: &mut super::Frame,
+    cam: &Camera,
+    bar: Option<ScaleBar>,
+) -> Result<(), ScaleBarError> {
+    let (Some(bar), Projection::Ortho { frame_mm }) = (bar, cam.projection) else {
+        return Ok(());
+    };
+    let mm_per_px = frame_mm / frame.height as f64;
+    super::scalebar::draw(frame, bar.length_mm(frame.width, mm_per_px), mm_per_px)?;
+    Ok(())
 }
 
 /// One shard of a single image, as a part file.
@@ -439,7 +486,8 @@ fn turntable(
             job.orbit_deg * f as f64 / job.frames as f64,
             vol.header().orientation.as_ref(),
         )?;
-        let (frame, stats) = render_one(vol, Some(&cache), &cam, job, progress)?;
+        let (mut frame, stats) = render_one(vol, Some(&cache), &cam, job, progress)?;
+        add_scale_bar(&mut frame, &cam, job.scale_bar)?;
         stage_on(&frame, &numbered(&job.output, f), &mut set, job.image)?;
         total.merge(&stats);
         per_frame.push(stats);

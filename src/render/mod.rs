@@ -35,6 +35,7 @@ pub mod lut;
 mod options;
 mod output;
 pub mod policy;
+pub mod scalebar;
 mod scene;
 pub mod shade;
 pub mod shard;

@@ -749,3 +749,83 @@ fn small_head(dir: &Path, dims: &str, iso: &str, name: &str) -> PathBuf {
     );
     cdv
 }
+
+/// `--scale-bar`: the bar is exactly `mm / (frame / height)` pixels long,
+/// white, outlined in black, on the bottom margin; nothing outside its box
+/// and label changes; views and outputs without a single scale are refused
+/// before any file is written.
+#[test]
+fn render_scale_bar() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cdv = small_head(d, "32,32,20", "300", "head");
+    // 400 x 300 pixels over a 60 mm frame: 0.2 mm a pixel; margin 6.
+    let render = |name: &str, extra: &[&str]| {
+        let out = d.join(name);
+        common::ok(
+            common::cdvol()
+                .args([
+                    "render", "-q", "--width", "400", "--height", "300", "--frame", "60",
+                ])
+                .args(["--view", "30,20", "--background", "128,128,128"])
+                .args(extra)
+                .arg(&cdv)
+                .arg("-o")
+                .arg(&out),
+        );
+        image::open(&out).unwrap().to_rgb8()
+    };
+    let plain = render("plain.png", &[]);
+    for (extra, bar_px) in [(&["--scale-bar"][..], 100u32), (&["--scale-bar=5"][..], 25)] {
+        let img = render("bar.png", extra);
+        // Auto: a quarter of 400 px is 20 mm, a 1-2-5 length: 100 px.
+        let row = 292; // the middle of the bar's rows 291..294
+        for x in 0..400 {
+            let want = if (6..6 + bar_px).contains(&x) {
+                Some(255)
+            } else if x == 5 || x == 6 + bar_px {
+                Some(0)
+            } else {
+                None
+            };
+            if let Some(v) = want {
+                assert_eq!(img.get_pixel(x, row).0, [v; 3], "{extra:?}: x {x}");
+            }
+        }
+        // The label: white pixels in its rows (282..289) above the bar.
+        let label = (282..289)
+            .flat_map(|y| (6..60).map(move |x| (x, y)))
+            .filter(|&(x, y)| img.get_pixel(x, y).0 == [255; 3])
+            .count();
+        assert!(label > 20, "{extra:?}: {label} label pixels");
+        for (x, y, p) in img.enumerate_pixels() {
+            let inside = (5..=6 + bar_px.max(60)).contains(&x) && (281..=294).contains(&y);
+            assert!(
+                inside || p == plain.get_pixel(x, y),
+                "{extra:?}: ({x}, {y}) changed"
+            );
+        }
+    }
+    // Refused, naming the option, with no output written.
+    for (extra, words) in [
+        (&["--persp"][..], "perspective"),
+        (&["--mode", "depth", "--bit-depth", "32"][..], "float32"),
+        (&["--scale-bar=1000"][..], "does not fit"),
+    ] {
+        let out = d.join("refused.tif");
+        let mut c = common::cdvol();
+        c.args([
+            "render", "-q", "--width", "400", "--height", "300", "--frame", "60",
+        ])
+        .args(extra);
+        if !extra.iter().any(|a| a.starts_with("--scale-bar")) {
+            c.arg("--scale-bar");
+        }
+        let err = common::fails(c.arg(&cdv).arg("-o").arg(&out));
+        assert!(
+            err.contains("--scale-bar") && err.contains(words),
+            "{extra:?}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}
