@@ -14,15 +14,27 @@
 /// Allocations at or above this size get their own mapping.
 pub const MMAP_THRESHOLD: usize = 64 << 10;
 
+/// Free memory an arena keeps at its top before returning it to the
+/// system. With the mmap threshold pinned, glibc keeps its default of
+/// 128 KiB, and a brick decode's temporaries (a few hundred KiB of
+/// buffers under [`MMAP_THRESHOLD`] each: the render-time iso's narrowing
+/// and transform, module render::scene) were returned after every brick
+/// and faulted in again by the next: 43,000 of the 96,000 page faults of a
+/// cold 1024^2 frame of the 512^3 phantom at `--iso 1000` from an
+/// envelope file, about a quarter of its time (docs/BENCHMARKS.md,
+/// "Render-time iso"). 4 MiB per arena is a bound on what this keeps.
+pub const TRIM_THRESHOLD: usize = 4 << 20;
+
 /// Applies the policy; call once at start-up, before threads start.
 /// Does nothing on platforms other than Linux with glibc.
 pub fn bound_heap_fragmentation() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt only sets a malloc parameter; it is called before
-    // any other thread exists and the value is within glibc's range
-    // (at most HEAP_MAX/2 = 32 MiB on 64-bit).
+    // SAFETY: mallopt only sets malloc parameters; it is called before
+    // any other thread exists and the values are within glibc's range
+    // (the mmap threshold at most HEAP_MAX/2 = 32 MiB on 64-bit).
     unsafe {
         libc::mallopt(libc::M_MMAP_THRESHOLD, MMAP_THRESHOLD as libc::c_int);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, TRIM_THRESHOLD as libc::c_int);
     }
 }
 
