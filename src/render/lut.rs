@@ -122,7 +122,7 @@ impl TfLut {
         // the other operand); NaN is then made transparent below.
         let x = ((v as f64 - self.v0) * self.inv_h).max(0.0);
         let x = x.min(self.last_bin + 1.0);
-        let i = (x as usize).min(self.last_bin as usize);
+        let i = bin(x, self.last_bin);
         let f = (x - i as f64) as f32;
         let (a, b) = (&self.entries32[i], &self.entries32[i + 1]);
         if v.is_nan() {
@@ -147,11 +147,20 @@ impl TfLut {
         } else {
             0.0
         };
-        let i = (x as usize).min(self.last_bin as usize);
+        let i = bin(x, self.last_bin);
         let f = x - i as f64;
         let (a, b) = (&self.entries[i], &self.entries[i + 1]);
         std::array::from_fn(|k| a[k] + f * (b[k] - a[k]))
     }
+}
+
+/// `min(floor(x), last_bin)` for `x` in `[0, last_bin + 1]` (`last_bin` a
+/// whole number): through `i64`, which x86-64 converts in one
+/// instruction, where a conversion to `usize` takes a branch and a
+/// second conversion (about a tenth of a composite sample's time).
+#[inline(always)]
+fn bin(x: f64, last_bin: f64) -> usize {
+    x.min(last_bin) as i64 as usize
 }
 
 /// Colour and step-corrected opacity of `tf` at `v`, evaluated exactly:
