@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Renders the reference images of tests/reference/ with the CLI: the real
 # head CT and a small CT-like phantom, each as a shaded surface, a MIP and
-# a skin-and-bone composite (tests/reference/skin-bone-tf.json), plus the
+# a skin-and-bone composite (tests/reference/skin-bone-tf.json), unshaded and
+# shaded, plus the
 # cost maps of CD and the octree.
 #
 #   CDVOL=path/to/cdvol tools/bless-references.sh [OUT_DIR]
@@ -46,6 +47,10 @@ for name in ct phantom; do
         --mode mip --window full "${common[@]}"
     "$cdvol" render "$work/$name-tf.cdv" -o "$out/$name-composite.png" \
         --mode composite --tf "$tf" "${common[@]}"
+    # Shaded, with smooth normals (the vertex gradients of every sampled
+    # cell, render/gradient.rs).
+    "$cdvol" render "$work/$name-tf.cdv" -o "$out/$name-composite-shaded.png" \
+        --mode composite --tf "$tf" --shade "${common[@]}"
     # Traversal cost maps (paper Fig. 17): steps per pixel of CD and of
     # the octree, so a change in any walker's steps shows as a picture.
     "$cdvol" render "$work/$name-iso.cdv" -o "$out/$name-cost-cd.png" \

@@ -983,6 +983,9 @@ pub struct Accessor<'a, 'v> {
     lazy_min: Option<u8>,
     pub counters: CacheCounters,
     pub error: Option<FormatError>,
+    /// Vertex gradients of this accessor's cells, for the shaded
+    /// composite (render/gradient.rs).
+    pub(crate) vertex_grads: super::gradient::GradCache,
 }
 
 /// Bricks an [`Accessor`] keeps besides the shared cache's budget (at
@@ -1022,6 +1025,7 @@ impl<'a, 'v> Accessor<'a, 'v> {
             lazy_min,
             counters: CacheCounters::default(),
             error: None,
+            vertex_grads: Default::default(),
         }
     }
 

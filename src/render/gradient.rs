@@ -324,9 +324,204 @@ pub(crate) fn vertex_gradients_in(
     }
 }
 
+/// Vertex gradients remembered across the cells and rays of one tile, for
+/// the shaded composite (every cell a ray samples needs its 8 vertex
+/// gradients, and neighbouring cells and rays share most vertices).
+///
+/// Only vertices strictly inside their brick's samples are kept: their 6
+/// neighbours are read from that brick whichever of their cells asks
+/// ([`vertex_gradients`]' rule), and the gaps and weights along each axis
+/// are those of the vertex itself, so the gradient is a function of the
+/// vertex alone and the one kept is bit for bit the one
+/// [`vertex_gradients`] computes. Direct-mapped, [`GradCache::SLOTS`]
+/// slots keyed by the global sample index; allocated on first use.
+#[derive(Debug, Default)]
+pub(crate) struct GradCache {
+    keys: Vec<u64>,
+    grads: Vec<DVec3>,
+    /// Vertices asked for through the cache, and of those computed.
+    asked: u64,
+    computed: u64,
+}
+
+impl GradCache {
+    /// Slots: 2048 (48 KiB, below the mmap threshold of module memory, so
+    /// a tile's cache is recycled heap, not a fresh mapping).
+    pub(crate) const SLOTS: usize = 2048;
+
+    /// The 8 vertex gradients of `cell`, as [`vertex_gradients`] gives
+    /// them; `inv_size` are the cells' inverse sizes per axis, `lam`
+    /// [`three_point_weights`] per axis.
+    pub(crate) fn cell(
+        &mut self,
+        acc: &mut Accessor,
+        coords: [&[f64]; 3],
+        inv_size: &[Vec<f64>; 3],
+        lam: &[Vec<f64>; 3],
+        cell: [u32; 3],
+    ) -> [DVec3; 8] {
+        let n: [usize; 3] = std::array::from_fn(|k| coords[k].len());
+        let (b, l) = acc.brick(cell);
+        let lc = l.map(|x| x as usize);
+        let inside =
+            !b.values.is_empty() && (0..3).all(|k| lc[k] >= 1 && lc[k] + 2 <= b.cells[k] as usize);
+        if !inside {
+            return vertex_gradients(acc, coords, cell).g;
+        }
+        if self.keys.is_empty() {
+            self.keys = vec![u64::MAX; Self::SLOTS];
+            self.grads = vec![DVec3::ZERO; Self::SLOTS];
+        }
+        let sx = b.cells[0] as usize + 1;
+        let sy = b.cells[1] as usize + 1;
+        let stride = [1, sx, sx * sy];
+        let values = &b.values;
+        std::array::from_fn(|v| {
+            let s: [usize; 3] = std::array::from_fn(|k| cell[k] as usize + (v >> k & 1));
+            let key = ((s[2] * n[1] + s[1]) * n[0] + s[0]) as u64;
+            let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 53) as usize % Self::SLOTS;
+            self.asked += 1;
+            if self.keys[slot] == key {
+                return self.grads[slot];
+            }
+            self.computed += 1;
+            let i = ((lc[2] + (v >> 2 & 1)) * sy + lc[1] + (v >> 1 & 1)) * sx + lc[0] + (v & 1);
+            let g = DVec3::from_array(std::array::from_fn(|k| {
+                let f0 = values[i] as f64;
+                let fm = values[i - stride[k]] as f64;
+                let fp = values[i + stride[k]] as f64;
+                let (sk, inv) = (s[k], &inv_size[k]);
+                three_point(f0, fm, fp, [inv[sk - 1], inv[sk]], lam[k][sk])
+            }));
+            self.keys[slot] = key;
+            self.grads[slot] = g;
+            g
+        })
+    }
+}
+
+/// The derivative at a sample `f0` from its neighbours `fm` before and
+/// `fp` after (module docs: three-point rule, one-sided where a neighbour
+/// is NaN); `inv` the inverse gaps before and after, `lam` the weight
+/// [`three_point_weights`] gives. The arithmetic of
+/// [`vertex_gradients`], operation for operation, so bit for bit its
+/// result.
+#[inline(always)]
+fn three_point(f0: f64, fm: f64, fp: f64, inv: [f64; 2], lam: f64) -> f64 {
+    let sm = (f0 - fm) * inv[0];
+    let sp = (fp - f0) * inv[1];
+    match (sm.is_nan(), sp.is_nan()) {
+        (false, false) => sm + lam * (sp - sm),
+        (true, false) => sp,
+        (false, true) => sm,
+        (true, true) => f64::NAN,
+    }
+}
+
+/// Per sample of an axis with sample positions `x`, the three-point
+/// rule's weight of the slope after it, `h- / (h- + h+)` (module docs),
+/// computed as [`vertex_gradients`] does; NaN at both ends.
+pub(crate) fn three_point_weights(x: &[f64]) -> Vec<f64> {
+    (0..x.len())
+        .map(|s| {
+            if s == 0 || s + 1 == x.len() {
+                return f64::NAN;
+            }
+            let (hm, hp) = (x[s] - x[s - 1], x[s + 1] - x[s]);
+            hm / (hm + hp)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`GradCache::cell`] equals [`vertex_gradients`] bit for bit on every
+    /// 1-cell and its 0-cell neighbours of a rectilinear sphere scene
+    /// (bricks of 8 cells, so most cells touch a brick border), the cells
+    /// visited in a shuffled order so that hits, misses and evictions mix.
+    #[test]
+    fn cached_vertex_gradients_are_the_computed_ones() {
+        use crate::format::reader::PackedVolume;
+        use crate::input::raw::RawSource;
+        use crate::prep::{prep, PrepOptions};
+        use crate::progress::NoProgress;
+        use crate::render::cache::BrickCache;
+        use crate::tools::phantom;
+        let dir = tempfile::tempdir().unwrap();
+        let side = dir.path().join("s.json");
+        let so = phantom::SpheresOptions {
+            size: 40,
+            per_axis: 3,
+            seed: 7,
+            spacing: phantom::parse_spacing3("1,0.6:1.7,0.5:2").unwrap(),
+        };
+        let info = phantom::spheres(&side, &so, &NoProgress).unwrap();
+        let packed = dir.path().join("s.cdv");
+        let mut po = PrepOptions::new(crate::classify::Classification::Iso { iso: info.iso });
+        po.brick_size = 8;
+        prep(&RawSource::open(&side).unwrap(), &packed, &po, &NoProgress).unwrap();
+        let vol = PackedVolume::open(&packed).unwrap();
+        let h = vol.header();
+        let coords: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
+        let n: [u32; 3] = std::array::from_fn(|k| coords[k].len() as u32 - 1);
+        let cache = BrickCache::new(&vol, 64 << 20);
+        let mut acc = Accessor::new(&cache);
+        let mut cells = Vec::new();
+        for z in 0..n[2] {
+            for y in 0..n[1] {
+                for x in 0..n[0] {
+                    let (b, l) = acc.brick([x, y, z]);
+                    if matches!(b.code(l), 0 | crate::render::traverse::OBJECT) {
+                        cells.push([x, y, z]);
+                    }
+                }
+            }
+        }
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        for i in (1..cells.len()).rev() {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            cells.swap(i, (s % (i as u64 + 1)) as usize);
+        }
+        let inv_size: [Vec<f64>; 3] =
+            coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect());
+        let lam = coords.map(three_point_weights);
+        let mut gc = GradCache::default();
+        // Shuffled (mostly misses and evictions), then in raster order (a
+        // cell shares 4 vertices with the one before it).
+        let raster = {
+            let mut r = cells.clone();
+            r.sort_by_key(|c| (c[2], c[1], c[0]));
+            r
+        };
+        let mut asked_before = 0;
+        for order in [&cells, &raster] {
+            (asked_before, gc.computed) = (gc.asked, 0);
+            for &c in order.iter() {
+                let want = vertex_gradients(&mut acc, coords, c).g;
+                let got = gc.cell(&mut acc, coords, &inv_size, &lam, c);
+                for v in 0..8 {
+                    let same = want[v]
+                        .to_array()
+                        .iter()
+                        .zip(got[v].to_array())
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
+                    assert!(same, "cell {c:?} vertex {v}: {:?} vs {:?}", want[v], got[v]);
+                }
+            }
+        }
+        // Both kinds of cell were met, and the cache answered for some.
+        assert!(cells.len() > 1000, "{} cells", cells.len());
+        let asked = gc.asked - asked_before;
+        assert!(
+            gc.computed > 0 && gc.computed < asked / 2,
+            "{} of {asked}",
+            gc.computed
+        );
+    }
 
     #[test]
     fn the_32_samples() {

@@ -136,7 +136,7 @@ fn renders_match_the_reference_images() {
         String::from_utf8_lossy(&out.stderr)
     );
     let names = pngs(&refs);
-    assert_eq!(names.len(), 10, "tests/reference holds {names:?}");
+    assert_eq!(names.len(), 12, "tests/reference holds {names:?}");
     assert_eq!(pngs(dir.path()), names, "rendered vs reference PNGs");
     let failures: Vec<String> = names
         .iter()

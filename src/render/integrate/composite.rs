@@ -70,6 +70,7 @@ pub(super) fn composite32<T: Real>(
     let mut s = Sampler32 {
         coords: ctx.coords,
         inv_size: &ctx.inv_size,
+        lam: &ctx.lam,
         ray,
         lut,
         step,
@@ -276,6 +277,8 @@ impl Sampler for Sampler64<'_> {
 struct Sampler32<'a> {
     coords: [&'a [f64]; 3],
     inv_size: &'a [Vec<f64>; 3],
+    /// The smooth gradients' weights per axis and sample (render/gradient.rs).
+    lam: &'a [Vec<f64>; 3],
     ray: &'a Ray,
     lut: &'a TfLut,
     step: f64,
@@ -298,8 +301,13 @@ impl Sampler for Sampler32<'_> {
     fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], t: f64) {
         let f = acc.vertices(cell);
         if self.look.on && self.look.smooth {
-            let vg = vertex_gradients(acc, self.coords, cell);
-            self.grads = vg.g.map(|g| g.as_vec3());
+            // The tile's cache of vertex gradients: the same values as
+            // `vertex_gradients` (render/gradient.rs).
+            let mut cache = std::mem::take(&mut acc.vertex_grads);
+            self.grads = cache
+                .cell(acc, self.coords, self.inv_size, self.lam, cell)
+                .map(|g| g.as_vec3());
+            acc.vertex_grads = cache;
         }
         let ray = self.ray;
         for (a, &i) in cell.iter().enumerate() {
