@@ -19,7 +19,7 @@ use crate::render::gradient::{vertex_gradients, Normals, VertexGradients};
 use crate::render::lut::TfLut;
 use crate::render::options::CompositeLook;
 use crate::render::shade::{at, AlongRay, CellEval};
-use crate::render::traverse::{trace, CodeSource, Flow, Ray, Real, StepCounts, OBJECT};
+use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, OBJECT};
 
 /// Composites `ray` into `px.rgb` with f64 samples (the reference
 /// sampler, `--sample-precision f64`); `px.hit` when anything is opaque.
@@ -93,9 +93,10 @@ pub(super) fn composite32<T: Real>(
 
 /// What the composite samplers do along a run of 1-cells.
 trait Sampler {
-    /// The samples move into 1-cell `cell`, whose vertex values (and, for
-    /// shading, gradients) come from `acc`; the next sample is at `t`.
-    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], t: f64);
+    /// The samples move into 1-cell `cell` with vertex values `f` (x
+    /// fastest; for shading, gradients come from `acc`); the next sample
+    /// is at `t`.
+    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], f: [f32; 8], t: f64);
     /// The sample at `t` (in the cell last entered); `Stop` once opaque.
     fn sample(&mut self, t: f64) -> Flow;
 }
@@ -189,14 +190,18 @@ fn march<T: Real, P: Sampler>(
                 }
                 k += 1.0;
                 if !entered {
-                    let code = acc.code(cell, None);
+                    // The code and, for a 1-cell, its vertices: one
+                    // brick lookup.
+                    let (b, l) = acc.brick(cell);
+                    let code = b.code(l);
                     if code != OBJECT {
                         if code >= RESUME_CODE {
                             break 'run Some((t, k));
                         }
                         continue;
                     }
-                    s.enter(acc, cell, t);
+                    let f = b.vertices(l);
+                    s.enter(acc, cell, f, t);
                     entered = true;
                 }
                 if s.sample(t) == Flow::Stop {
@@ -229,8 +234,7 @@ struct Sampler64<'a> {
 
 impl Sampler for Sampler64<'_> {
     #[inline]
-    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], _t: f64) {
-        let f = acc.vertices(cell);
+    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], f: [f32; 8], _t: f64) {
         self.c = Some(AlongRay::new(self.coords, cell, f, self.ray));
         self.ce = self.look.on.then(|| CellEval::new(self.coords, cell, f));
         self.vg =
@@ -298,8 +302,7 @@ struct Sampler32<'a> {
 
 impl Sampler for Sampler32<'_> {
     #[inline(always)]
-    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], t: f64) {
-        let f = acc.vertices(cell);
+    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], f: [f32; 8], t: f64) {
         if self.look.on && self.look.smooth {
             // The tile's cache of vertex gradients: the same values as
             // `vertex_gradients` (render/gradient.rs).
