@@ -21,13 +21,15 @@ pub enum ScaleBar {
 
 impl ScaleBar {
     /// `auto`, or a length in mm (finite, above 0).
-    pub fn parse(s: &str) -> Result<ScaleBar, String> {
+    pub fn parse(s: &str) -> Result<ScaleBar, ScaleBarParseError> {
         if s == "auto" {
             return Ok(ScaleBar::Auto);
         }
         match s.parse::<f64>() {
             Ok(mm) if mm > 0.0 && mm.is_finite() => Ok(ScaleBar::Mm(mm)),
-            _ => Err(format!("{s:?}: expected auto or a length in mm above 0")),
+            _ => Err(ScaleBarParseError {
+                found: s.to_string(),
+            }),
         }
     }
 
@@ -47,6 +49,13 @@ impl ScaleBar {
             }
         }
     }
+}
+
+/// A `--scale-bar` length that is neither `auto` nor a length in mm.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{found:?}: expected auto or a length in mm above 0")]
+pub struct ScaleBarParseError {
+    pub found: String,
 }
 
 /// Why a scale bar cannot be drawn.

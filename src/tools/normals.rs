@@ -220,3 +220,93 @@ pub fn time_gradients(
     let n = (hits.len() as f64 * reps as f64).max(1.0);
     Some((cell_ns / n, smooth_ns / n, hits.len()))
 }
+
+#[cfg(test)]
+mod tests {
+    /// `GradCache::cell` (render/gradient.rs) equals [`vertex_gradients`] bit for bit on every
+    /// 1-cell and its 0-cell neighbours of a rectilinear sphere scene
+    /// (bricks of 8 cells, so most cells touch a brick border), the cells
+    /// visited in a shuffled order so that hits, misses and evictions mix.
+    #[test]
+    fn cached_vertex_gradients_are_the_computed_ones() {
+        use crate::format::reader::PackedVolume;
+        use crate::input::raw::RawSource;
+        use crate::prep::{prep, PrepOptions};
+        use crate::progress::NoProgress;
+        use crate::render::cache::{Accessor, BrickCache};
+        use crate::render::gradient::{three_point_weights, vertex_gradients, GradCache};
+        use crate::tools::phantom;
+        let dir = tempfile::tempdir().unwrap();
+        let side = dir.path().join("s.json");
+        let so = phantom::SpheresOptions {
+            size: 40,
+            per_axis: 3,
+            seed: 7,
+            spacing: phantom::parse_spacing3("1,0.6:1.7,0.5:2").unwrap(),
+        };
+        let info = phantom::spheres(&side, &so, &NoProgress).unwrap();
+        let packed = dir.path().join("s.cdv");
+        let mut po = PrepOptions::new(crate::classify::Classification::Iso { iso: info.iso });
+        po.brick_size = 8;
+        prep(&RawSource::open(&side).unwrap(), &packed, &po, &NoProgress).unwrap();
+        let vol = PackedVolume::open(&packed).unwrap();
+        let h = vol.header();
+        let coords: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
+        let n: [u32; 3] = std::array::from_fn(|k| coords[k].len() as u32 - 1);
+        let cache = BrickCache::new(&vol, 64 << 20);
+        let mut acc = Accessor::new(&cache);
+        let mut cells = Vec::new();
+        for z in 0..n[2] {
+            for y in 0..n[1] {
+                for x in 0..n[0] {
+                    let (b, l) = acc.brick([x, y, z]);
+                    if matches!(b.code(l), 0 | crate::render::traverse::OBJECT) {
+                        cells.push([x, y, z]);
+                    }
+                }
+            }
+        }
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        for i in (1..cells.len()).rev() {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            cells.swap(i, (s % (i as u64 + 1)) as usize);
+        }
+        let inv_size: [Vec<f64>; 3] =
+            coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect());
+        let lam = coords.map(three_point_weights);
+        let mut gc = GradCache::default();
+        // Shuffled (mostly misses and evictions), then in raster order (a
+        // cell shares 4 vertices with the one before it).
+        let raster = {
+            let mut r = cells.clone();
+            r.sort_by_key(|c| (c[2], c[1], c[0]));
+            r
+        };
+        let mut asked_before = 0;
+        for order in [&cells, &raster] {
+            (asked_before, gc.computed) = (gc.asked, 0);
+            for &c in order.iter() {
+                let want = vertex_gradients(&mut acc, coords, c).g;
+                let got = gc.cell(&mut acc, coords, &inv_size, &lam, c);
+                for v in 0..8 {
+                    let same = want[v]
+                        .to_array()
+                        .iter()
+                        .zip(got[v].to_array())
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
+                    assert!(same, "cell {c:?} vertex {v}: {:?} vs {:?}", want[v], got[v]);
+                }
+            }
+        }
+        // Both kinds of cell were met, and the cache answered for some.
+        assert!(cells.len() > 1000, "{} cells", cells.len());
+        let asked = gc.asked - asked_before;
+        assert!(
+            gc.computed > 0 && gc.computed < asked / 2,
+            "{} of {asked}",
+            gc.computed
+        );
+    }
+}
