@@ -150,12 +150,13 @@ pub fn layout(mm: f64, mm_per_px: f64, width: u32, height: u32) -> Result<Layout
 pub fn draw(frame: &mut Frame, mm: f64, mm_per_px: f64) -> Result<Layout, ScaleBarError> {
     let (w, h) = (frame.width, frame.height);
     let lay = layout(mm, mm_per_px, w, h)?;
+    let at = |x: u32, y: u32| y as usize * w as usize + x as usize;
     // The shape: the bar and the label's pixels.
-    let mut shape = vec![false; (w * h) as usize];
+    let mut shape = vec![false; w as usize * h as usize];
     let [x0, y0, x1, y1] = lay.bar;
     for y in y0..y1 {
         for x in x0..x1 {
-            shape[(y * w + x) as usize] = true;
+            shape[at(x, y)] = true;
         }
     }
     let s = lay.scale;
@@ -169,7 +170,7 @@ pub fn draw(frame: &mut Frame, mm: f64, mm_per_px: f64) -> Result<Layout, ScaleB
                 let gy = lay.text_at[1] + row as u32 * s;
                 for y in gy..gy + s {
                     for x in gx..gx + s {
-                        shape[(y * w + x) as usize] = true;
+                        shape[at(x, y)] = true;
                     }
                 }
             }
@@ -178,7 +179,7 @@ pub fn draw(frame: &mut Frame, mm: f64, mm_per_px: f64) -> Result<Layout, ScaleB
     // Black where the shape, grown by `scale` pixels, reaches; white on
     // the shape.
     let mut put = |x: u32, y: u32, v: u8| {
-        let i = (y * w + x) as usize;
+        let i = at(x, y);
         frame.rgb[3 * i..3 * i + 3].fill(v);
         frame.alpha[i] = 255;
         let f = f32::from(v) / 255.0;
@@ -188,10 +189,9 @@ pub fn draw(frame: &mut Frame, mm: f64, mm_per_px: f64) -> Result<Layout, ScaleB
     let right = x1.max(lay.text_at[0] + label(mm).chars().count() as u32 * 6 * s);
     for y in lay.text_at[1] - s..(y1 + s).min(h) {
         for x in x0 - s..(right + s).min(w) {
-            let near = (y.saturating_sub(s)..=(y + s).min(h - 1)).any(|yy| {
-                (x.saturating_sub(s)..=(x + s).min(w - 1)).any(|xx| shape[(yy * w + xx) as usize])
-            });
-            if shape[(y * w + x) as usize] {
+            let near = (y.saturating_sub(s)..=(y + s).min(h - 1))
+                .any(|yy| (x.saturating_sub(s)..=(x + s).min(w - 1)).any(|xx| shape[at(xx, yy)]));
+            if shape[at(x, y)] {
                 put(x, y, 255);
             } else if near {
                 put(x, y, 0);
