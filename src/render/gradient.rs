@@ -298,21 +298,9 @@ pub(crate) fn vertex_gradients_in(
             let fm = f[block_index(at[0], at[1], at[2])] as f64;
             at[k] += 2;
             let fp = f[block_index(at[0], at[1], at[2])] as f64;
-            // Slopes before and after the vertex (NaN where missing).
-            let sm = (f0 - fm) * inv[k][a[k]];
-            let sp = (fp - f0) * inv[k][a[k] + 1];
-            out[k] = match (sm.is_nan(), sp.is_nan()) {
-                (false, false) => sm + lam[k][a[k]] * (sp - sm),
-                (true, false) => {
-                    one_sided += 1;
-                    sp
-                }
-                (false, true) => {
-                    one_sided += 1;
-                    sm
-                }
-                (true, true) => f64::NAN,
-            };
+            let (g, one) = three_point(f0, fm, fp, [inv[k][a[k]], inv[k][a[k] + 1]], lam[k][a[k]]);
+            out[k] = g;
+            one_sided += u32::from(one);
         }
         DVec3::from_array(out)
     });
@@ -339,14 +327,18 @@ pub(crate) fn vertex_gradients_in(
 pub(crate) struct GradCache {
     keys: Vec<u64>,
     grads: Vec<DVec3>,
-    /// Vertices asked for through the cache, and of those computed.
+    /// Vertices asked for through the cache, and of those computed
+    /// (counted for the tests only: this is the composite's inner loop).
+    #[cfg(test)]
     pub(crate) asked: u64,
+    #[cfg(test)]
     pub(crate) computed: u64,
 }
 
 impl GradCache {
-    /// Slots: 2048 (48 KiB, below the mmap threshold of module memory, so
-    /// a tile's cache is recycled heap, not a fresh mapping).
+    /// Slots, a power of two: 2048 (48 KiB, below the mmap threshold of
+    /// module memory, so a tile's cache is recycled heap, not a fresh
+    /// mapping).
     pub(crate) const SLOTS: usize = 2048;
 
     /// The 8 vertex gradients of `cell`, as [`vertex_gradients`] gives
@@ -379,19 +371,27 @@ impl GradCache {
         std::array::from_fn(|v| {
             let s: [usize; 3] = std::array::from_fn(|k| cell[k] as usize + (v >> k & 1));
             let key = ((s[2] * n[1] + s[1]) * n[0] + s[0]) as u64;
-            let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 53) as usize % Self::SLOTS;
-            self.asked += 1;
+            // Fibonacci hashing: the top log2(SLOTS) bits of the product.
+            let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15)
+                >> (64 - Self::SLOTS.trailing_zeros())) as usize;
+            #[cfg(test)]
+            {
+                self.asked += 1;
+            }
             if self.keys[slot] == key {
                 return self.grads[slot];
             }
-            self.computed += 1;
+            #[cfg(test)]
+            {
+                self.computed += 1;
+            }
             let i = ((lc[2] + (v >> 2 & 1)) * sy + lc[1] + (v >> 1 & 1)) * sx + lc[0] + (v & 1);
             let g = DVec3::from_array(std::array::from_fn(|k| {
                 let f0 = values[i] as f64;
                 let fm = values[i - stride[k]] as f64;
                 let fp = values[i + stride[k]] as f64;
                 let (sk, inv) = (s[k], &inv_size[k]);
-                three_point(f0, fm, fp, [inv[sk - 1], inv[sk]], lam[k][sk])
+                three_point(f0, fm, fp, [inv[sk - 1], inv[sk]], lam[k][sk]).0
             }));
             self.keys[slot] = key;
             self.grads[slot] = g;
@@ -402,19 +402,20 @@ impl GradCache {
 
 /// The derivative at a sample `f0` from its neighbours `fm` before and
 /// `fp` after (module docs: three-point rule, one-sided where a neighbour
-/// is NaN); `inv` the inverse gaps before and after, `lam` the weight
-/// [`three_point_weights`] gives. The arithmetic of
-/// [`vertex_gradients`], operation for operation, so bit for bit its
-/// result.
+/// is NaN), and whether it was one-sided; `inv` the inverse gaps before
+/// and after, `lam` the weight `h- / (h- + h+)`
+/// ([`three_point_weights`]). The one rule of [`vertex_gradients`] and
+/// [`GradCache`].
 #[inline(always)]
-fn three_point(f0: f64, fm: f64, fp: f64, inv: [f64; 2], lam: f64) -> f64 {
+fn three_point(f0: f64, fm: f64, fp: f64, inv: [f64; 2], lam: f64) -> (f64, bool) {
+    // Slopes before and after the vertex (NaN where missing).
     let sm = (f0 - fm) * inv[0];
     let sp = (fp - f0) * inv[1];
     match (sm.is_nan(), sp.is_nan()) {
-        (false, false) => sm + lam * (sp - sm),
-        (true, false) => sp,
-        (false, true) => sm,
-        (true, true) => f64::NAN,
+        (false, false) => (sm + lam * (sp - sm), false),
+        (true, false) => (sp, true),
+        (false, true) => (sm, true),
+        (true, true) => (f64::NAN, false),
     }
 }
 

@@ -377,9 +377,7 @@ pub fn run(
             return Err(JobError::ScaleBarShard);
         }
         // The bar must fit before any ray.
-        if let (Some(bar), Projection::Ortho { frame_mm }) = (job.scale_bar, camera.projection) {
-            let mm_per_px = frame_mm / height as f64;
-            let mm = bar.length_mm(width, mm_per_px);
+        if let Some((mm, mm_per_px)) = bar_scale(job.scale_bar, &camera) {
             super::scalebar::layout(mm, mm_per_px, width, height)?;
         }
     }
@@ -434,18 +432,25 @@ fn image(
     Ok((set.commit()?, stats))
 }
 
-/// Draws `bar` into `frame` as seen by `cam` (orthographic: checked in
-/// [`run`]).
+/// The length in mm of `bar` in `cam`'s image and the mm a pixel spans;
+/// `None` without a bar or in a perspective view (refused in [`run`]).
+fn bar_scale(bar: Option<ScaleBar>, cam: &Camera) -> Option<(f64, f64)> {
+    let (Some(bar), Projection::Ortho { frame_mm }) = (bar, cam.projection) else {
+        return None;
+    };
+    let mm_per_px = frame_mm / cam.height as f64;
+    Some((bar.length_mm(cam.width, mm_per_px), mm_per_px))
+}
+
+/// Draws `bar` into `frame` as seen by `cam`.
 fn add_scale_bar(
     frame: &mut super::Frame,
     cam: &Camera,
     bar: Option<ScaleBar>,
 ) -> Result<(), ScaleBarError> {
-    let (Some(bar), Projection::Ortho { frame_mm }) = (bar, cam.projection) else {
-        return Ok(());
-    };
-    let mm_per_px = frame_mm / frame.height as f64;
-    super::scalebar::draw(frame, bar.length_mm(frame.width, mm_per_px), mm_per_px)?;
+    if let Some((mm, mm_per_px)) = bar_scale(bar, cam) {
+        super::scalebar::draw(frame, mm, mm_per_px)?;
+    }
     Ok(())
 }
 
