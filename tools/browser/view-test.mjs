@@ -56,6 +56,7 @@ function startServer() {
     let err = "";
     proc.stderr.on("data", (d) => {
       err += d;
+      proc.stderrText = err.slice(-4000);
       const m = err.match(/listening on (http:\/\/[^\s]+)/);
       if (m) ok({ proc, url: m[1] });
     });
@@ -99,13 +100,31 @@ async function drag(page, box, steps, dy) {
 async function openPage(browser, url) {
   const ctx = await browser.newContext({ viewport: { width: 360 + opt.size, height: Math.max(900, opt.size + 40) } });
   const page = await ctx.newPage();
-  const errors = [];
+  const errors = [], consoleLines = [];
   page.on("pageerror", (e) => errors.push(String(e)));
+  page.on("console", (m) => consoleLines.push(`${m.type()}: ${m.text()}`));
+  page.on("requestfailed", (r) => consoleLines.push(`request failed: ${r.url()} ${r.failure()?.errorText}`));
   const hash = `#size=${opt.size}&mode=${opt.mode}&az=30&el=10${opt.extra ? "&" + opt.extra : ""}`;
-  await page.goto(url + hash);
-  await page.waitForFunction(() => window.__cdvol && window.__cdvol.ready);
-  await waitFull(page, 1);
-  return { page, errors };
+  const t0 = Date.now();
+  try {
+    await page.goto(url + hash, { timeout: 120000 });
+    // A fresh machine's first Chromium page can be slow (profile, fonts):
+    // the same generous bound as every other wait of this script.
+    await page.waitForFunction(() => window.__cdvol && window.__cdvol.ready, null, { timeout: 120000 });
+    await waitFull(page, 1);
+  } catch (e) {
+    // Say what the page saw, not only that it timed out.
+    const seen = await page.evaluate(() => ({
+      log: window.__cdvol ? { ready: window.__cdvol.ready, version: window.__cdvol.version,
+        frames: window.__cdvol.frames.length, lastFull: !!window.__cdvol.lastFull } : null,
+      err: document.getElementById("err")?.textContent ?? null,
+    })).catch((x) => "page not readable: " + x);
+    await page.screenshot({ path: join(opt.out, "failed-open.png") }).catch(() => {});
+    throw new Error(`opening ${url + hash} failed after ${Date.now() - t0} ms: ${e.message}\n` +
+      `page state: ${JSON.stringify(seen)}\npage errors: ${JSON.stringify(errors)}\n` +
+      `console: ${JSON.stringify(consoleLines.slice(-20))}`);
+  }
+  return { page, errors, openMs: Date.now() - t0 };
 }
 
 // Compares two PNGs (bytes) pixel by pixel inside the page's browser.
@@ -150,8 +169,11 @@ function renderArgs(hash) {
   return a;
 }
 
+let server = null;  // for the failure report
+
 async function main() {
   const { proc, url } = await startServer();
+  server = proc;
   // launch() gives Chromium a fresh temporary profile (--user-data-dir)
   // of its own and removes it on close.
   const browser = await chromium.launch({
@@ -166,6 +188,7 @@ async function main() {
     const pages = [];
     for (let c = 0; c < opt.clients; c++) pages.push(await openPage(browser, url));
     const { page } = pages[0];
+    result.open_ms = pages.map((p) => p.openMs);
     const box = await page.locator("#view").boundingBox();
 
     // Resident memory by kind (heap vs mapped file pages), sampled.
@@ -235,4 +258,9 @@ async function main() {
   console.log(process.exitCode ? "view-test: 0 passed, 1 failed" : "view-test: 1 passed, 0 failed");
 }
 
-main().catch((e) => { console.error(e); console.log("view-test: 0 passed, 1 failed"); process.exit(1); });
+main().catch((e) => {
+  console.error(e);
+  if (server) console.error("cdvol serve stderr (last 4000 bytes):\n" + (server.stderrText ?? ""));
+  console.log("view-test: 0 passed, 1 failed");
+  process.exit(1);
+});
