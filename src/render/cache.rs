@@ -1084,6 +1084,24 @@ impl<'a, 'v> Accessor<'a, 'v> {
     }
 }
 
+impl Accessor<'_, '_> {
+    /// [`Accessor::brick`], and this accessor's vertex-gradient cache
+    /// beside it (two fields of one borrow, so the shaded composite's
+    /// per-cell path moves nothing in and out of the accessor).
+    #[inline]
+    pub(crate) fn brick_and_grads(
+        &mut self,
+        c: [u32; 3],
+    ) -> (&RBrick, [u32; 3], &mut super::gradient::GradCache) {
+        let (_, l) = self.brick(c);
+        let b = match self.recent.get(self.cur) {
+            Some((_, Some(b))) => &**b,
+            _ => &EMPTY,
+        };
+        (b, l, &mut self.vertex_grads)
+    }
+}
+
 impl super::traverse::CodeSource for Accessor<'_, '_> {
     #[inline(always)]
     fn code(&mut self, c: [u32; 3], octant: Option<usize>) -> u8 {

@@ -44,7 +44,7 @@
 //! 1 of the hit cell, so it has code 0 or is a 1-cell, and its brick is
 //! never uniform; it holds values unless it holds no 1-cell.
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 use super::cache::Accessor;
 
@@ -321,12 +321,17 @@ pub(crate) fn vertex_gradients_in(
 /// ([`vertex_gradients`]' rule), and the gaps and weights along each axis
 /// are those of the vertex itself, so the gradient is a function of the
 /// vertex alone and the one kept is bit for bit the one
-/// [`vertex_gradients`] computes. Direct-mapped, [`GradCache::SLOTS`]
-/// slots keyed by the global sample index; allocated on first use.
+/// [`vertex_gradients`] computes (kept in f32, as the sampler uses it).
+/// A vertex on a brick's outer sample layer is not: a face sample two
+/// bricks share can be a code (NaN) in one and a value in the other, so
+/// its gradient depends on the brick of the cell that asks (keeping them
+/// too changed the head CT's shaded composite). Direct-mapped,
+/// [`GradCache::SLOTS`] slots keyed by the global sample index; allocated
+/// on first use.
 #[derive(Debug, Default)]
 pub(crate) struct GradCache {
     keys: Vec<u64>,
-    grads: Vec<DVec3>,
+    grads: Vec<Vec3>,
     /// Vertices asked for through the cache, and of those computed
     /// (counted for the tests only: this is the composite's inner loop).
     #[cfg(test)]
@@ -336,68 +341,69 @@ pub(crate) struct GradCache {
 }
 
 impl GradCache {
-    /// Slots, a power of two: 2048 (48 KiB, below the mmap threshold of
+    /// Slots, a power of two: 2048 (32 KiB, below the mmap threshold of
     /// module memory, so a tile's cache is recycled heap, not a fresh
     /// mapping).
     pub(crate) const SLOTS: usize = 2048;
+}
 
-    /// The 8 vertex gradients of `cell`, as [`vertex_gradients`] gives
-    /// them; `inv_size` are the cells' inverse sizes per axis, `lam`
-    /// [`three_point_weights`] per axis.
-    pub(crate) fn cell(
-        &mut self,
-        acc: &mut Accessor,
-        coords: [&[f64]; 3],
-        inv_size: &[Vec<f64>; 3],
-        lam: &[Vec<f64>; 3],
-        cell: [u32; 3],
-    ) -> [DVec3; 8] {
-        let n: [usize; 3] = std::array::from_fn(|k| coords[k].len());
-        let (b, l) = acc.brick(cell);
-        let lc = l.map(|x| x as usize);
-        let inside =
-            !b.values.is_empty() && (0..3).all(|k| lc[k] >= 1 && lc[k] + 2 <= b.cells[k] as usize);
-        if !inside {
-            return vertex_gradients(acc, coords, cell).g;
-        }
-        if self.keys.is_empty() {
-            self.keys = vec![u64::MAX; Self::SLOTS];
-            self.grads = vec![DVec3::ZERO; Self::SLOTS];
-        }
-        let sx = b.cells[0] as usize + 1;
-        let sy = b.cells[1] as usize + 1;
-        let stride = [1, sx, sx * sy];
-        let values = &b.values;
-        std::array::from_fn(|v| {
-            let s: [usize; 3] = std::array::from_fn(|k| cell[k] as usize + (v >> k & 1));
-            let key = ((s[2] * n[1] + s[1]) * n[0] + s[0]) as u64;
-            // Fibonacci hashing: the top log2(SLOTS) bits of the product.
-            let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15)
-                >> (64 - Self::SLOTS.trailing_zeros())) as usize;
-            #[cfg(test)]
-            {
-                self.asked += 1;
-            }
-            if self.keys[slot] == key {
-                return self.grads[slot];
-            }
-            #[cfg(test)]
-            {
-                self.computed += 1;
-            }
-            let i = ((lc[2] + (v >> 2 & 1)) * sy + lc[1] + (v >> 1 & 1)) * sx + lc[0] + (v & 1);
-            let g = DVec3::from_array(std::array::from_fn(|k| {
-                let f0 = values[i] as f64;
-                let fm = values[i - stride[k]] as f64;
-                let fp = values[i + stride[k]] as f64;
-                let (sk, inv) = (s[k], &inv_size[k]);
-                three_point(f0, fm, fp, [inv[sk - 1], inv[sk]], lam[k][sk]).0
-            }));
-            self.keys[slot] = key;
-            self.grads[slot] = g;
-            g
-        })
+/// The 8 vertex gradients of `cell`, as [`vertex_gradients`] gives them
+/// (in f32), through the accessor's [`GradCache`]; `inv_size` are the
+/// cells' inverse sizes per axis, `lam` [`three_point_weights`] per axis.
+#[inline]
+pub(crate) fn cached_vertex_gradients(
+    acc: &mut Accessor,
+    coords: [&[f64]; 3],
+    inv_size: &[Vec<f64>; 3],
+    lam: &[Vec<f64>; 3],
+    cell: [u32; 3],
+) -> [Vec3; 8] {
+    let n: [usize; 3] = std::array::from_fn(|k| coords[k].len());
+    let (b, l, gc) = acc.brick_and_grads(cell);
+    let lc = l.map(|x| x as usize);
+    let inside =
+        !b.values.is_empty() && (0..3).all(|k| lc[k] >= 1 && lc[k] + 2 <= b.cells[k] as usize);
+    if !inside {
+        return vertex_gradients(acc, coords, cell).g.map(|g| g.as_vec3());
     }
+    if gc.keys.is_empty() {
+        gc.keys = vec![u64::MAX; GradCache::SLOTS];
+        gc.grads = vec![Vec3::ZERO; GradCache::SLOTS];
+    }
+    let sx = b.cells[0] as usize + 1;
+    let sy = b.cells[1] as usize + 1;
+    let stride = [1, sx, sx * sy];
+    let values = &b.values;
+    std::array::from_fn(|v| {
+        let s: [usize; 3] = std::array::from_fn(|k| cell[k] as usize + (v >> k & 1));
+        let key = ((s[2] * n[1] + s[1]) * n[0] + s[0]) as u64;
+        // Fibonacci hashing: the top log2(SLOTS) bits of the product.
+        let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15)
+            >> (64 - GradCache::SLOTS.trailing_zeros())) as usize;
+        #[cfg(test)]
+        {
+            gc.asked += 1;
+        }
+        if gc.keys[slot] == key {
+            return gc.grads[slot];
+        }
+        #[cfg(test)]
+        {
+            gc.computed += 1;
+        }
+        let i = ((lc[2] + (v >> 2 & 1)) * sy + lc[1] + (v >> 1 & 1)) * sx + lc[0] + (v & 1);
+        let g = DVec3::from_array(std::array::from_fn(|k| {
+            let f0 = values[i] as f64;
+            let fm = values[i - stride[k]] as f64;
+            let fp = values[i + stride[k]] as f64;
+            let (sk, inv) = (s[k], &inv_size[k]);
+            three_point(f0, fm, fp, [inv[sk - 1], inv[sk]], lam[k][sk]).0
+        }))
+        .as_vec3();
+        gc.keys[slot] = key;
+        gc.grads[slot] = g;
+        g
+    })
 }
 
 /// The derivative at a sample `f0` from its neighbours `fm` before and

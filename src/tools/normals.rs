@@ -223,7 +223,7 @@ pub fn time_gradients(
 
 #[cfg(test)]
 mod tests {
-    /// `GradCache::cell` (render/gradient.rs) equals [`vertex_gradients`] bit for bit on every
+    /// `cached_vertex_gradients` (render/gradient.rs) equals [`vertex_gradients`] (in f32) bit for bit on every
     /// 1-cell and its 0-cell neighbours of a rectilinear sphere scene
     /// (bricks of 8 cells, so most cells touch a brick border), the cells
     /// visited in a shuffled order so that hits, misses and evictions mix.
@@ -234,7 +234,7 @@ mod tests {
         use crate::prep::{prep, PrepOptions};
         use crate::progress::NoProgress;
         use crate::render::cache::{Accessor, BrickCache};
-        use crate::render::gradient::{three_point_weights, vertex_gradients, GradCache};
+        use crate::render::gradient::{cached_vertex_gradients, three_point_weights, vertex_gradients};
         use crate::tools::phantom;
         let dir = tempfile::tempdir().unwrap();
         let side = dir.path().join("s.json");
@@ -276,7 +276,6 @@ mod tests {
         let inv_size: [Vec<f64>; 3] =
             coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect());
         let lam = coords.map(three_point_weights);
-        let mut gc = GradCache::default();
         // Shuffled (mostly misses and evictions), then in raster order (a
         // cell shares 4 vertices with the one before it).
         let raster = {
@@ -286,10 +285,10 @@ mod tests {
         };
         let mut asked_before = 0;
         for order in [&cells, &raster] {
-            (asked_before, gc.computed) = (gc.asked, 0);
+            (asked_before, acc.vertex_grads.computed) = (acc.vertex_grads.asked, 0);
             for &c in order.iter() {
-                let want = vertex_gradients(&mut acc, coords, c).g;
-                let got = gc.cell(&mut acc, coords, &inv_size, &lam, c);
+                let want = vertex_gradients(&mut acc, coords, c).g.map(|g| g.as_vec3());
+                let got = cached_vertex_gradients(&mut acc, coords, &inv_size, &lam, c);
                 for v in 0..8 {
                     let same = want[v]
                         .to_array()
@@ -302,6 +301,7 @@ mod tests {
         }
         // Both kinds of cell were met, and the cache answered for some.
         assert!(cells.len() > 1000, "{} cells", cells.len());
+        let gc = &acc.vertex_grads;
         let asked = gc.asked - asked_before;
         assert!(
             gc.computed > 0 && gc.computed < asked / 2,

@@ -15,7 +15,9 @@ use glam::Vec3;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
-use crate::render::gradient::{vertex_gradients, Normals, VertexGradients};
+use crate::render::gradient::{
+    cached_vertex_gradients, vertex_gradients, Normals, VertexGradients,
+};
 use crate::render::lut::TfLut;
 use crate::render::options::CompositeLook;
 use crate::render::shade::{at, AlongRay, CellEval};
@@ -306,11 +308,8 @@ impl Sampler for Sampler32<'_> {
         if self.look.on && self.look.smooth {
             // The tile's cache of vertex gradients: the same values as
             // `vertex_gradients` (render/gradient.rs).
-            let mut cache = std::mem::take(&mut acc.vertex_grads);
-            self.grads = cache
-                .cell(acc, self.coords, self.inv_size, self.lam, cell)
-                .map(|g| g.as_vec3());
-            acc.vertex_grads = cache;
+            self.grads =
+                cached_vertex_gradients(acc, self.coords, self.inv_size, self.lam, cell);
         }
         let ray = self.ray;
         for (a, &i) in cell.iter().enumerate() {
