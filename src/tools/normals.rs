@@ -234,7 +234,9 @@ mod tests {
         use crate::prep::{prep, PrepOptions};
         use crate::progress::NoProgress;
         use crate::render::cache::{Accessor, BrickCache};
-        use crate::render::gradient::{cached_vertex_gradients, three_point_weights, vertex_gradients};
+        use crate::render::gradient::{
+            cached_vertex_gradients, three_point_weights, vertex_gradients,
+        };
         use crate::tools::phantom;
         let dir = tempfile::tempdir().unwrap();
         let side = dir.path().join("s.json");

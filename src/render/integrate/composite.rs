@@ -308,8 +308,7 @@ impl Sampler for Sampler32<'_> {
         if self.look.on && self.look.smooth {
             // The tile's cache of vertex gradients: the same values as
             // `vertex_gradients` (render/gradient.rs).
-            self.grads =
-                cached_vertex_gradients(acc, self.coords, self.inv_size, self.lam, cell);
+            self.grads = cached_vertex_gradients(acc, self.coords, self.inv_size, self.lam, cell);
         }
         let ray = self.ray;
         for (a, &i) in cell.iter().enumerate() {
