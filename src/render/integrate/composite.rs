@@ -10,7 +10,7 @@
 //! the cells is f64 either way, so every exact traversal gives the same
 //! image with either sampler.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
@@ -82,7 +82,7 @@ pub(super) fn composite32<T: Real>(
         u: Vec3::ZERO,
         du: Vec3::ZERO,
         inv: Vec3::ZERO,
-        grads: [Vec3::ZERO; 8],
+        grads: [Vec3A::ZERO; 8],
         col: Vec3::ZERO,
         alpha: 0.0,
     };
@@ -296,8 +296,10 @@ struct Sampler32<'a> {
     du: Vec3,
     /// The cell's inverse sizes (local coordinates per mm).
     inv: Vec3,
-    /// Smooth normals: the cell's vertex gradients (per mm).
-    grads: [Vec3; 8],
+    /// Smooth normals: the cell's vertex gradients (per mm), as SIMD
+    /// vectors for the per-sample interpolation (the same lane arithmetic
+    /// as `Vec3`'s, so the same bits).
+    grads: [Vec3A; 8],
     col: Vec3,
     alpha: f32,
 }
@@ -308,7 +310,8 @@ impl Sampler for Sampler32<'_> {
         if self.look.on && self.look.smooth {
             // The tile's cache of vertex gradients: the same values as
             // `vertex_gradients` (render/gradient.rs).
-            self.grads = cached_vertex_gradients(acc, self.coords, self.inv_size, self.lam, cell);
+            self.grads = cached_vertex_gradients(acc, self.coords, self.inv_size, self.lam, cell)
+                .map(Vec3A::from);
         }
         let ray = self.ray;
         for (a, &i) in cell.iter().enumerate() {
@@ -331,7 +334,7 @@ impl Sampler for Sampler32<'_> {
         }
         if self.look.on {
             let g = if self.look.smooth {
-                trilinear_vec(&self.grads, uc)
+                Vec3::from(trilinear_vec(&self.grads, uc.into()))
             } else {
                 self.c.gradient(uc) * self.inv
             };
@@ -419,7 +422,7 @@ impl Trilinear32 {
 
 /// Trilinear interpolation of 8 vertex vectors (x fastest) at `u`.
 #[inline(always)]
-fn trilinear_vec(g: &[Vec3; 8], u: Vec3) -> Vec3 {
+fn trilinear_vec(g: &[Vec3A; 8], u: Vec3A) -> Vec3A {
     let x00 = g[0].lerp(g[1], u.x);
     let x10 = g[2].lerp(g[3], u.x);
     let x01 = g[4].lerp(g[5], u.x);
