@@ -65,6 +65,10 @@ pub struct RBrick {
     /// [`Planes::block_max`] and only for bricks with values; empty
     /// otherwise.
     pub block_max: Vec<f32>,
+    /// Per sample, its vertex gradient ([`Planes::grads`],
+    /// [`brick_gradients`](super::gradient::brick_gradients)): for the
+    /// shaded composite, bricks with values only; empty otherwise.
+    pub grads: Vec<glam::Vec3>,
 }
 
 /// Cells per edge of a [`RBrick::block_max`] block.
@@ -152,6 +156,7 @@ impl RBrick {
             bytes: std::mem::size_of::<RBrick>(),
             dda: [Vec::new(), Vec::new()],
             block_max: Vec::new(),
+            grads: Vec::new(),
         }
     }
 
@@ -202,6 +207,7 @@ impl RBrick {
                 narrow: None,
                 octree: false,
                 block_max: false,
+                grads: false,
                 ..planes
             };
             let mut b = RBrick::from_payload(h, id, no_object, &r.raw, first);
@@ -388,6 +394,10 @@ impl RBrick {
         if planes.block_max && !b.values.is_empty() {
             b.block_max = block_maxima(&b.values, b.cells);
         }
+        if planes.grads && !b.values.is_empty() {
+            let axes: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
+            b.grads = super::gradient::brick_gradients(&b.values, b.first, b.cells, axes);
+        }
         b.bytes = std::mem::size_of::<RBrick>()
             + b.codes.len()
             + b.values.len() * 4
@@ -395,7 +405,8 @@ impl RBrick {
             + b.dda[0].len()
             + b.dda[1].len()
             + b.levels.iter().map(Vec::len).sum::<usize>()
-            + b.block_max.len() * 4;
+            + b.block_max.len() * 4
+            + b.grads.len() * std::mem::size_of::<glam::Vec3>();
     }
 
     /// The code plane and f32 values of brick `id` from its decoded words:
@@ -806,6 +817,9 @@ pub struct Planes {
     /// The largest vertex value per block of [`BLOCK`]^3 cells
     /// ([`RBrick::block_max`]), for bricks with values.
     pub block_max: bool,
+    /// Each sample's vertex gradient ([`RBrick::grads`]), for bricks with
+    /// values: the shaded composite with smooth normals.
+    pub grads: bool,
     /// The scene's iso value when it is narrower than the file's
     /// classification (`render --iso`): each brick is rewritten for it
     /// (render/scene.rs) before any other plane is built.
@@ -819,6 +833,7 @@ impl Planes {
         dda: false,
         octree: false,
         block_max: false,
+        grads: false,
         narrow: None,
     };
 
@@ -828,6 +843,7 @@ impl Planes {
         dda: true,
         octree: false,
         block_max: false,
+        grads: false,
         narrow: None,
     };
 }
@@ -983,9 +999,6 @@ pub struct Accessor<'a, 'v> {
     lazy_min: Option<u8>,
     pub counters: CacheCounters,
     pub error: Option<FormatError>,
-    /// Vertex gradients of this accessor's cells, for the shaded
-    /// composite (render/gradient.rs).
-    pub(crate) vertex_grads: super::gradient::GradCache,
 }
 
 /// Bricks an [`Accessor`] keeps besides the shared cache's budget (at
@@ -1025,7 +1038,6 @@ impl<'a, 'v> Accessor<'a, 'v> {
             lazy_min,
             counters: CacheCounters::default(),
             error: None,
-            vertex_grads: Default::default(),
         }
     }
 
@@ -1081,24 +1093,6 @@ impl<'a, 'v> Accessor<'a, 'v> {
             Some((_, Some(b))) => (b, l),
             _ => (&EMPTY, [0; 3]),
         }
-    }
-}
-
-impl Accessor<'_, '_> {
-    /// [`Accessor::brick`], and this accessor's vertex-gradient cache
-    /// beside it (two fields of one borrow, so the shaded composite's
-    /// per-cell path moves nothing in and out of the accessor).
-    #[inline]
-    pub(crate) fn brick_and_grads(
-        &mut self,
-        c: [u32; 3],
-    ) -> (&RBrick, [u32; 3], &mut super::gradient::GradCache) {
-        let (_, l) = self.brick(c);
-        let b = match self.recent.get(self.cur) {
-            Some((_, Some(b))) => &**b,
-            _ => &EMPTY,
-        };
-        (b, l, &mut self.vertex_grads)
     }
 }
 
@@ -1191,6 +1185,7 @@ static EMPTY: RBrick = RBrick {
     bytes: 0,
     dda: [Vec::new(), Vec::new()],
     block_max: Vec::new(),
+    grads: Vec::new(),
 };
 
 #[cfg(test)]

@@ -312,106 +312,103 @@ pub(crate) fn vertex_gradients_in(
     }
 }
 
-/// Vertex gradients remembered across the cells and rays of one tile, for
-/// the shaded composite (every cell a ray samples needs its 8 vertex
-/// gradients, and neighbouring cells and rays share most vertices).
+/// Per sample of a brick, its vertex gradient as [`vertex_gradients`]
+/// computes it, in f32: the shaded composite's gradient plane
+/// ([`Planes::grads`](super::cache::Planes::grads)), built once when the
+/// brick is decoded. `values` are the brick's samples (`cells + 1` per
+/// axis, x fastest), `first` its first sample's global index.
 ///
-/// Only vertices strictly inside their brick's samples are kept: their 6
-/// neighbours are read from that brick whichever of their cells asks
-/// ([`vertex_gradients`]' rule), and the gaps and weights along each axis
-/// are those of the vertex itself, so the gradient is a function of the
-/// vertex alone and the one kept is bit for bit the one
-/// [`vertex_gradients`] computes (kept in f32, as the sampler uses it).
-/// A vertex on a brick's outer sample layer is not: a face sample two
-/// bricks share can be a code (NaN) in one and a value in the other, so
-/// its gradient depends on the brick of the cell that asks (keeping them
-/// too changed the head CT's shaded composite). Direct-mapped,
-/// [`GradCache::SLOTS`] slots keyed by the global sample index; allocated
-/// on first use.
-#[derive(Debug, Default)]
-pub(crate) struct GradCache {
-    keys: Vec<u64>,
-    grads: Vec<Vec3>,
-    /// Vertices asked for through the cache, and of those computed
-    /// (counted for the tests only: this is the composite's inner loop).
-    #[cfg(test)]
-    pub(crate) asked: u64,
-    #[cfg(test)]
-    pub(crate) computed: u64,
-}
-
-impl GradCache {
-    /// Slots, a power of two: 2048 (32 KiB, below the mmap threshold of
-    /// module memory, so a tile's cache is recycled heap, not a fresh
-    /// mapping).
-    pub(crate) const SLOTS: usize = 2048;
-}
-
-/// The 8 vertex gradients of `cell`, as [`vertex_gradients`] gives them
-/// (in f32), through the accessor's [`GradCache`]; `inv_size` are the
-/// cells' inverse sizes per axis, `lam` [`three_point_weights`] per axis.
-#[inline]
-pub(crate) fn cached_vertex_gradients(
-    acc: &mut Accessor,
+/// Only samples strictly inside the brick's samples get a gradient (NaN on
+/// the outer layer): their 6 neighbours are in this brick, which
+/// [`vertex_gradients`] reads them from whichever of their cells asks, and
+/// the gaps and weights along each axis are the sample's own, so the
+/// gradient is a function of the sample alone. A sample on the outer
+/// layer is not: a face sample two bricks share can be a code (NaN) in one
+/// and a value in the other, so its gradient depends on the brick of the
+/// cell that asks (taking it by sample alone changed the head CT's shaded
+/// composite). Cells with a vertex there take [`vertex_gradients`].
+pub(crate) fn brick_gradients(
+    values: &[f32],
+    first: [u32; 3],
+    cells: [u32; 3],
     coords: [&[f64]; 3],
-    inv_size: &[Vec<f64>; 3],
-    lam: &[Vec<f64>; 3],
-    cell: [u32; 3],
-) -> [Vec3; 8] {
-    let n: [usize; 3] = std::array::from_fn(|k| coords[k].len());
-    let (b, l, gc) = acc.brick_and_grads(cell);
+) -> Vec<Vec3> {
+    let s = cells.map(|c| c as usize + 1);
+    let mut out = vec![Vec3::NAN; values.len()];
+    if s.iter().any(|&k| k < 3) {
+        return out;
+    }
+    // Per axis and inner local sample: the inverse gaps before and after
+    // and the weight `h- / (h- + h+)`, the same expressions as
+    // [`vertex_gradients`]' per-cell ones.
+    let axis: [Vec<([f64; 2], f64)>; 3] = std::array::from_fn(|k| {
+        let x = coords[k];
+        (0..s[k])
+            .map(|ls| {
+                let g = first[k] as usize + ls;
+                if ls == 0 || ls + 1 == s[k] {
+                    return ([f64::NAN; 2], f64::NAN);
+                }
+                let (hm, hp) = (x[g] - x[g - 1], x[g + 1] - x[g]);
+                ([1.0 / hm, 1.0 / hp], hm / (hm + hp))
+            })
+            .collect()
+    });
+    let stride = [1, s[0], s[0] * s[1]];
+    for z in 1..s[2] - 1 {
+        for y in 1..s[1] - 1 {
+            let row = (z * s[1] + y) * s[0];
+            for x in 1..s[0] - 1 {
+                let i = row + x;
+                let at = [x, y, z];
+                let f0 = values[i] as f64;
+                out[i] = DVec3::from_array(std::array::from_fn(|k| {
+                    let fm = values[i - stride[k]] as f64;
+                    let fp = values[i + stride[k]] as f64;
+                    let (inv, lam) = axis[k][at[k]];
+                    three_point(f0, fm, fp, inv, lam).0
+                }))
+                .as_vec3();
+            }
+        }
+    }
+    out
+}
+
+/// The 8 vertex gradients of 1-cell `cell` (x fastest), as
+/// [`vertex_gradients`] gives them, in f32: from its brick's gradient
+/// plane ([`brick_gradients`]) when the cell's vertices are all strictly
+/// inside the brick's samples and the cache built the plane, else
+/// computed.
+#[inline]
+pub(crate) fn cell_gradients(acc: &mut Accessor, coords: [&[f64]; 3], cell: [u32; 3]) -> [Vec3; 8] {
+    let (b, l) = acc.brick(cell);
     let lc = l.map(|x| x as usize);
-    let inside =
-        !b.values.is_empty() && (0..3).all(|k| lc[k] >= 1 && lc[k] + 2 <= b.cells[k] as usize);
-    if !inside {
-        return vertex_gradients(acc, coords, cell).g.map(|g| g.as_vec3());
+    if !b.grads.is_empty() && (0..3).all(|k| lc[k] >= 1 && lc[k] + 2 <= b.cells[k] as usize) {
+        let sx = b.cells[0] as usize + 1;
+        let sy = b.cells[1] as usize + 1;
+        let base = (lc[2] * sy + lc[1]) * sx + lc[0];
+        let g = &b.grads;
+        return [
+            g[base],
+            g[base + 1],
+            g[base + sx],
+            g[base + sx + 1],
+            g[base + sx * sy],
+            g[base + sx * sy + 1],
+            g[base + sx * sy + sx],
+            g[base + sx * sy + sx + 1],
+        ];
     }
-    if gc.keys.is_empty() {
-        gc.keys = vec![u64::MAX; GradCache::SLOTS];
-        gc.grads = vec![Vec3::ZERO; GradCache::SLOTS];
-    }
-    let sx = b.cells[0] as usize + 1;
-    let sy = b.cells[1] as usize + 1;
-    let stride = [1, sx, sx * sy];
-    let values = &b.values;
-    std::array::from_fn(|v| {
-        let s: [usize; 3] = std::array::from_fn(|k| cell[k] as usize + (v >> k & 1));
-        let key = ((s[2] * n[1] + s[1]) * n[0] + s[0]) as u64;
-        // Fibonacci hashing: the top log2(SLOTS) bits of the product.
-        let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15)
-            >> (64 - GradCache::SLOTS.trailing_zeros())) as usize;
-        #[cfg(test)]
-        {
-            gc.asked += 1;
-        }
-        if gc.keys[slot] == key {
-            return gc.grads[slot];
-        }
-        #[cfg(test)]
-        {
-            gc.computed += 1;
-        }
-        let i = ((lc[2] + (v >> 2 & 1)) * sy + lc[1] + (v >> 1 & 1)) * sx + lc[0] + (v & 1);
-        let g = DVec3::from_array(std::array::from_fn(|k| {
-            let f0 = values[i] as f64;
-            let fm = values[i - stride[k]] as f64;
-            let fp = values[i + stride[k]] as f64;
-            let (sk, inv) = (s[k], &inv_size[k]);
-            three_point(f0, fm, fp, [inv[sk - 1], inv[sk]], lam[k][sk]).0
-        }))
-        .as_vec3();
-        gc.keys[slot] = key;
-        gc.grads[slot] = g;
-        g
-    })
+    vertex_gradients(acc, coords, cell).g.map(|g| g.as_vec3())
 }
 
 /// The derivative at a sample `f0` from its neighbours `fm` before and
 /// `fp` after (module docs: three-point rule, one-sided where a neighbour
 /// is NaN), and whether it was one-sided; `inv` the inverse gaps before
 /// and after, `lam` the weight `h- / (h- + h+)`
-/// ([`three_point_weights`]). The one rule of [`vertex_gradients`] and
-/// [`GradCache`].
+/// (module docs). The one rule of [`vertex_gradients`] and
+/// [`brick_gradients`].
 #[inline(always)]
 fn three_point(f0: f64, fm: f64, fp: f64, inv: [f64; 2], lam: f64) -> (f64, bool) {
     // Slopes before and after the vertex (NaN where missing).
@@ -423,21 +420,6 @@ fn three_point(f0: f64, fm: f64, fp: f64, inv: [f64; 2], lam: f64) -> (f64, bool
         (false, true) => (sm, true),
         (true, true) => (f64::NAN, false),
     }
-}
-
-/// Per sample of an axis with sample positions `x`, the three-point
-/// rule's weight of the slope after it, `h- / (h- + h+)` (module docs),
-/// computed as [`vertex_gradients`] does; NaN at both ends.
-pub(crate) fn three_point_weights(x: &[f64]) -> Vec<f64> {
-    (0..x.len())
-        .map(|s| {
-            if s == 0 || s + 1 == x.len() {
-                return f64::NAN;
-            }
-            let (hm, hp) = (x[s] - x[s - 1], x[s + 1] - x[s]);
-            hm / (hm + hp)
-        })
-        .collect()
 }
 
 #[cfg(test)]

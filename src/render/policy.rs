@@ -57,5 +57,19 @@ pub fn brick_policy(method: Method, cd_lazy_min: u8) -> BrickPolicy {
 pub fn cache_for<'v>(vol: &'v PackedVolume, opts: &RenderOptions) -> BrickCache<'v> {
     let mut planes = brick_policy(opts.method, opts.cd_lazy_min).planes;
     planes.narrow = super::options::narrowing(vol.header(), opts);
+    planes.grads = gradient_plane(opts) && planes.narrow.is_none();
     BrickCache::with_planes(vol, opts.cache_bytes, planes)
+}
+
+/// Whether the bricks carry a gradient plane
+/// ([`Planes::grads`]): the f32 composite sampler with smooth gradients
+/// (shading or gradient opacity), which asks for the 8 vertex gradients of
+/// every cell it samples, many times per brick. 12 bytes per sample, 2.4
+/// times a brick's values and codes, counted against the cache budget;
+/// docs/BENCHMARKS.md ("Shaded composite: gradient plane").
+pub fn gradient_plane(opts: &RenderOptions) -> bool {
+    matches!(opts.mode, super::options::Mode::Composite { .. })
+        && opts.sampling == super::options::Precision::F32
+        && opts.normals == super::gradient::Normals::Smooth
+        && (opts.look.shade || !opts.look.gradient_opacity.is_empty())
 }

@@ -15,9 +15,7 @@ use glam::{Vec3, Vec3A};
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
-use crate::render::gradient::{
-    cached_vertex_gradients, vertex_gradients, Normals, VertexGradients,
-};
+use crate::render::gradient::{cell_gradients, vertex_gradients, Normals, VertexGradients};
 use crate::render::lut::TfLut;
 use crate::render::options::CompositeLook;
 use crate::render::shade::{at, AlongRay, CellEval};
@@ -72,7 +70,6 @@ pub(super) fn composite32<T: Real>(
     let mut s = Sampler32 {
         coords: ctx.coords,
         inv_size: &ctx.inv_size,
-        lam: &ctx.lam,
         ray,
         lut,
         step,
@@ -283,8 +280,6 @@ impl Sampler for Sampler64<'_> {
 struct Sampler32<'a> {
     coords: [&'a [f64]; 3],
     inv_size: &'a [Vec<f64>; 3],
-    /// The smooth gradients' weights per axis and sample (render/gradient.rs).
-    lam: &'a [Vec<f64>; 3],
     ray: &'a Ray,
     lut: &'a TfLut,
     step: f64,
@@ -308,10 +303,9 @@ impl Sampler for Sampler32<'_> {
     #[inline(always)]
     fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], f: [f32; 8], t: f64) {
         if self.look.on && self.look.smooth {
-            // The tile's cache of vertex gradients: the same values as
-            // `vertex_gradients` (render/gradient.rs).
-            self.grads = cached_vertex_gradients(acc, self.coords, self.inv_size, self.lam, cell)
-                .map(Vec3A::from);
+            // From the brick's gradient plane where it can: the same
+            // values as `vertex_gradients` (render/gradient.rs).
+            self.grads = cell_gradients(acc, self.coords, cell).map(Vec3A::from);
         }
         let ray = self.ray;
         for (a, &i) in cell.iter().enumerate() {

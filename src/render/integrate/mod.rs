@@ -59,9 +59,6 @@ pub(crate) struct Ctx<'a, T> {
     /// `1 / (S[i + 1] - S[i])` per axis and cell: the samplers' local
     /// coordinates by multiplication.
     pub(crate) inv_size: [Vec<f64>; 3],
-    /// Per axis and sample, the three-point rule's weight `h- / (h- + h+)`
-    /// (render/gradient.rs; NaN at the ends).
-    pub(crate) lam: [Vec<f64>; 3],
 }
 
 impl<'a, T: Real> Ctx<'a, T> {
@@ -87,7 +84,6 @@ impl<'a, T: Real> Ctx<'a, T> {
                 _ => None,
             },
             inv_size: coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect()),
-            lam: coords.map(super::gradient::three_point_weights),
         }
     }
 }
