@@ -120,12 +120,15 @@ pub struct Counters {
     pub refused: AtomicU64,
 }
 
-/// The scene a cache is built for: the file and the scene's iso value
-/// (f32 bits, as the cache narrows bricks to it).
+/// The scene a cache is built for: the file, the scene's iso value (f32
+/// bits, as the cache narrows bricks to it), and whether its bricks carry
+/// the shaded composite's gradient plane
+/// ([`gradient_plane`](crate::render::policy::gradient_plane)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct SceneKey {
     file: usize,
     iso_bits: Option<u32>,
+    grads: bool,
 }
 
 /// The renderer shared by all request handlers.
@@ -201,6 +204,7 @@ impl<'v> Engine<'v> {
         let key = SceneKey {
             file: req.file,
             iso_bits: opts.iso.map(|v| to_f32(v).to_bits()),
+            grads: crate::render::policy::gradient_plane(opts),
         };
         let new_cache = slot.as_ref().is_none_or(|(k, _)| *k != key);
         if new_cache {
