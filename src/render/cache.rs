@@ -126,10 +126,17 @@ impl RBrick {
     /// The 8 vertex values of local cell `l`, x fastest.
     #[inline(always)]
     pub fn vertices(&self, l: [u32; 3]) -> [f32; 8] {
+        self.corners(&self.values, l)
+    }
+
+    /// The 8 entries of per-sample plane `v` (the values, or the gradient
+    /// plane) at the vertices of local cell `l`, x fastest: loads at fixed
+    /// offsets.
+    #[inline(always)]
+    pub fn corners<T: Copy>(&self, v: &[T], l: [u32; 3]) -> [T; 8] {
         let sx = (self.cells[0] + 1) as usize;
         let sy = (self.cells[1] + 1) as usize;
         let base = (l[2] as usize * sy + l[1] as usize) * sx + l[0] as usize;
-        let v = &self.values;
         [
             v[base],
             v[base + 1],

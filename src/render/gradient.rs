@@ -385,20 +385,7 @@ pub(crate) fn cell_gradients(acc: &mut Accessor, coords: [&[f64]; 3], cell: [u32
     let (b, l) = acc.brick(cell);
     let lc = l.map(|x| x as usize);
     if !b.grads.is_empty() && (0..3).all(|k| lc[k] >= 1 && lc[k] + 2 <= b.cells[k] as usize) {
-        let sx = b.cells[0] as usize + 1;
-        let sy = b.cells[1] as usize + 1;
-        let base = (lc[2] * sy + lc[1]) * sx + lc[0];
-        let g = &b.grads;
-        return [
-            g[base],
-            g[base + 1],
-            g[base + sx],
-            g[base + sx + 1],
-            g[base + sx * sy],
-            g[base + sx * sy + 1],
-            g[base + sx * sy + sx],
-            g[base + sx * sy + sx + 1],
-        ];
+        return b.corners(&b.grads, l);
     }
     vertex_gradients(acc, coords, cell).g.map(|g| g.as_vec3())
 }
