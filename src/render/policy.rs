@@ -66,7 +66,7 @@ pub fn cache_for<'v>(vol: &'v PackedVolume, opts: &RenderOptions) -> BrickCache<
 /// (shading or gradient opacity), which asks for the 8 vertex gradients of
 /// every cell it samples, many times per brick. 12 bytes per sample, 2.4
 /// times a brick's values and codes, counted against the cache budget;
-/// docs/BENCHMARKS.md ("Shaded composite: gradient plane").
+/// docs/BENCHMARKS.md ("Shaded composite: a gradient plane per brick").
 pub fn gradient_plane(opts: &RenderOptions) -> bool {
     matches!(opts.mode, super::options::Mode::Composite { .. })
         && opts.sampling == super::options::Precision::F32
