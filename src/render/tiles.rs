@@ -17,7 +17,7 @@ use super::clock::{self, Clock, TileTime};
 use super::error::RenderError;
 use super::integrate::{pixel, Ctx, Px};
 use super::options::{check_render, Precision, RenderOptions};
-use super::output::{colour, Colouring, Frame};
+use super::output::{colour_blocks, Colouring, Frame, PxBlock};
 use super::stats::Stats;
 use super::traverse::{Real, StepCounts, TGrid};
 use crate::format::reader::PackedVolume;
@@ -233,11 +233,13 @@ pub struct TilePx {
     pub(crate) pixels: Vec<Px>,
 }
 
-/// Places the tiles in a `w` x `h` image and colours it; `stats` are the
-/// summed counters. Shared by [`render_in`] and
-/// [`shard::assemble`](super::shard::assemble). Tiles given by value are
-/// dropped as soon as they are placed, so a render holds about one copy
-/// of the pixels, not two.
+/// Colours the tiles as one `w` x `h` image; `stats` are the summed
+/// counters. Shared by [`render_in`] and
+/// [`shard::assemble`](super::shard::assemble). The tiles are coloured
+/// where they are, in parallel by rows ([`colour_blocks`]), so a render
+/// holds one copy of the pixels (the tiles) besides the image, and the
+/// colouring is not a serial tail of every frame (docs/BENCHMARKS.md,
+/// "Colouring").
 pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
     colouring: &Colouring,
     w: u32,
@@ -245,15 +247,20 @@ pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
     tiles: impl IntoIterator<Item = T>,
     mut stats: Stats,
 ) -> (Frame, Stats) {
-    let mut px = vec![Px::default(); w as usize * h as usize];
-    for t in tiles {
-        let t = t.borrow();
-        for (i, p) in t.pixels.iter().enumerate() {
-            let (lx, ly) = (i as u32 % t.w, i as u32 / t.w);
-            px[((t.y0 + ly) * w + t.x0 + lx) as usize] = *p;
-        }
-    }
-    let frame = colour(colouring, w, h, &px);
+    let tiles: Vec<T> = tiles.into_iter().collect();
+    let blocks: Vec<PxBlock> = tiles
+        .iter()
+        .map(|t| {
+            let t = t.borrow();
+            PxBlock {
+                x0: t.x0,
+                y0: t.y0,
+                w: t.w,
+                pixels: &t.pixels,
+            }
+        })
+        .collect();
+    let frame = colour_blocks(colouring, w, h, &blocks);
     stats.rays = w as u64 * h as u64;
     (frame, stats)
 }
