@@ -239,7 +239,7 @@ pub struct TilePx {
 /// where they are, in parallel by rows ([`colour_blocks`]), so a render
 /// holds one copy of the pixels (the tiles) besides the image, and the
 /// colouring is not a serial tail of every frame (docs/BENCHMARKS.md,
-/// "Colouring").
+/// "Colouring: no serial tail").
 pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
     colouring: &Colouring,
     w: u32,
