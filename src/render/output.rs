@@ -95,10 +95,12 @@ pub fn value_range(vol: &PackedVolume) -> [f64; 2] {
 pub const AUTO_WINDOW_PERCENTILES: [f64; 2] = [0.01, 0.999];
 
 /// The automatic MIP window of an image: the [`AUTO_WINDOW_PERCENTILES`]
-/// of its hit pixels' values `v` (the maxima the rays met, NaN left out,
-/// in any order), `[0, 1]` when no ray hit; never an empty range. The
-/// values at the percentiles' ranks are found by selection, not a sort.
+/// of its hit pixels' values `v` (the maxima the rays met, in any order;
+/// the caller leaves NaN out), `[0, 1]` when no ray hit; never an empty
+/// range. The values at the percentiles' ranks are found by selection,
+/// not a sort.
 pub fn auto_window(mut v: Vec<f32>) -> [f64; 2] {
+    debug_assert!(v.iter().all(|x| !x.is_nan()), "NaN in the window's values");
     if v.is_empty() {
         return [0.0, 1.0];
     }
@@ -153,6 +155,11 @@ struct Rows<'a> {
 
 impl<'a> Rows<'a> {
     fn new(w: u32, blocks: &[PxBlock<'a>]) -> Rows<'a> {
+        debug_assert!(
+            blocks.iter().all(|b| b.w == 0
+                || (b.pixels.len() % b.w as usize == 0 && b.x0 as u64 + b.w as u64 <= w as u64)),
+            "blocks must hold whole rows inside the image"
+        );
         let mut blocks: Vec<PxBlock> = blocks.iter().copied().filter(|b| b.w > 0).collect();
         blocks.sort_by_key(|b| (b.y0, b.x0));
         let mut bands: Vec<(u32, std::ops::Range<usize>)> = Vec::new();
@@ -171,7 +178,7 @@ impl<'a> Rows<'a> {
         let mut covered = 0u64;
         for b in &self.blocks {
             let rows = (b.pixels.len() / b.w as usize) as u64;
-            let cols = (b.x0 + b.w).min(self.w).saturating_sub(b.x0) as u64;
+            let cols = (b.x0.saturating_add(b.w)).min(self.w).saturating_sub(b.x0) as u64;
             covered += rows.min(h.saturating_sub(b.y0) as u64) * cols;
         }
         covered < self.w as u64 * h as u64
@@ -203,7 +210,7 @@ impl<'a> Rows<'a> {
                     }
                     f(px, p);
                 }
-                x = x.max((b.x0 + b.w).min(self.w));
+                x = x.max(b.x0.saturating_add(b.w).min(self.w));
             }
         }
         while x < self.w {
@@ -228,7 +235,14 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
 /// come from the renderer or from part files), row by row in parallel and
 /// without gathering the pixels into one buffer first. A pixel no block
 /// covers colours as [`Px::default`]. The same bytes as colouring the
-/// gathered image (test `colour_blocks_equals_the_sequential_colouring`).
+/// gathered image (test `colour_blocks_equals_the_sequential_colouring`)
+/// when the blocks are what every caller gives: tiles of one grid (rows
+/// of blocks share their `y0` and height), disjoint, inside the image,
+/// each holding whole rows. Overlapping or ragged blocks are not merged
+/// as a sequential placement would merge them.
+///
+/// The depth range's folds may meet -0.0 and 0.0 in either order and
+/// keep either; the grey `1 - (x - lo) / (hi - lo)` is the same for both.
 pub(crate) fn colour_blocks(kind: &Colouring, w: u32, h: u32, blocks: &[PxBlock]) -> Frame {
     use rayon::prelude::*;
     let rows = Rows::new(w, blocks);
@@ -962,6 +976,8 @@ mod tests {
             1 => Just(f32::INFINITY),
             1 => Just(f32::NEG_INFINITY),
             1 => Just(0.25f32),
+            1 => Just(0.0f32),
+            1 => Just(-0.0f32),
             1 => -1e30f32..1e30,
         ]
     }
