@@ -27,6 +27,7 @@
 pub mod cache;
 pub mod camera;
 mod clock;
+mod colour;
 mod error;
 pub mod gradient;
 mod integrate;

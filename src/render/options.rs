@@ -192,7 +192,7 @@ impl CompositeLook {
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Window {
     /// The 1st to the 99.9th percentile of the image's values
-    /// ([`auto_window`](super::output::auto_window)).
+    /// ([`auto_window`](super::colour::auto_window)).
     #[default]
     Auto,
     /// The file's whole value range (`--window full`; before the

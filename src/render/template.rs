@@ -155,6 +155,7 @@ use rayon::prelude::*;
 
 use super::cache::{Accessor, BrickCache, CacheCounters, Planes, OBJECT};
 use super::camera::{Camera, Projection};
+use super::colour::{colour, Colouring};
 use super::error::RenderError;
 use super::gradient::{smooth_gradient_in, Normals};
 use super::integrate::Px;
@@ -162,7 +163,7 @@ use super::options::{
     check_mode, check_scene_iso, check_tol_and_size, narrowing, scene_iso, Mode, RenderOptions,
     MAX_PIXELS,
 };
-use super::output::{colour, Colouring, Frame};
+use super::output::Frame;
 use super::shade::{self, at, find_hit_with, CellEval, HitMethod};
 use super::stats::Stats;
 use super::traverse::{trace, CodeSource, Flow, Method, Ray, StepCounts, TGrid, Visit};
