@@ -1089,6 +1089,7 @@ impl RenderArgs {
                     NormalsArg::Cell => cdvol::render::Normals::Cell,
                 },
                 iso: self.iso()?,
+                unrounded: self.bit_depth != cdvol::render::Bits::Eight,
             },
             template: self.traversal == TraversalArg::Template,
             output: self.output.clone(),

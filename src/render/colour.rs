@@ -188,15 +188,15 @@ impl<'a> Rows<'a> {
     }
 }
 
-/// Colours the pixels `px` of a `w` x `h` image.
-pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
+/// Colours the pixels `px` of a `w` x `h` image ([`colour_blocks`]).
+pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px], unrounded: bool) -> Frame {
     let whole = PxBlock {
         x0: 0,
         y0: 0,
         w,
         pixels: px,
     };
-    colour_blocks(kind, w, h, &[whole])
+    colour_blocks(kind, w, h, &[whole], unrounded)
 }
 
 /// Colours a `w` x `h` image whose pixels are in `blocks` (tiles, as they
@@ -211,7 +211,17 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px]) -> Frame {
 ///
 /// The depth range's folds may meet -0.0 and 0.0 in either order and
 /// keep either; the grey `1 - (x - lo) / (hi - lo)` is the same for both.
-pub(crate) fn colour_blocks(kind: &Colouring, w: u32, h: u32, blocks: &[PxBlock]) -> Frame {
+///
+/// [`Frame::linear`] (16 bytes a pixel) is filled only when `unrounded`
+/// ([`RenderOptions::unrounded`](super::RenderOptions::unrounded)), and
+/// is empty otherwise.
+pub(crate) fn colour_blocks(
+    kind: &Colouring,
+    w: u32,
+    h: u32,
+    blocks: &[PxBlock],
+    unrounded: bool,
+) -> Frame {
     use rayon::prelude::*;
     let rows = Rows::new(w, blocks);
     let gaps = rows.has_gaps(h);
@@ -256,25 +266,42 @@ pub(crate) fn colour_blocks(kind: &Colouring, w: u32, h: u32, blocks: &[PxBlock]
     };
     let (wu, n) = (w as usize, w as usize * h as usize);
     let (mut rgb, mut alpha) = (vec![0u8; 3 * n], vec![0u8; n]);
-    let (mut linear, mut steps) = (vec![0f32; 4 * n], vec![0u32; n]);
+    let mut linear = vec![0f32; if unrounded { 4 * n } else { 0 }];
+    let mut steps = vec![0u32; n];
     let to8 = |x: f32| (x * 255.0).round() as u8;
+    // Row `y` of the planes (`linear` when kept).
+    let row = |y: usize,
+               rgb: &mut [u8],
+               alpha: &mut [u8],
+               steps: &mut [u32],
+               mut linear: Option<&mut [f32]>| {
+        rows.each(y as u32, |x, p| {
+            let c = colour_px(scale, p);
+            if let Some(l) = linear.as_deref_mut() {
+                l[4 * x..4 * x + 4].copy_from_slice(&c);
+            }
+            for k in 0..3 {
+                rgb[3 * x + k] = to8(c[k]);
+            }
+            alpha[x] = to8(c[3]);
+            steps[x] = p.steps;
+        });
+    };
     if wu > 0 {
-        rgb.par_chunks_mut(3 * wu)
+        let planes = rgb
+            .par_chunks_mut(3 * wu)
             .zip(alpha.par_chunks_mut(wu))
-            .zip(linear.par_chunks_mut(4 * wu))
-            .zip(steps.par_chunks_mut(wu))
-            .enumerate()
-            .for_each(|(y, (((rgb, alpha), linear), steps))| {
-                rows.each(y as u32, |x, p| {
-                    let c = colour_px(scale, p);
-                    linear[4 * x..4 * x + 4].copy_from_slice(&c);
-                    for k in 0..3 {
-                        rgb[3 * x + k] = to8(c[k]);
-                    }
-                    alpha[x] = to8(c[3]);
-                    steps[x] = p.steps;
-                });
-            });
+            .zip(steps.par_chunks_mut(wu));
+        if unrounded {
+            planes
+                .zip(linear.par_chunks_mut(4 * wu))
+                .enumerate()
+                .for_each(|(y, (((rgb, alpha), steps), l))| row(y, rgb, alpha, steps, Some(l)));
+        } else {
+            planes
+                .enumerate()
+                .for_each(|(y, ((rgb, alpha), steps))| row(y, rgb, alpha, steps, None));
+        }
     }
     // One f32 per pixel from `f`, in parallel by rows.
     let plane = |f: fn(&Px) -> f32| {
@@ -583,8 +610,13 @@ mod tests {
                 Colouring::Cost,
                 Colouring::Depth,
             ] {
-                assert_same(&colour_blocks(&kind, w, h, &blocks), &colour_reference(&kind, w, h, &px));
-                assert_same(&colour(&kind, w, h, &px), &colour_reference(&kind, w, h, &px));
+                let reference = colour_reference(&kind, w, h, &px);
+                assert_same(&colour_blocks(&kind, w, h, &blocks, true), &reference);
+                assert_same(&colour(&kind, w, h, &px, true), &reference);
+                // Without the unrounded colour: the rest unchanged.
+                let rounded = colour_blocks(&kind, w, h, &blocks, false);
+                prop_assert!(rounded.linear.is_empty());
+                assert_same(&rounded, &Frame { linear: Vec::new(), ..reference });
             }
         }
     }

@@ -408,10 +408,19 @@ fn render_one(
     job: &RenderJob,
     progress: &dyn Progress,
 ) -> Result<(super::Frame, Stats), RenderError> {
+    // 16-bit and float outputs need the frame's unrounded colour.
+    let opts = if job.image.bits != Bits::Eight && !job.options.unrounded {
+        std::borrow::Cow::Owned(RenderOptions {
+            unrounded: true,
+            ..job.options.clone()
+        })
+    } else {
+        std::borrow::Cow::Borrowed(&job.options)
+    };
     match (job.template, cache) {
-        (true, _) => render_template(vol, cam, &job.options, progress),
-        (false, Some(cache)) => render_in(vol, cache, cam, &job.options, progress),
-        (false, None) => render(vol, cam, &job.options, progress),
+        (true, _) => render_template(vol, cam, &opts, progress),
+        (false, Some(cache)) => render_in(vol, cache, cam, &opts, progress),
+        (false, None) => render(vol, cam, &opts, progress),
     }
 }
 

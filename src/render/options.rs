@@ -86,6 +86,13 @@ pub struct RenderOptions {
     /// classification, the envelope (render/scene.rs); `None` renders the
     /// file's iso value.
     pub iso: Option<f64>,
+    /// Keep the frame's colour before rounding to 8 bits
+    /// ([`Frame::linear`](super::Frame::linear), 16 bytes a pixel), which
+    /// 16-bit and float outputs need. Off by default: the frame then
+    /// carries its 8-bit planes only, and a 1024^2 frame writes 16 MB less
+    /// of fresh memory (docs/BENCHMARKS.md, "Per-frame memory"). A
+    /// [`RenderJob`](super::RenderJob) turns it on for its `--bit-depth`.
+    pub unrounded: bool,
 }
 
 /// Default of [`RenderOptions::early_stop`].
@@ -206,7 +213,7 @@ pub enum Window {
 impl RenderOptions {
     /// `mode` by `method` with the defaults of `cdvol render`: 32-pixel
     /// tiles, a 512 MiB cache, CD's lazy threshold, f64, default hit
-    /// parameters, smooth normals.
+    /// parameters, smooth normals, 8-bit frames.
     pub fn new(mode: Mode, method: Method) -> RenderOptions {
         RenderOptions {
             mode,
@@ -222,6 +229,7 @@ impl RenderOptions {
             window: Window::Auto,
             normals: Normals::default(),
             iso: None,
+            unrounded: false,
         }
     }
 }

@@ -25,6 +25,8 @@ pub struct Frame {
     /// `rgb` and `alpha` before rounding, 4 a pixel (red, green, blue
     /// premultiplied, coverage), each in [0, 1]: `--bit-depth 16` rounds
     /// these to 16 bits and `--bit-depth 32` writes them as they are.
+    /// Empty unless the render kept them
+    /// ([`RenderOptions::unrounded`](super::RenderOptions::unrounded)).
     pub linear: Vec<f32>,
     /// Depth mode: hit distance in mm, NaN where the ray misses.
     pub depth: Option<Vec<f32>>,
@@ -67,6 +69,14 @@ pub enum SaveError {
         path.display()
     )]
     Extension { path: PathBuf, found: String },
+    /// A 16-bit or float image of a frame rendered without its unrounded
+    /// colour.
+    #[error(
+        "{}: a {what} image needs the frame's unrounded colour, which this render did not keep \
+         (RenderOptions::unrounded)",
+        path.display()
+    )]
+    Rounded { path: PathBuf, what: &'static str },
     /// 16 bits per channel in a format without them.
     #[error("{}: JPEG has 8 bits per channel for --bit-depth 16; use .png or .tif", path.display())]
     No16Bit { path: PathBuf },
@@ -285,27 +295,31 @@ pub struct BackgroundError {
 /// `frame`'s colour over `bg` at 8 or 16 bits per channel: RGB over a
 /// colour (`rgb + (1 - alpha) * bg`, the premultiplied "over"), or
 /// straight (not premultiplied) RGBA.
+///
+/// One pass from the frame's planes into the image's own buffer: no
+/// widened copy of the planes (a 1024^2 frame once took about 60 MB of
+/// fresh temporaries here; docs/BENCHMARKS.md, "Per-frame memory").
 fn composited(frame: &Frame, bg: Background, sixteen_bit: bool) -> image::DynamicImage {
     use image::DynamicImage as D;
     let (w, h) = (frame.width, frame.height);
     if sixteen_bit {
-        let to16 = |x: &f32| (x * 65535.0).round() as u64;
-        let rgb: Vec<u64> = frame
+        let to16 = |x: f32| (x * 65535.0).round() as u64;
+        let px = frame
             .linear
             .chunks_exact(4)
-            .flat_map(|c| c[..3].iter().map(to16))
-            .collect();
-        let alpha: Vec<u64> = frame.linear.chunks_exact(4).map(|c| to16(&c[3])).collect();
-        let (px, rgba) = over(&rgb, &alpha, 65535, bg);
-        let px: Vec<u16> = px.into_iter().map(|x| x as u16).collect();
+            .map(|c| ([to16(c[0]), to16(c[1]), to16(c[2])], to16(c[3])));
+        let (px, rgba) = over(px, 65535, bg, |x| x as u16);
         match rgba {
             false => D::ImageRgb16(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
             true => D::ImageRgba16(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
         }
     } else {
-        let widen = |v: &[u8]| v.iter().map(|&x| x as u64).collect::<Vec<_>>();
-        let (px, rgba) = over(&widen(&frame.rgb), &widen(&frame.alpha), 255, bg);
-        let px: Vec<u8> = px.into_iter().map(|x| x as u8).collect();
+        let px = frame
+            .rgb
+            .chunks_exact(3)
+            .zip(&frame.alpha)
+            .map(|(c, &a)| ([c[0], c[1], c[2]].map(u64::from), u64::from(a)));
+        let (px, rgba) = over(px, 255, bg, |x| x as u8);
         match rgba {
             false => D::ImageRgb8(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
             true => D::ImageRgba8(image::ImageBuffer::from_raw(w, h, px).unwrap_or_default()),
@@ -349,35 +363,41 @@ fn float_tiff(frame: &Frame, bg: Background) -> Result<Vec<u8>, tiff::TiffError>
     Ok(buf.into_inner())
 }
 
-/// Channels `rgb` (premultiplied, 3 a pixel) with coverage `alpha`, both
-/// in `0..=max`, over `bg`: the output channels, each at most `max`, and
-/// whether they are RGBA (a transparent background) rather than RGB.
-fn over(rgb: &[u64], alpha: &[u64], max: u64, bg: Background) -> (Vec<u64>, bool) {
-    let px = rgb.chunks_exact(3).zip(alpha);
+/// Pixels `(rgb, alpha)` (colour premultiplied by the coverage, both in
+/// `0..=max`) over `bg`: the output channels, each at most `max`, cast
+/// by `cast`, and whether they are RGBA (a transparent background)
+/// rather than RGB.
+fn over<T>(
+    px: impl Iterator<Item = ([u64; 3], u64)>,
+    max: u64,
+    bg: Background,
+    cast: impl Fn(u64) -> T,
+) -> (Vec<T>, bool) {
+    let n = px.size_hint().0;
     match bg {
         Background::Colour(c) => {
             // The background's 8-bit channels at `max` (255 -> 65535).
             let c = c.map(|x| x as u64 * max / 255);
-            let mut out = Vec::with_capacity(rgb.len());
-            for (p, &a) in px {
+            let mut out = Vec::with_capacity(3 * n);
+            for (p, a) in px {
                 for k in 0..3 {
-                    out.push((p[k] + ((max - a) * c[k] + max / 2) / max).min(max));
+                    out.push(cast((p[k] + ((max - a) * c[k] + max / 2) / max).min(max)));
                 }
             }
             (out, false)
         }
         Background::Transparent => {
-            let mut out = Vec::with_capacity(rgb.len() / 3 * 4);
-            for (p, &a) in px {
-                for &v in p {
+            let mut out = Vec::with_capacity(4 * n);
+            for (p, a) in px {
+                for v in p {
                     let straight = match a {
                         0 => 0,
                         a if a == max => v,
                         a => (v * max + a / 2) / a,
                     };
-                    out.push(straight.min(max));
+                    out.push(cast(straight.min(max)));
                 }
-                out.push(a);
+                out.push(cast(a));
             }
             (out, true)
         }
@@ -424,7 +444,19 @@ pub fn stage_on(
     if frame.alpha.len() != n {
         return Err(size("alpha", frame.alpha.len(), 1));
     }
-    if frame.linear.len() != n * 4 {
+    // 16 bits, and floats of a colour (not of data values), read `linear`.
+    let what = match spec.bits {
+        Bits::Sixteen => Some("16-bit"),
+        Bits::Float if frame.values.is_none() && frame.depth.is_none() => Some("float"),
+        _ => None,
+    };
+    if let Some(what) = what.filter(|_| frame.linear.is_empty()) {
+        return Err(SaveError::Rounded {
+            path: path.to_path_buf(),
+            what,
+        });
+    }
+    if !frame.linear.is_empty() && frame.linear.len() != n * 4 {
         return Err(size("linear", frame.linear.len(), 4));
     }
     for (what, v) in [("values", &frame.values), ("depth", &frame.depth)] {
@@ -472,4 +504,176 @@ pub fn stage_on(
         set.add_bytes(p16, &encode(image::DynamicImage::ImageLuma16(img), p16)?)?;
     }
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{composited, Background, Frame};
+    use proptest::prelude::*;
+
+    /// The composition as it was before it went from the planes straight
+    /// into the image buffer: both planes widened to `u64`, composited,
+    /// then narrowed. The oracle of the one-pass [`composited`].
+    fn composited_reference(frame: &Frame, bg: Background, sixteen_bit: bool) -> Vec<u16> {
+        let over = |rgb: &[u64], alpha: &[u64], max: u64| -> Vec<u64> {
+            let px = rgb.chunks_exact(3).zip(alpha);
+            match bg {
+                Background::Colour(c) => {
+                    let c = c.map(|x| x as u64 * max / 255);
+                    let mut out = Vec::new();
+                    for (p, &a) in px {
+                        for k in 0..3 {
+                            out.push((p[k] + ((max - a) * c[k] + max / 2) / max).min(max));
+                        }
+                    }
+                    out
+                }
+                Background::Transparent => {
+                    let mut out = Vec::new();
+                    for (p, &a) in px {
+                        for &v in p {
+                            let straight = match a {
+                                0 => 0,
+                                a if a == max => v,
+                                a => (v * max + a / 2) / a,
+                            };
+                            out.push(straight.min(max));
+                        }
+                        out.push(a);
+                    }
+                    out
+                }
+            }
+        };
+        let out = if sixteen_bit {
+            let to16 = |x: &f32| (x * 65535.0).round() as u64;
+            let rgb: Vec<u64> = frame
+                .linear
+                .chunks_exact(4)
+                .flat_map(|c| c[..3].iter().map(to16))
+                .collect();
+            let alpha: Vec<u64> = frame.linear.chunks_exact(4).map(|c| to16(&c[3])).collect();
+            over(&rgb, &alpha, 65535)
+        } else {
+            let widen = |v: &[u8]| v.iter().map(|&x| x as u64).collect::<Vec<_>>();
+            over(&widen(&frame.rgb), &widen(&frame.alpha), 255)
+        };
+        out.into_iter().map(|x| x as u16).collect()
+    }
+
+    /// An f32 channel as the colouring leaves it: in [0, 1], or NaN.
+    fn unit() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            8 => 0.0f32..=1.0,
+            1 => Just(0.0f32),
+            1 => Just(1.0f32),
+            1 => Just(f32::NAN),
+        ]
+    }
+
+    fn background() -> impl Strategy<Value = Background> {
+        prop_oneof![
+            Just(Background::BLACK),
+            Just(Background::Transparent),
+            any::<[u8; 3]>().prop_map(Background::Colour),
+        ]
+    }
+
+    /// A frame rendered without its unrounded colour saves at 8 bits, and
+    /// refuses 16 bits and float colour by name; float data values (MIP,
+    /// cost, depth) do not need it.
+    #[test]
+    fn frames_without_the_unrounded_colour() {
+        use super::{save_on, Bits, ImageSpec, SaveError};
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let (w, h) = (3u32, 2u32);
+        let n = (w * h) as usize;
+        let frame = Frame {
+            width: w,
+            height: h,
+            rgb: vec![200; 3 * n],
+            alpha: vec![255; n],
+            linear: Vec::new(),
+            depth: None,
+            values: None,
+            steps: vec![0; n],
+        };
+        let spec = |bits| ImageSpec {
+            background: Background::BLACK,
+            bits,
+        };
+        let png = dir.path().join("a.png");
+        save_on(&frame, &png, spec(Bits::Eight)).expect("8-bit PNG");
+        let img = image::open(&png).expect("readable PNG").to_rgb8();
+        assert!(img.pixels().all(|p| p.0 == [200; 3]));
+        for (path, bits, what) in [
+            ("b.png", Bits::Sixteen, "16-bit"),
+            ("c.tif", Bits::Float, "float"),
+        ] {
+            let path = dir.path().join(path);
+            match save_on(&frame, &path, spec(bits)) {
+                Err(e @ SaveError::Rounded { .. }) => {
+                    let text = e.to_string();
+                    assert!(
+                        text.contains(what) && text.contains(&*path.to_string_lossy()),
+                        "{text}"
+                    );
+                }
+                other => panic!("{bits:?}: expected SaveError::Rounded, got {other:?}"),
+            }
+            assert!(!path.exists(), "{bits:?}: nothing written");
+        }
+        let mip = Frame {
+            values: Some(vec![1.5; n]),
+            ..frame
+        };
+        let tif = dir.path().join("d.tif");
+        save_on(&mip, &tif, spec(Bits::Float)).expect("float TIFF of data values");
+        assert!(tif.exists());
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        #[test]
+        fn composited_equals_the_widened_composition(
+            (w, h, rgb, alpha, linear) in (1u32..12, 1u32..12).prop_flat_map(|(w, h)| {
+                let n = (w * h) as usize;
+                (
+                    Just(w),
+                    Just(h),
+                    proptest::collection::vec(any::<u8>(), 3 * n),
+                    // Coverage often at its ends, where the straight colour
+                    // takes its special cases.
+                    proptest::collection::vec(prop_oneof![Just(0u8), Just(255u8), any::<u8>()], n),
+                    proptest::collection::vec(unit(), 4 * n),
+                )
+            }),
+            bg in background(),
+            sixteen_bit in any::<bool>(),
+        ) {
+            let frame = Frame {
+                width: w,
+                height: h,
+                rgb,
+                alpha,
+                linear,
+                depth: None,
+                values: None,
+                steps: vec![0; (w * h) as usize],
+            };
+            let img = composited(&frame, bg, sixteen_bit);
+            let got: Vec<u16> = if sixteen_bit {
+                img.as_bytes()
+                    .chunks_exact(2)
+                    .map(|b| u16::from_ne_bytes([b[0], b[1]]))
+                    .collect()
+            } else {
+                img.as_bytes().iter().map(|&b| b as u16).collect()
+            };
+            prop_assert_eq!(img.width(), w);
+            prop_assert_eq!(img.height(), h);
+            prop_assert_eq!(img.color().has_alpha(), bg == Background::Transparent);
+            prop_assert_eq!(got, composited_reference(&frame, bg, sixteen_bit));
+        }
+    }
 }

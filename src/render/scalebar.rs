@@ -182,8 +182,10 @@ pub fn draw(frame: &mut Frame, mm: f64, mm_per_px: f64) -> Result<Layout, ScaleB
         let i = at(x, y);
         frame.rgb[3 * i..3 * i + 3].fill(v);
         frame.alpha[i] = 255;
-        let f = f32::from(v) / 255.0;
-        frame.linear[4 * i..4 * i + 4].copy_from_slice(&[f, f, f, 1.0]);
+        if !frame.linear.is_empty() {
+            let f = f32::from(v) / 255.0;
+            frame.linear[4 * i..4 * i + 4].copy_from_slice(&[f, f, f, 1.0]);
+        }
     };
     // The shape's box grown by the outline (the margin holds it).
     let right = x1.max(lay.text_at[0] + label(mm).chars().count() as u32 * 6 * s);

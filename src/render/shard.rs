@@ -581,7 +581,16 @@ pub fn assemble(parts: &[Part], names: &[PathBuf]) -> Result<(Frame, Stats), Ass
     for p in &parts[1..] {
         stats.merge(&p.stats);
     }
-    Ok(finish(&key.colouring, key.width, key.height, tiles, stats))
+    // The parts' bits per channel are the assembler's choice: keep the
+    // unrounded colour for 16-bit and float outputs.
+    Ok(finish(
+        &key.colouring,
+        key.width,
+        key.height,
+        tiles,
+        stats,
+        true,
+    ))
 }
 
 /// Whether two parts' keys are of one render: every field but the packed

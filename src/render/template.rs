@@ -636,7 +636,7 @@ pub fn render_template_with(
                 );
             }
         });
-    let frame = colour(&colouring, w, hh, &px);
+    let frame = colour(&colouring, w, hh, &px, opts.unrounded);
     let mut stats = Stats::counted(inter_px, hits, &steps, &cc, &cache, opts, t0);
     stats.traversal = format!("template {}", opts.method.name());
     (stats.width, stats.height) = (w, hh);

@@ -56,7 +56,14 @@ pub fn render_in(
     let t0 = Instant::now();
     let (tiles, stats) = render_shard(vol, cache, camera, opts, Shard::WHOLE, progress)?;
     let colouring = Colouring::of(vol, opts);
-    let (frame, mut stats) = finish(&colouring, camera.width, camera.height, tiles, stats);
+    let (frame, mut stats) = finish(
+        &colouring,
+        camera.width,
+        camera.height,
+        tiles,
+        stats,
+        opts.unrounded,
+    );
     stats.seconds_total = t0.elapsed().as_secs_f64();
     Ok((frame, stats))
 }
@@ -81,7 +88,14 @@ pub fn render_in_until(
         return Ok(None);
     }
     let colouring = Colouring::of(vol, opts);
-    let (frame, mut stats) = finish(&colouring, camera.width, camera.height, tiles, stats);
+    let (frame, mut stats) = finish(
+        &colouring,
+        camera.width,
+        camera.height,
+        tiles,
+        stats,
+        opts.unrounded,
+    );
     stats.seconds_total = t0.elapsed().as_secs_f64();
     Ok(Some((frame, stats)))
 }
@@ -240,13 +254,15 @@ pub struct TilePx {
 /// where they are, in parallel by rows ([`colour_blocks`]), so a render
 /// holds one copy of the pixels (the tiles) besides the image, and the
 /// colouring is not a serial tail of every frame (docs/BENCHMARKS.md,
-/// "Colouring: no serial tail").
+/// "Colouring: no serial tail"). `unrounded`: whether the frame keeps
+/// [`Frame::linear`].
 pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
     colouring: &Colouring,
     w: u32,
     h: u32,
     tiles: impl IntoIterator<Item = T>,
     mut stats: Stats,
+    unrounded: bool,
 ) -> (Frame, Stats) {
     let tiles: Vec<T> = tiles.into_iter().collect();
     let blocks: Vec<PxBlock> = tiles
@@ -261,7 +277,7 @@ pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
             }
         })
         .collect();
-    let frame = colour_blocks(colouring, w, h, &blocks);
+    let frame = colour_blocks(colouring, w, h, &blocks, unrounded);
     stats.rays = w as u64 * h as u64;
     (frame, stats)
 }
