@@ -16,6 +16,8 @@ use super::{Ray, Real, TGrid, Visit};
 pub(super) struct Frame<'g, T> {
     s: [&'g [T]; 3],
     pub(super) uniform: [Option<T>; 3],
+    /// `1 / h` of uniform axes (*Locate*'s estimate; 0 elsewhere).
+    inv_h: [T; 3],
     o: [T; 3],
     /// `|d|`, divided by the power of two `p` where `T` needs it.
     pub(super) d: [T; 3],
@@ -78,6 +80,7 @@ impl<'g, T: Real> Frame<'g, T> {
         Frame {
             s: std::array::from_fn(|k| &grid.axes[k].s[mirror[k] as usize][..]),
             uniform: std::array::from_fn(|k| grid.axes[k].uniform),
+            inv_h: std::array::from_fn(|k| grid.axes[k].inv_h),
             o,
             d,
             inv_d,
@@ -178,12 +181,16 @@ impl<'g, T: Real> Frame<'g, T> {
     /// bounded by the cube otherwise.
     #[inline(always)]
     pub(super) fn locate(&self, k: usize, t: T, lo: u32, hi: u32) -> u32 {
-        if let Some(h) = self.uniform[k] {
+        if self.uniform[k].is_some() {
             let p = self.o[k] + t * self.d[k];
             // Clamped before truncating: inside (lo, hi) the estimate is
             // positive, where truncation is floor (no libm call); NaN
-            // goes to lo.
-            let est = ((p - self.s[k][0]) / h).f64();
+            // goes to lo. Multiplied by `1 / h` rather than divided by
+            // `h`: only an estimate, which the two loops below correct
+            // by `plane_t` whatever it is, and a division's latency sat
+            // on every leap (docs/BENCHMARKS.md, "Locate by
+            // multiplication").
+            let est = ((p - self.s[k][0]) * self.inv_h[k]).f64();
             let mut j = if est > lo as f64 {
                 est.min(hi as f64) as u32
             } else {

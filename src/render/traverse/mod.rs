@@ -237,6 +237,8 @@ struct TAxis<T> {
     s: [Vec<T>; 2],
     /// Spacing `h` of a uniform axis (both orientations share it).
     uniform: Option<T>,
+    /// `1 / h` on a uniform axis, else 0.
+    inv_h: T,
 }
 
 /// The grid as the traversal sees it: per axis the positions in both
@@ -254,9 +256,11 @@ impl<T: Real> TGrid<T> {
             let m: Vec<T> = c.iter().rev().map(|&x| -x).collect();
             let co = a.coords();
             let h = (co[co.len() - 1] - co[0]) / (co.len() - 1) as f64;
+            let uniform = a.is_uniform().then_some(T::of(h));
             TAxis {
                 s: [c, m],
-                uniform: a.is_uniform().then_some(T::of(h)),
+                uniform,
+                inv_h: uniform.map_or(T::zero(), |h| T::one() / h),
             }
         };
         TGrid {
