@@ -289,8 +289,9 @@ pub fn encode(frame: &Frame, enc: Encoding) -> Result<(Vec<u8>, &'static str), i
     let rgb = image::ExtendedColorType::Rgb8;
     let kind = match enc {
         Encoding::Png => {
-            let img = image::RgbImage::from_raw(w, h, frame.rgb.clone()).unwrap_or_default();
-            image::DynamicImage::ImageRgb8(img).write_to(&mut buf, image::ImageFormat::Png)?;
+            // The encoder `DynamicImage::write_to` uses, on the frame's
+            // plane as it is (no copy).
+            image::codecs::png::PngEncoder::new(&mut buf).write_image(&frame.rgb, w, h, rgb)?;
             "image/png"
         }
         Encoding::Jpeg(q) => {
