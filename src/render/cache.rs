@@ -876,7 +876,13 @@ pub struct BrickCache<'v> {
     /// The levels above the bricks, when `planes.octree` and the brick
     /// size is a power of two (bricks are then octree nodes).
     pyramid: Option<BrickPyramid>,
+    /// Unique in the process: what memos of derived data (render/
+    /// gradient.rs) key on, so no two caches' bricks are ever confused.
+    id: u64,
 }
+
+/// The next [`BrickCache`]'s id.
+static NEXT_CACHE_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 impl<'v> BrickCache<'v> {
     /// A cache that builds every plane the file has, and no octree.
@@ -900,6 +906,7 @@ impl<'v> BrickCache<'v> {
             lru: Mutex::new(Lru::new(vol.header().brick_count() * 2)),
             planes,
             pyramid: (planes.octree && bs.is_power_of_two()).then(|| BrickPyramid::new(vol)),
+            id: NEXT_CACHE_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
 
@@ -1046,6 +1053,17 @@ impl<'a, 'v> Accessor<'a, 'v> {
             counters: CacheCounters::default(),
             error: None,
         }
+    }
+
+    /// Which brick of which cache holds global cell `c`: its cache's
+    /// process-unique id and the brick's index (the same brick whatever
+    /// the accessor).
+    #[inline]
+    pub(crate) fn brick_key(&self, c: [u32; 3]) -> (u64, u64) {
+        let bs = self.brick_size;
+        let bc = [c[0] / bs, c[1] / bs, c[2] / bs].map(u64::from);
+        let id = (bc[2] * self.bricks[1] + bc[1]) * self.bricks[0] + bc[0];
+        (self.cache.id, id)
     }
 
     /// The brick holding global cell `c` and the cell's local index. After
