@@ -1013,6 +1013,9 @@ pub struct Accessor<'a, 'v> {
     lazy_min: Option<u8>,
     pub counters: CacheCounters,
     pub error: Option<FormatError>,
+    /// Smooth-normal gradients go through the thread's per-cell memo
+    /// (render/gradient.rs).
+    memo_gradients: bool,
 }
 
 /// Bricks an [`Accessor`] keeps besides the shared cache's budget (at
@@ -1052,7 +1055,23 @@ impl<'a, 'v> Accessor<'a, 'v> {
             lazy_min,
             counters: CacheCounters::default(),
             error: None,
+            memo_gradients: false,
         }
+    }
+
+    /// Whether smooth-normal gradients read through this accessor are
+    /// remembered per cell in the thread's memo and answered from it
+    /// ([`vertex_gradients`](super::gradient::vertex_gradients); the same
+    /// values either way). Off by default; the renderer turns it on where
+    /// rays are denser than the cells.
+    pub fn remember_gradients(&mut self, on: bool) {
+        self.memo_gradients = on;
+    }
+
+    /// See [`Accessor::remember_gradients`].
+    #[inline]
+    pub(crate) fn remembers_gradients(&self) -> bool {
+        self.memo_gradients
     }
 
     /// Which brick of which cache holds global cell `c`: its cache's

@@ -176,123 +176,91 @@ pub fn vertex_gradients(
 /// [`vertex_gradients`], in a scene narrower than the file's when
 /// `narrow` holds its iso value ([`smooth_gradient_in`]).
 ///
-/// Outside narrowed scenes the 8 gradients come from this thread's
-/// [`Memo`] when it holds them all (a vertex's gradient is a function of
-/// the vertex and the brick of the cell that asks: module docs, "Which
-/// brick a sample is read from"), else they are computed and remembered.
-/// Neighbouring rays meet the same cells: at 1024^2 on the head CT a
-/// cell is some 4 x 4 pixels wide.
+/// When `acc` remembers gradients ([`Accessor::remember_gradients`]) and
+/// outside narrowed scenes, the gradients come from this thread's [`Memo`]
+/// when it holds the cell (a vertex's gradient is a function of the
+/// vertex and the brick of the cell that asks, module docs, "Which brick a
+/// sample is read from", so the cell's 8 are a function of the cell),
+/// else they are computed and remembered. Rays denser than the cells meet
+/// the same cells: at 1024^2 on the head CT a cell is some 4 x 4 pixels
+/// wide.
 pub(crate) fn vertex_gradients_in(
     acc: &mut Accessor,
     coords: [&[f64]; 3],
     cell: [u32; 3],
     narrow: Option<f32>,
 ) -> VertexGradients {
-    if narrow.is_some() {
-        return compute_vertex_gradients(acc, coords, cell, narrow).0;
+    if narrow.is_some() || !acc.remembers_gradients() {
+        return compute_vertex_gradients(acc, coords, cell, narrow);
     }
-    let (cache, brick) = acc.brick_key(cell);
-    let n: [u64; 3] = std::array::from_fn(|k| coords[k].len() as u64);
-    let c: [u64; 3] = cell.map(u64::from);
-    let sample: [u64; 8] = std::array::from_fn(|v| {
-        let s = [
-            c[0] + (v & 1) as u64,
-            c[1] + (v >> 1 & 1) as u64,
-            c[2] + (v >> 2) as u64,
-        ];
-        (s[2] * n[1] + s[1]) * n[0] + s[0]
-    });
+    let (cache, _) = acc.brick_key(cell);
+    let n: [u64; 3] = std::array::from_fn(|k| coords[k].len() as u64 - 1);
+    let c = cell.map(u64::from);
+    let key = (c[2] * n[1] + c[1]) * n[0] + c[0];
     MEMO.with(|m| {
         let mut m = m.borrow_mut();
-        let mut g = [DVec3::ZERO; 8];
-        let mut one_sided = 0;
-        let all = (0..8).all(|v| match m.get(cache, brick, sample[v]) {
-            Some(e) => {
-                g[v] = e.g;
-                one_sided += u32::from(e.one_sided);
-                true
-            }
-            None => false,
-        });
-        if all {
+        let e = m.entry(cache, key);
+        if e.cache == cache && e.cell == key {
             // The fields `compute_vertex_gradients` derives from the cell.
             let ck = cell.map(|x| x as usize);
             return VertexGradients {
                 lo: std::array::from_fn(|k| coords[k][ck[k]]),
                 inv_size: std::array::from_fn(|k| 1.0 / (coords[k][ck[k] + 1] - coords[k][ck[k]])),
-                g,
-                one_sided,
+                g: e.g.map(DVec3::from_array),
+                one_sided: e.one_sided as u32,
             };
         }
-        let (vg, ones) = compute_vertex_gradients(acc, coords, cell, None);
-        for v in 0..8 {
-            m.put(cache, brick, sample[v], vg.g[v], ones[v]);
-        }
+        let vg = compute_vertex_gradients(acc, coords, cell, None);
+        *e = MemoEntry {
+            cache,
+            cell: key,
+            g: vg.g.map(|v| v.to_array()),
+            one_sided: u64::from(vg.one_sided),
+        };
         vg
     })
 }
 
-/// Vertex gradients this thread has computed, by vertex and by the brick
-/// and cache of the cell that asked: a direct-mapped table of
-/// [`MEMO_SLOTS`] entries, a newer entry replacing an older one in its
-/// slot. Per thread, so rayon's workers share nothing; keyed by the
-/// cache's process-unique id, so it never answers for another volume,
-/// another scene or another render's planes.
+/// The 8 vertex gradients of cells this thread has computed, by cell and
+/// cache: a direct-mapped table of [`MEMO_CELLS`] entries, a newer cell
+/// replacing an older one in its slot. Per thread, so rayon's workers
+/// share nothing; keyed by the cache's process-unique id, so it never
+/// answers for another volume, another scene or another render's planes.
+/// Allocated zeroed (an empty slot has cache id 0, which no cache has), so
+/// a render touches only the pages of the slots it uses.
 struct Memo {
     slots: Vec<MemoEntry>,
 }
 
 #[derive(Clone, Copy)]
+#[repr(C)]
 struct MemoEntry {
     cache: u64,
-    brick: u64,
-    sample: u64,
-    g: DVec3,
-    /// Axes (0..=3) of this vertex that took the one-sided rule.
-    one_sided: u8,
+    cell: u64,
+    g: [[f64; 3]; 8],
+    one_sided: u64,
 }
 
-/// Entries of a thread's [`Memo`] (56 bytes each: 224 KiB a thread).
-const MEMO_SLOTS: usize = 1 << 14;
+// SAFETY: every field is a `u64` or `f64`, for which all-zero bytes are a
+// valid value, and `repr(C)` with only 8-byte fields has no padding.
+unsafe impl bytemuck::Zeroable for MemoEntry {}
+
+/// Cells a thread's [`Memo`] holds (216 bytes each: 864 KiB a thread).
+/// docs/BENCHMARKS.md, "Vertex gradients remembered", measures the size.
+const MEMO_CELLS: usize = 1 << 12;
 
 thread_local! {
     static MEMO: std::cell::RefCell<Memo> = std::cell::RefCell::new(Memo {
-        // Cache id 0 is never given out: every slot starts empty.
-        slots: vec![
-            MemoEntry {
-                cache: 0,
-                brick: 0,
-                sample: 0,
-                g: DVec3::ZERO,
-                one_sided: 0,
-            };
-            MEMO_SLOTS
-        ],
+        slots: bytemuck::allocation::zeroed_vec(MEMO_CELLS),
     });
 }
 
 impl Memo {
+    /// The slot of `cell` (whatever it holds).
     #[inline]
-    fn slot(brick: u64, sample: u64) -> usize {
-        let h = (sample ^ brick.rotate_left(40)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        (h >> (64 - MEMO_SLOTS.trailing_zeros())) as usize
-    }
-
-    #[inline]
-    fn get(&self, cache: u64, brick: u64, sample: u64) -> Option<&MemoEntry> {
-        let e = &self.slots[Memo::slot(brick, sample)];
-        (e.cache == cache && e.brick == brick && e.sample == sample).then_some(e)
-    }
-
-    #[inline]
-    fn put(&mut self, cache: u64, brick: u64, sample: u64, g: DVec3, one_sided: u8) {
-        self.slots[Memo::slot(brick, sample)] = MemoEntry {
-            cache,
-            brick,
-            sample,
-            g,
-            one_sided,
-        };
+    fn entry(&mut self, cache: u64, cell: u64) -> &mut MemoEntry {
+        let h = (cell ^ cache.rotate_left(32)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        &mut self.slots[(h >> (64 - MEMO_CELLS.trailing_zeros())) as usize]
     }
 }
 
@@ -304,17 +272,16 @@ pub fn vertex_gradients_uncached(
     coords: [&[f64]; 3],
     cell: [u32; 3],
 ) -> VertexGradients {
-    compute_vertex_gradients(acc, coords, cell, None).0
+    compute_vertex_gradients(acc, coords, cell, None)
 }
 
-/// [`vertex_gradients_in`] computed from the samples, with the number of
-/// axes per vertex that took the one-sided rule.
+/// [`vertex_gradients_in`] computed from the samples.
 fn compute_vertex_gradients(
     acc: &mut Accessor,
     coords: [&[f64]; 3],
     cell: [u32; 3],
     narrow: Option<f32>,
-) -> (VertexGradients, [u8; 8]) {
+) -> VertexGradients {
     let n: [usize; 3] = std::array::from_fn(|k| coords[k].len());
     let c: [usize; 3] = cell.map(|x| x as usize);
     // The 4^3 block around the cell, NaN where a sample is missing.
@@ -421,7 +388,7 @@ fn compute_vertex_gradients(
     // divisions per axis instead of three per vertex and axis.
     let inv: [[f64; 3]; 3] = h.map(|hk| hk.map(|x| 1.0 / x));
     let lam: [[f64; 2]; 3] = h.map(|hk| [hk[0] / (hk[0] + hk[1]), hk[1] / (hk[1] + hk[2])]);
-    let mut ones = [0u8; 8];
+    let mut one_sided = 0;
     let g: [DVec3; 8] = std::array::from_fn(|v| {
         let a = [v & 1, v >> 1 & 1, v >> 2];
         let mut out = [0.0; 3];
@@ -434,17 +401,16 @@ fn compute_vertex_gradients(
             let fp = f[block_index(at[0], at[1], at[2])] as f64;
             let (g, one) = three_point(f0, fm, fp, [inv[k][a[k]], inv[k][a[k] + 1]], lam[k][a[k]]);
             out[k] = g;
-            ones[v] += u8::from(one);
+            one_sided += u32::from(one);
         }
         DVec3::from_array(out)
     });
-    let vg = VertexGradients {
+    VertexGradients {
         lo: std::array::from_fn(|k| coords[k][c[k]]),
         inv_size: std::array::from_fn(|k| inv[k][1]),
         g,
-        one_sided: ones.iter().map(|&x| u32::from(x)).sum(),
-    };
-    (vg, ones)
+        one_sided,
+    }
 }
 
 /// Per sample of a brick, its vertex gradient as [`vertex_gradients`]

@@ -378,6 +378,7 @@ fn render_tile<T: Real>(ctx: &Ctx<T>, cache: &BrickCache, x0: u32, y0: u32, ts: 
     let hh = ts.min(cam.height - y0);
     let policy = super::policy::brick_policy(ctx.opts.method, ctx.opts.cd_lazy_min);
     let mut acc = Accessor::for_policy(cache, &policy);
+    acc.remember_gradients(ctx.memo_gradients);
     let mut pixels = Vec::with_capacity((w * hh) as usize);
     let mut steps = StepCounts::default();
     let mut hits = 0;

@@ -141,6 +141,7 @@ fn check_file(
     }
     let cache = BrickCache::new(vol, 64 << 20);
     let mut acc = Accessor::new(&cache);
+    acc.remember_gradients(true);
     for z in 0..cells[2] {
         for y in 0..cells[1] {
             for x in 0..cells[0] {

@@ -59,7 +59,45 @@ pub(crate) struct Ctx<'a, T> {
     /// `1 / (S[i + 1] - S[i])` per axis and cell: the samplers' local
     /// coordinates by multiplication.
     pub(crate) inv_size: [Vec<f64>; 3],
+    /// Whether the tiles' accessors remember smooth-normal gradients per
+    /// cell ([`Accessor::remember_gradients`]): when rays are dense
+    /// enough to meet a cell more than once ([`rays_meet_cells_again`]).
+    pub(crate) memo_gradients: bool,
 }
+
+/// Whether neighbouring rays of `camera` meet the same cells often enough
+/// for the per-cell memo of smooth-normal gradients to pay: the finest
+/// mean spacing of the volume's axes is at least [`MEMO_MIN_PIXELS`]
+/// pixels wide where the rays cross the volume (its centre, for a
+/// perspective view). With sparser rays a cell is met about once, and
+/// the memo only adds its lookups and pages (docs/BENCHMARKS.md, "Vertex
+/// gradients remembered").
+pub(crate) fn rays_meet_cells_again(h: &crate::format::Header, camera: &Camera) -> bool {
+    use super::camera::Projection;
+    let spacing = h
+        .axes
+        .iter()
+        .map(|a| {
+            let c = a.coords();
+            (c[c.len() - 1] - c[0]) / (c.len() - 1) as f64
+        })
+        .fold(f64::INFINITY, f64::min);
+    let centre = glam::DVec3::from_array(std::array::from_fn(|k| {
+        let c = h.axes[k].coords();
+        0.5 * (c[0] + c[c.len() - 1])
+    }));
+    let frame_mm = match camera.projection {
+        Projection::Ortho { frame_mm } => frame_mm,
+        Projection::Persp { fov_deg } => {
+            2.0 * (0.5 * fov_deg).to_radians().tan() * (centre - camera.eye).length()
+        }
+    };
+    let pixel_mm = frame_mm / camera.height.max(1) as f64;
+    spacing >= MEMO_MIN_PIXELS * pixel_mm
+}
+
+/// See [`rays_meet_cells_again`].
+pub(crate) const MEMO_MIN_PIXELS: f64 = 1.5;
 
 impl<'a, T: Real> Ctx<'a, T> {
     /// The context of a render of `h`'s volume: the iso value mapped like
@@ -84,6 +122,7 @@ impl<'a, T: Real> Ctx<'a, T> {
                 _ => None,
             },
             inv_size: coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect()),
+            memo_gradients: rays_meet_cells_again(h, camera),
         }
     }
 }
