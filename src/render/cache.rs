@@ -1074,15 +1074,10 @@ impl<'a, 'v> Accessor<'a, 'v> {
         self.memo_gradients
     }
 
-    /// Which brick of which cache holds global cell `c`: its cache's
-    /// process-unique id and the brick's index (the same brick whatever
-    /// the accessor).
+    /// The process-unique id of the cache behind this accessor.
     #[inline]
-    pub(crate) fn brick_key(&self, c: [u32; 3]) -> (u64, u64) {
-        let bs = self.brick_size;
-        let bc = [c[0] / bs, c[1] / bs, c[2] / bs].map(u64::from);
-        let id = (bc[2] * self.bricks[1] + bc[1]) * self.bricks[0] + bc[0];
-        (self.cache.id, id)
+    pub(crate) fn cache_id(&self) -> u64 {
+        self.cache.id
     }
 
     /// The brick holding global cell `c` and the cell's local index. After

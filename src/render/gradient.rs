@@ -193,7 +193,7 @@ pub(crate) fn vertex_gradients_in(
     if narrow.is_some() || !acc.remembers_gradients() {
         return compute_vertex_gradients(acc, coords, cell, narrow);
     }
-    let (cache, _) = acc.brick_key(cell);
+    let cache = acc.cache_id();
     let n: [u64; 3] = std::array::from_fn(|k| coords[k].len() as u64 - 1);
     let c = cell.map(u64::from);
     let key = (c[2] * n[1] + c[1]) * n[0] + c[0];
@@ -211,12 +211,16 @@ pub(crate) fn vertex_gradients_in(
             };
         }
         let vg = compute_vertex_gradients(acc, coords, cell, None);
-        *e = MemoEntry {
-            cache,
-            cell: key,
-            g: vg.g.map(|v| v.to_array()),
-            one_sided: u64::from(vg.one_sided),
-        };
+        // After a read error the accessor answers empty cells: nothing
+        // from such a render is remembered.
+        if acc.error.is_none() {
+            *e = MemoEntry {
+                cache,
+                cell: key,
+                g: vg.g.map(|v| v.to_array()),
+                one_sided: u64::from(vg.one_sided),
+            };
+        }
         vg
     })
 }
