@@ -55,17 +55,24 @@ pub fn render_in(
 ) -> Result<(Frame, Stats), RenderError> {
     let t0 = Instant::now();
     let (tiles, stats) = render_shard(vol, cache, camera, opts, Shard::WHOLE, progress)?;
+    Ok(whole_frame(vol, camera, opts, tiles, stats, t0))
+}
+
+/// The frame of a whole render's tiles, coloured ([`finish`]), with the
+/// render's time since `t0`.
+fn whole_frame(
+    vol: &PackedVolume,
+    camera: &Camera,
+    opts: &RenderOptions,
+    tiles: Vec<TilePx>,
+    stats: Stats,
+    t0: Instant,
+) -> (Frame, Stats) {
     let colouring = Colouring::of(vol, opts);
-    let (frame, mut stats) = finish(
-        &colouring,
-        camera.width,
-        camera.height,
-        tiles,
-        stats,
-        opts.unrounded,
-    );
+    let (w, h) = (camera.width, camera.height);
+    let (frame, mut stats) = finish(&colouring, w, h, tiles, stats, opts.unrounded);
     stats.seconds_total = t0.elapsed().as_secs_f64();
-    Ok((frame, stats))
+    (frame, stats)
 }
 
 /// [`render_in`] that gives up when `stop` is set: tiles not yet started
@@ -87,17 +94,7 @@ pub fn render_in_until(
     if stop.load(Ordering::Relaxed) {
         return Ok(None);
     }
-    let colouring = Colouring::of(vol, opts);
-    let (frame, mut stats) = finish(
-        &colouring,
-        camera.width,
-        camera.height,
-        tiles,
-        stats,
-        opts.unrounded,
-    );
-    stats.seconds_total = t0.elapsed().as_secs_f64();
-    Ok(Some((frame, stats)))
+    Ok(Some(whole_frame(vol, camera, opts, tiles, stats, t0)))
 }
 
 /// Renders the tiles of `shard` after checking the options: their pixels
