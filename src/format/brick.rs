@@ -196,7 +196,9 @@ fn sample<W: Word>(
 pub struct SampleTable {
     key: TableKey,
     /// Per word (its native-endian bits as the index): the mapped value.
-    values: Vec<f32>,
+    /// Shared: a decoded brick may keep its words and look values up here
+    /// (`render::samples`).
+    values: std::sync::Arc<[f32]>,
     /// Per word: `kind << 8 | code`.
     kind_code: Vec<u16>,
 }
@@ -246,7 +248,7 @@ impl SampleTable {
         );
         Some(SampleTable {
             key: table_key(h, iso),
-            values,
+            values: values.into(),
             kind_code: kinds
                 .iter()
                 .zip(&codes)
@@ -270,29 +272,86 @@ impl SampleTable {
         codes: &mut Vec<u8>,
         values: &mut Vec<f32>,
     ) {
+        self.decode_into(raw, n, kinds, codes, values, |i| self.values[i]);
+    }
+
+    /// [`SampleTable::decode`] keeping the words themselves (their
+    /// native-endian bits, the table's index) instead of their values: half
+    /// the memory of f32 values for 16-bit words, a quarter for 8-bit ones.
+    /// `T` is `u8` for 8-bit words and `u16` for 16-bit ones.
+    pub fn decode_words<T: TableWord>(
+        &self,
+        raw: &[u8],
+        n: usize,
+        kinds: &mut Vec<u8>,
+        codes: &mut Vec<u8>,
+        words: &mut Vec<T>,
+    ) {
+        debug_assert_eq!(self.values.len(), 1 << (8 * std::mem::size_of::<T>()));
+        self.decode_into(raw, n, kinds, codes, words, T::from_index);
+    }
+
+    /// The one pass of both decodes: each word's kind and code, and `out`
+    /// of the word's table index.
+    #[inline(always)]
+    fn decode_into<T, F: Fn(usize) -> T>(
+        &self,
+        raw: &[u8],
+        n: usize,
+        kinds: &mut Vec<u8>,
+        codes: &mut Vec<u8>,
+        out: &mut Vec<T>,
+        f: F,
+    ) {
         kinds.clear();
         kinds.resize(n, 0);
         codes.clear();
         codes.resize(n, 0);
-        values.clear();
-        values.reserve_exact(n);
+        out.clear();
+        out.reserve_exact(n);
         let kc = kinds.iter_mut().zip(codes.iter_mut());
         let one = |i: usize, (k, c): (&mut u8, &mut u8)| {
             let e = self.kind_code[i];
             *k = (e >> 8) as u8;
             *c = e as u8;
-            self.values[i]
+            f(i)
         };
         if self.values.len() == 256 {
-            values.extend(raw[..n].iter().zip(kc).map(|(&b, kc)| one(b as usize, kc)));
+            out.extend(raw[..n].iter().zip(kc).map(|(&b, kc)| one(b as usize, kc)));
         } else {
-            values.extend(
+            out.extend(
                 raw[..2 * n]
                     .chunks_exact(2)
                     .zip(kc)
                     .map(|(b, kc)| one(u16::from_ne_bytes([b[0], b[1]]) as usize, kc)),
             );
         }
+    }
+
+    /// Every word's mapped value, indexed by the word's native-endian
+    /// bits: 256 entries for 8-bit words, 65536 for 16-bit ones.
+    pub fn values(&self) -> &std::sync::Arc<[f32]> {
+        &self.values
+    }
+}
+
+/// A stored word kept as its [`SampleTable`] index.
+pub trait TableWord: Copy {
+    /// The word of table index `i` (below the table's length).
+    fn from_index(i: usize) -> Self;
+}
+
+impl TableWord for u8 {
+    #[inline(always)]
+    fn from_index(i: usize) -> u8 {
+        i as u8
+    }
+}
+
+impl TableWord for u16 {
+    #[inline(always)]
+    fn from_index(i: usize) -> u16 {
+        i as u16
     }
 }
 

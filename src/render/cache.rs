@@ -16,6 +16,8 @@ use crate::format::brick::{
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
+use super::samples::{Samples, WordValues};
+
 /// A sample value as the renderer holds it: rounded to f32 and saturated
 /// to the finite f32 range (+-inf and values beyond it become +-f32::MAX,
 /// so the trilinear interpolant stays finite); NaN stays NaN. Monotone, so
@@ -45,8 +47,10 @@ pub struct RBrick {
     pub cells: [u32; 3],
     pub codes: Codes,
     /// Rescaled sample values, `(cells + 1)` per axis, x fastest; empty for
-    /// uniform bricks.
-    pub values: Vec<f32>,
+    /// uniform bricks and bricks without 1-cells. f32, or the stored 8- or
+    /// 16-bit words with the file's table of their values
+    /// ([`Samples`]).
+    pub values: Samples,
     /// Per 4^3 block, the 8 octant codes (anisotropic files only).
     pub octants: Vec<[u8; 8]>,
     /// Octree levels inside the brick ([`Planes::octree`] only):
@@ -126,7 +130,27 @@ impl RBrick {
     /// The 8 vertex values of local cell `l`, x fastest.
     #[inline(always)]
     pub fn vertices(&self, l: [u32; 3]) -> [f32; 8] {
-        self.corners(&self.values, l)
+        let (base, offs) = self.corner_offsets(l);
+        self.values.gather(base, offs)
+    }
+
+    /// Value of local sample `s`.
+    #[inline(always)]
+    pub fn value(&self, s: [usize; 3]) -> f32 {
+        let sx = self.cells[0] as usize + 1;
+        let sy = self.cells[1] as usize + 1;
+        self.values.get((s[2] * sy + s[1]) * sx + s[0])
+    }
+
+    /// The sample index of local cell `l`'s minimum corner and the offsets
+    /// of its 8 vertices from it, x fastest.
+    #[inline(always)]
+    fn corner_offsets(&self, l: [u32; 3]) -> (usize, [usize; 8]) {
+        let sx = (self.cells[0] + 1) as usize;
+        let sy = (self.cells[1] + 1) as usize;
+        let base = (l[2] as usize * sy + l[1] as usize) * sx + l[0] as usize;
+        let z = sx * sy;
+        (base, [0, 1, sx, sx + 1, z, z + 1, z + sx, z + sx + 1])
     }
 
     /// The 8 entries of per-sample plane `v` (the values, or the gradient
@@ -134,19 +158,8 @@ impl RBrick {
     /// offsets.
     #[inline(always)]
     pub fn corners<T: Copy>(&self, v: &[T], l: [u32; 3]) -> [T; 8] {
-        let sx = (self.cells[0] + 1) as usize;
-        let sy = (self.cells[1] + 1) as usize;
-        let base = (l[2] as usize * sy + l[1] as usize) * sx + l[0] as usize;
-        [
-            v[base],
-            v[base + 1],
-            v[base + sx],
-            v[base + sx + 1],
-            v[base + sx * sy],
-            v[base + sx * sy + 1],
-            v[base + sx * sy + sx],
-            v[base + sx * sy + sx + 1],
-        ]
+        let (base, offs) = self.corner_offsets(l);
+        super::samples::gather8(base, offs, |i| v[i])
     }
 
     /// A brick without payload: every cell a 0-cell with `code` (a
@@ -157,7 +170,7 @@ impl RBrick {
             first: std::array::from_fn(|k| (coords[k] * h.brick_size as u64) as u32),
             cells: h.brick_samples(coords).map(|s| (s - 1) as u32),
             codes: Codes::Uniform(code.min(254) as u8),
-            values: Vec::new(),
+            values: Samples::Empty,
             octants: Vec::new(),
             levels: Vec::new(),
             bytes: std::mem::size_of::<RBrick>(),
@@ -280,9 +293,11 @@ impl RBrick {
                 or_x,
                 or_xy,
                 table,
+                words,
             } = f;
             if table.as_ref().is_none_or(|t| !t.fits(h, Some(iso))) {
                 *table = SampleTable::new(h, Some(iso), to_f32);
+                *words = table.as_ref().and_then(|t| WordValues::of(t.values()));
             }
             if let (true, Some(t)) = (no_object, &table) {
                 t.corner_codes(raw, [sx, sy, sz], &mut plane);
@@ -298,18 +313,30 @@ impl RBrick {
                 }
                 return;
             }
-            match table {
-                Some(t) => t.decode(raw, n, kinds, codes, &mut b.values),
-                None => decode_samples(
-                    h,
-                    raw,
-                    n,
-                    Some(iso),
-                    kinds,
-                    codes,
-                    Some((&mut b.values, to_f32)),
-                ),
-            }
+            // Planes derived from the values want them in f32.
+            let keep_words = !planes.block_max && !planes.grads;
+            b.values = match (table, words) {
+                (Some(t), Some(WordValues::W8(v))) if keep_words => {
+                    let mut w = Vec::new();
+                    t.decode_words::<u8>(raw, n, kinds, codes, &mut w);
+                    Samples::Words8(w, Arc::clone(v))
+                }
+                (Some(t), Some(WordValues::W16(v))) if keep_words => {
+                    let mut w = Vec::new();
+                    t.decode_words::<u16>(raw, n, kinds, codes, &mut w);
+                    Samples::Words16(w, Arc::clone(v))
+                }
+                (Some(t), _) => {
+                    let mut v = Vec::new();
+                    t.decode(raw, n, kinds, codes, &mut v);
+                    Samples::F32(v)
+                }
+                (None, _) => {
+                    let mut v = Vec::new();
+                    decode_samples(h, raw, n, Some(iso), kinds, codes, Some((&mut v, to_f32)));
+                    Samples::F32(v)
+                }
+            };
             // OR of the two samples of each x edge, per sample row.
             or_x.clear();
             for row in kinds.chunks_exact(sx) {
@@ -399,15 +426,16 @@ impl RBrick {
             b.levels = octree_levels(p, b.cells, h.brick_size.trailing_zeros());
         }
         if planes.block_max && !b.values.is_empty() {
-            b.block_max = block_maxima(&b.values, b.cells);
+            b.block_max = block_maxima(&b.values.to_f32(), b.cells);
         }
         if planes.grads && !b.values.is_empty() {
             let axes: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
-            b.grads = super::gradient::brick_gradients(&b.values, b.first, b.cells, axes);
+            let v = b.values.to_f32();
+            b.grads = super::gradient::brick_gradients(&v, b.first, b.cells, axes);
         }
         b.bytes = std::mem::size_of::<RBrick>()
             + b.codes.len()
-            + b.values.len() * 4
+            + b.values.bytes()
             + b.octants.len() * 8
             + b.dda[0].len()
             + b.dda[1].len()
@@ -461,11 +489,12 @@ impl RBrick {
             }
         }
         if !no_object {
-            b.values = vals
-                .iter()
-                .zip(codes)
-                .map(|(&v, c)| if c.is_none() { to_f32(v) } else { f32::NAN })
-                .collect();
+            b.values = Samples::F32(
+                vals.iter()
+                    .zip(codes)
+                    .map(|(&v, c)| if c.is_none() { to_f32(v) } else { f32::NAN })
+                    .collect(),
+            );
         }
         b.codes = Codes::Plane(plane);
         b
@@ -609,6 +638,8 @@ struct FastScratch {
     or_x: Vec<u8>,
     or_xy: Vec<u8>,
     table: Option<SampleTable>,
+    /// `table`'s values as bricks keep them.
+    words: Option<WordValues>,
 }
 
 thread_local! {
@@ -1218,7 +1249,7 @@ static EMPTY: RBrick = RBrick {
     first: [0; 3],
     cells: [1; 3],
     codes: Codes::Uniform(0),
-    values: Vec::new(),
+    values: Samples::Empty,
     octants: Vec::new(),
     levels: Vec::new(),
     bytes: 0,
@@ -1229,7 +1260,7 @@ static EMPTY: RBrick = RBrick {
 
 #[cfg(test)]
 mod tests {
-    use super::{Codes, Lru, Planes, RBrick};
+    use super::{Codes, Lru, Planes, RBrick, Samples};
     use crate::classify::Classification;
     use crate::format::word::Word;
     use crate::format::{CodeEncoding, Header};
@@ -1306,6 +1337,7 @@ mod tests {
             iso_off in prop_oneof![Just(0.0), Just(1e-9), Just(-1e-9), -10.0f64..10.0],
             no_object in any::<bool>(),
             offset in 0usize..2,
+            block_max in any::<bool>(),
         ) {
             let storage = [Dtype::U8, Dtype::I8, Dtype::U16, Dtype::I16, Dtype::U32,
                 Dtype::I32, Dtype::I64, Dtype::F32, Dtype::F64][ty];
@@ -1330,16 +1362,26 @@ mod tests {
             let mut buf = vec![0u8; offset];
             buf.extend_from_slice(&payload);
             let raw = &buf[offset..];
-            let fast = RBrick::from_payload(&h, 0, no_object, raw, Planes::NONE);
-            let slow = RBrick::from_payload_reference(&h, 0, no_object, raw, Planes::NONE);
+            // Values as words, or (a plane derived from them) in f32.
+            let planes = Planes { block_max, ..Planes::NONE };
+            let fast = RBrick::from_payload(&h, 0, no_object, raw, planes);
+            let slow = RBrick::from_payload_reference(&h, 0, no_object, raw, planes);
             let plane = |b: &RBrick| match &b.codes {
                 Codes::Plane(p) => p.clone(),
                 Codes::Uniform(c) => vec![*c],
             };
             prop_assert_eq!(plane(&fast), plane(&slow));
-            let bits = |b: &RBrick| b.values.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+            let bits = |b: &RBrick| b.values.to_f32().iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
             prop_assert_eq!(bits(&fast), bits(&slow));
-            prop_assert_eq!(fast.bytes, slow.bytes);
+            let words = matches!(fast.values, Samples::Words8(..) | Samples::Words16(..));
+            prop_assert_eq!(
+                words,
+                storage.size() <= 2 && !block_max && !fast.values.is_empty()
+            );
+            // The same planes but for the width of the values.
+            let f32_bytes = |b: &RBrick| b.bytes - b.values.bytes() + 4 * b.values.len();
+            prop_assert_eq!(f32_bytes(&fast), slow.bytes);
+            prop_assert_eq!(&fast.block_max, &slow.block_max);
         }
     }
 

@@ -304,10 +304,8 @@ fn compute_vertex_gradients(
         let inside = (0..3).all(|k| lc[k] >= 1 && lc[k] + 2 <= b.cells[k] as usize);
         if inside && has {
             let base = ((lc[2] - 1) * sy + lc[1] - 1) * sx + lc[0] - 1;
-            for i in CROSS {
-                let (x, y, z) = (i & 3, i >> 2 & 3, i >> 4);
-                f[i] = b.values[base + (z * sy + y) * sx + x];
-            }
+            let at = |i: usize| base + ((i >> 4) * sy + (i >> 2 & 3)) * sx + (i & 3);
+            b.values.gather_into(CROSS.map(at), CROSS, &mut f);
         } else {
             for i in CROSS {
                 let o = [i & 3, i >> 2 & 3, i >> 4];
@@ -319,7 +317,7 @@ fn compute_vertex_gradients(
                 let ls: [usize; 3] = std::array::from_fn(|k| (lc[k] + o[k]).wrapping_sub(1));
                 if (0..3).all(|k| ls[k] <= b.cells[k] as usize) {
                     if has {
-                        f[i] = b.values[(ls[2] * sy + ls[1]) * sx + ls[0]];
+                        f[i] = b.values.get((ls[2] * sy + ls[1]) * sx + ls[0]);
                     }
                 } else {
                     todo |= 1 << i;
@@ -345,7 +343,7 @@ fn compute_vertex_gradients(
         }
         let sx = b.cells[0] as usize + 1;
         let sy = b.cells[1] as usize + 1;
-        f[i] = b.values[(ls[2] * sy + ls[1]) * sx + ls[0]];
+        f[i] = b.values.get((ls[2] * sy + ls[1]) * sx + ls[0]);
     }
     if narrow.is_some() {
         // Only a sample two past the cell can be a code in a file

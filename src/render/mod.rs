@@ -36,6 +36,7 @@ pub mod lut;
 mod options;
 mod output;
 pub mod policy;
+pub mod samples;
 pub mod scalebar;
 mod scene;
 pub mod shade;

@@ -48,6 +48,7 @@
 //! by design, since they show the steps.
 
 use super::cache::{to_f32, Accessor, Codes, RBrick};
+use super::samples::Samples;
 use super::traverse::OBJECT;
 use crate::format::reader::PackedVolume;
 
@@ -142,7 +143,12 @@ fn narrow_any(b: &mut RBrick, iso: f32, halo: bool, edge: &Edge) {
     // Per cell, whether one of its 8 vertices is at or above `iso` (NaN
     // compares false: never above): OR over x, then y, then z, each over
     // whole rows or slices so that it vectorises.
-    let above: Vec<u8> = b.values.iter().map(|&v| u8::from(v >= iso)).collect();
+    let above: Vec<u8> = b
+        .values
+        .to_f32()
+        .iter()
+        .map(|&v| u8::from(v >= iso))
+        .collect();
     let sz = cz + 1;
     let mut ox = vec![0u8; cx * sy * sz];
     for (o, r) in ox.chunks_exact_mut(cx).zip(above.chunks_exact(sx)) {
@@ -180,17 +186,18 @@ fn narrow_any(b: &mut RBrick, iso: f32, halo: bool, edge: &Edge) {
         *c = if *c == OBJECT { OBJECT } else { tightened };
     }
     if !any {
-        b.values = Vec::new();
+        b.values = Samples::Empty;
         return;
     }
     // A 0-cell's minimum corner holds its code in a file prepared for the
     // scene once the code is embedded: missing for smooth normals.
     let min_embedded = if halo { 2 } else { 1 };
+    let values = b.values.make_f32();
     for z in 0..cz {
         for y in 0..cy {
             let codes = &plane[(z * cy + y) * cx..(z * cy + y + 1) * cx];
             let o = (z * sy + y) * sx;
-            for (v, &c) in b.values[o..o + cx].iter_mut().zip(codes) {
+            for (v, &c) in values[o..o + cx].iter_mut().zip(codes) {
                 let coded = (c != OBJECT) & (c >= min_embedded);
                 *v = if coded { f32::NAN } else { *v };
             }

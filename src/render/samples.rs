@@ -1,0 +1,225 @@
+//! A decoded brick's sample values, as f32 or as the stored words.
+//!
+//! Files of 8- or 16-bit words (most CT and MRI series) keep each brick's
+//! words as decoded and look a value up in the file's table of every
+//! word's value ([`SampleTable`](crate::format::brick::SampleTable), the
+//! decoder's own): half the memory of f32 values for 16-bit words, a
+//! quarter for 8-bit ones, and no f32 plane to write when a brick is
+//! decoded. The table is built by the same per-word rule as the f32
+//! plane, so every lookup gives the f32 plane's bits (NaN for code
+//! words) and images do not change. Wider words, and bricks whose values
+//! the renderer rewrites or derives planes from, hold f32.
+//! docs/BENCHMARKS.md, "Values as stored words".
+
+use std::borrow::Cow;
+use std::sync::Arc;
+
+/// A brick's sample values, `(cells + 1)` per axis, x fastest.
+#[derive(Clone, Default)]
+pub enum Samples {
+    /// No values: a brick without 1-cells.
+    #[default]
+    Empty,
+    /// Values in f32 (NaN where a word held a code).
+    F32(Vec<f32>),
+    /// 8-bit words and the value of each of the 256 words.
+    Words8(Vec<u8>, Arc<[f32; 256]>),
+    /// 16-bit words (native-endian bits) and the value of each word.
+    Words16(Vec<u16>, Arc<[f32; 65536]>),
+}
+
+/// The shared table of a file's word values, in the shape [`Samples`]
+/// keeps it: built once per table, cloned per brick.
+#[derive(Clone)]
+pub enum WordValues {
+    W8(Arc<[f32; 256]>),
+    W16(Arc<[f32; 65536]>),
+}
+
+impl WordValues {
+    /// The table `values` (256 or 65536 entries) in array form; `None`
+    /// for any other length.
+    pub fn of(values: &Arc<[f32]>) -> Option<WordValues> {
+        match values.len() {
+            256 => Arc::clone(values).try_into().ok().map(WordValues::W8),
+            65536 => Arc::clone(values).try_into().ok().map(WordValues::W16),
+            _ => None,
+        }
+    }
+}
+
+impl std::fmt::Debug for Samples {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = match self {
+            Samples::Empty => "none",
+            Samples::F32(_) => "f32",
+            Samples::Words8(..) => "8-bit words",
+            Samples::Words16(..) => "16-bit words",
+        };
+        write!(f, "Samples({} x {kind})", self.len())
+    }
+}
+
+/// One word's value from its table (`N` is 256 for `u8` words and
+/// 65536 for `u16` ones, so the mask is no-op and the load unchecked).
+#[inline(always)]
+fn look<W: Into<usize>, const N: usize>(t: &[f32; N], w: W) -> f32 {
+    t[w.into() & (N - 1)]
+}
+
+impl Samples {
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        match self {
+            Samples::Empty => 0,
+            Samples::F32(v) => v.len(),
+            Samples::Words8(w, _) => w.len(),
+            Samples::Words16(w, _) => w.len(),
+        }
+    }
+
+    /// Bytes of the samples themselves (the shared table not counted).
+    pub fn bytes(&self) -> usize {
+        match self {
+            Samples::Empty => 0,
+            Samples::F32(v) => v.len() * 4,
+            Samples::Words8(w, _) => w.len(),
+            Samples::Words16(w, _) => w.len() * 2,
+        }
+    }
+
+    /// Value of sample `i`.
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> f32 {
+        match self {
+            Samples::Empty => panic!("sample {i} of a brick without values"),
+            Samples::F32(v) => v[i],
+            Samples::Words8(w, t) => look(t, w[i]),
+            Samples::Words16(w, t) => look(t, w[i]),
+        }
+    }
+
+    /// The values at `base + o` for each offset `o` of `offs` (a cell's 8
+    /// vertices: loads at fixed offsets).
+    #[inline(always)]
+    pub fn gather(&self, base: usize, offs: [usize; 8]) -> [f32; 8] {
+        match self {
+            Samples::Empty => panic!("vertices of a brick without values"),
+            Samples::F32(v) => gather8(base, offs, |i| v[i]),
+            Samples::Words8(w, t) => gather8(base, offs, |i| look(t, w[i])),
+            Samples::Words16(w, t) => gather8(base, offs, |i| look(t, w[i])),
+        }
+    }
+
+    /// `out[to[k]]` = the value of sample `from[k]`, for every `k`: many
+    /// samples, one dispatch on the representation.
+    #[inline(always)]
+    pub fn gather_into<const N: usize>(&self, from: [usize; N], to: [usize; N], out: &mut [f32]) {
+        match self {
+            Samples::Empty => panic!("samples of a brick without values"),
+            Samples::F32(v) => from.iter().zip(to).for_each(|(&i, o)| out[o] = v[i]),
+            Samples::Words8(w, t) => from
+                .iter()
+                .zip(to)
+                .for_each(|(&i, o)| out[o] = look(t, w[i])),
+            Samples::Words16(w, t) => from
+                .iter()
+                .zip(to)
+                .for_each(|(&i, o)| out[o] = look(t, w[i])),
+        }
+    }
+
+    /// All values in f32: borrowed when already f32.
+    pub fn to_f32(&self) -> Cow<'_, [f32]> {
+        match self {
+            Samples::Empty => Cow::Borrowed(&[]),
+            Samples::F32(v) => Cow::Borrowed(v),
+            Samples::Words8(w, t) => Cow::Owned(w.iter().map(|&x| look(t, x)).collect()),
+            Samples::Words16(w, t) => Cow::Owned(w.iter().map(|&x| look(t, x)).collect()),
+        }
+    }
+
+    /// The values as an f32 plane to rewrite (converted first if they
+    /// are words).
+    pub fn make_f32(&mut self) -> &mut Vec<f32> {
+        if !matches!(self, Samples::F32(_)) {
+            *self = Samples::F32(self.to_f32().into_owned());
+        }
+        match self {
+            Samples::F32(v) => v,
+            _ => unreachable!("converted above"),
+        }
+    }
+}
+
+/// `f` at `base + o` for the 8 offsets, written out: `[T; 8]::map` is
+/// not always inlined, and this is on every cell a ray samples.
+#[inline(always)]
+pub fn gather8<T, F: Fn(usize) -> T>(base: usize, o: [usize; 8], f: F) -> [T; 8] {
+    [
+        f(base + o[0]),
+        f(base + o[1]),
+        f(base + o[2]),
+        f(base + o[3]),
+        f(base + o[4]),
+        f(base + o[5]),
+        f(base + o[6]),
+        f(base + o[7]),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    //! Every way of reading a brick's samples gives the table's values,
+    //! bit for bit, in every representation.
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The same samples as f32, 8-bit words and 16-bit words (the 16-bit
+    /// table holds the 8-bit one's values at the 8-bit words).
+    fn three(words: &[u8], table: &[f32]) -> [Samples; 3] {
+        let t8: [f32; 256] = std::array::from_fn(|i| table[i]);
+        let t16: Vec<f32> = (0..65536).map(|i| table[i % 256]).collect();
+        let t16: Arc<[f32; 65536]> = Arc::<[f32]>::from(t16).try_into().expect("65536");
+        [
+            Samples::F32(words.iter().map(|&w| t8[w as usize]).collect()),
+            Samples::Words8(words.to_vec(), Arc::new(t8)),
+            Samples::Words16(words.iter().map(|&w| w as u16 | 0x300).collect(), t16),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn representations_read_alike(
+            words in proptest::collection::vec(any::<u8>(), 8..200),
+            table in proptest::collection::vec(
+                prop_oneof![any::<f32>(), Just(f32::NAN), Just(-0.0f32)], 256),
+            base in any::<prop::sample::Index>(),
+            offs in proptest::array::uniform8(0usize..8),
+        ) {
+            let n = words.len();
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            let reps = three(&words, &table);
+            let want = bits(&reps[0].to_f32());
+            let base = base.index(n - 7);
+            for mut s in reps {
+                prop_assert_eq!(s.len(), n);
+                prop_assert_eq!(bits(&s.to_f32()), want.clone());
+                let each: Vec<f32> = (0..n).map(|i| s.get(i)).collect();
+                prop_assert_eq!(bits(&each), want.clone());
+                let g = s.gather(base, offs);
+                prop_assert_eq!(bits(&g), offs.map(|o| want[base + o]).to_vec());
+                let mut out = [0.0f32; 8];
+                s.gather_into(offs.map(|o| base + o), [7, 6, 5, 4, 3, 2, 1, 0], &mut out);
+                let rev: Vec<u32> = (0..8).map(|k| want[base + offs[7 - k]]).collect();
+                prop_assert_eq!(bits(&out), rev);
+                prop_assert_eq!(bits(s.make_f32()), want.clone());
+                prop_assert!(matches!(s, Samples::F32(_)));
+            }
+        }
+    }
+}
