@@ -134,6 +134,15 @@ impl RBrick {
         self.values.gather(base, offs)
     }
 
+    /// An upper bound of the 8 vertex values of local cell `l`
+    /// ([`Samples::top`]): their largest, NaN left out, or NaN for no
+    /// bound.
+    #[inline(always)]
+    pub fn vertex_top(&self, l: [u32; 3]) -> f32 {
+        let (base, offs) = self.corner_offsets(l);
+        self.values.top(base, offs)
+    }
+
     /// Value of local sample `s`.
     #[inline(always)]
     pub fn value(&self, s: [usize; 3]) -> f32 {
@@ -316,15 +325,15 @@ impl RBrick {
             // Planes derived from the values want them in f32.
             let keep_words = !planes.block_max && !planes.grads;
             b.values = match (table, words) {
-                (Some(t), Some(WordValues::W8(v))) if keep_words => {
+                (Some(t), Some(WordValues::W8(v, order))) if keep_words => {
                     let mut w = Vec::new();
                     t.decode_words::<u8>(raw, n, kinds, codes, &mut w);
-                    Samples::Words8(w, Arc::clone(v))
+                    Samples::Words8(w, Arc::clone(v), *order)
                 }
-                (Some(t), Some(WordValues::W16(v))) if keep_words => {
+                (Some(t), Some(WordValues::W16(v, order))) if keep_words => {
                     let mut w = Vec::new();
                     t.decode_words::<u16>(raw, n, kinds, codes, &mut w);
-                    Samples::Words16(w, Arc::clone(v))
+                    Samples::Words16(w, Arc::clone(v), *order)
                 }
                 (Some(t), _) => {
                     let mut v = Vec::new();

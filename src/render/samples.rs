@@ -22,27 +22,70 @@ pub enum Samples {
     Empty,
     /// Values in f32 (NaN where a word held a code).
     F32(Vec<f32>),
-    /// 8-bit words and the value of each of the 256 words.
-    Words8(Vec<u8>, Arc<[f32; 256]>),
-    /// 16-bit words (native-endian bits) and the value of each word.
-    Words16(Vec<u16>, Arc<[f32; 65536]>),
+    /// 8-bit words, the value of each of the 256 words, and the order
+    /// in which the values rise.
+    Words8(Vec<u8>, Arc<[f32; 256]>, Order),
+    /// 16-bit words (native-endian bits), the value of each word, and the
+    /// order in which the values rise.
+    Words16(Vec<u16>, Arc<[f32; 65536]>, Order),
+}
+
+/// In which order of the words, taken as integers, a table's values
+/// (NaN left out) never fall: then the largest word of a cell has its
+/// largest value, one lookup instead of eight ([`Samples::top`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Order {
+    /// The words' bits as unsigned integers.
+    Unsigned,
+    /// The words' bits as two's-complement integers.
+    Signed,
+    /// Neither (a negative rescale slope, for one).
+    None,
+}
+
+impl Order {
+    /// The order of `table` (256 or 65536 entries, indexed by the words'
+    /// bits).
+    pub fn of(table: &[f32]) -> Order {
+        let rising = |idx: &mut dyn Iterator<Item = usize>| {
+            let mut last = f32::NEG_INFINITY;
+            idx.map(|i| table[i])
+                .filter(|v| !v.is_nan())
+                .all(|v| std::mem::replace(&mut last, v) <= v)
+        };
+        let half = table.len() / 2;
+        if rising(&mut (0..table.len())) {
+            Order::Unsigned
+        } else if rising(&mut (half..table.len()).chain(0..half)) {
+            Order::Signed
+        } else {
+            Order::None
+        }
+    }
 }
 
 /// The shared table of a file's word values, in the shape [`Samples`]
 /// keeps it: built once per table, cloned per brick.
 #[derive(Clone)]
 pub enum WordValues {
-    W8(Arc<[f32; 256]>),
-    W16(Arc<[f32; 65536]>),
+    W8(Arc<[f32; 256]>, Order),
+    W16(Arc<[f32; 65536]>, Order),
 }
 
 impl WordValues {
-    /// The table `values` (256 or 65536 entries) in array form; `None`
-    /// for any other length.
+    /// The table `values` (256 or 65536 entries) in array form, with its
+    /// order; `None` for any other length.
     pub fn of(values: &Arc<[f32]>) -> Option<WordValues> {
+        let order = Order::of(values);
         match values.len() {
-            256 => Arc::clone(values).try_into().ok().map(WordValues::W8),
-            65536 => Arc::clone(values).try_into().ok().map(WordValues::W16),
+            256 => Arc::clone(values)
+                .try_into()
+                .ok()
+                .map(|t| WordValues::W8(t, order)),
+            65536 => Arc::clone(values)
+                .try_into()
+                .ok()
+                .map(|t| WordValues::W16(t, order)),
             _ => None,
         }
     }
@@ -77,8 +120,8 @@ impl Samples {
         match self {
             Samples::Empty => 0,
             Samples::F32(v) => v.len(),
-            Samples::Words8(w, _) => w.len(),
-            Samples::Words16(w, _) => w.len(),
+            Samples::Words8(w, ..) => w.len(),
+            Samples::Words16(w, ..) => w.len(),
         }
     }
 
@@ -87,8 +130,8 @@ impl Samples {
         match self {
             Samples::Empty => 0,
             Samples::F32(v) => v.len() * 4,
-            Samples::Words8(w, _) => w.len(),
-            Samples::Words16(w, _) => w.len() * 2,
+            Samples::Words8(w, ..) => w.len(),
+            Samples::Words16(w, ..) => w.len() * 2,
         }
     }
 
@@ -98,8 +141,8 @@ impl Samples {
         match self {
             Samples::Empty => panic!("sample {i} of a brick without values"),
             Samples::F32(v) => v[i],
-            Samples::Words8(w, t) => look(t, w[i]),
-            Samples::Words16(w, t) => look(t, w[i]),
+            Samples::Words8(w, t, _) => look(t, w[i]),
+            Samples::Words16(w, t, _) => look(t, w[i]),
         }
     }
 
@@ -110,8 +153,36 @@ impl Samples {
         match self {
             Samples::Empty => panic!("vertices of a brick without values"),
             Samples::F32(v) => gather8(base, offs, |i| v[i]),
-            Samples::Words8(w, t) => gather8(base, offs, |i| look(t, w[i])),
-            Samples::Words16(w, t) => gather8(base, offs, |i| look(t, w[i])),
+            Samples::Words8(w, t, _) => gather8(base, offs, |i| look(t, w[i])),
+            Samples::Words16(w, t, _) => gather8(base, offs, |i| look(t, w[i])),
+        }
+    }
+
+    /// An upper bound of the values at `base + o` for the 8 offsets `o`:
+    /// their largest (NaN left out; `-inf` if all are NaN), or NaN (no
+    /// bound known) when the largest word of an ordered table is a code
+    /// word. For words in [`Order`], the value of the largest word.
+    #[inline(always)]
+    pub fn top(&self, base: usize, offs: [usize; 8]) -> f32 {
+        let fold = |v: [f32; 8]| v.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x));
+        match self {
+            Samples::Words8(w, t, o) if *o != Order::None => {
+                let g = gather8(base, offs, |i| w[i]);
+                let top = match o {
+                    Order::Signed => g.iter().map(|&x| x as i8).max().map(|x| x as u8),
+                    _ => g.iter().copied().max(),
+                };
+                look(t, top.unwrap_or(0))
+            }
+            Samples::Words16(w, t, o) if *o != Order::None => {
+                let g = gather8(base, offs, |i| w[i]);
+                let top = match o {
+                    Order::Signed => g.iter().map(|&x| x as i16).max().map(|x| x as u16),
+                    _ => g.iter().copied().max(),
+                };
+                look(t, top.unwrap_or(0))
+            }
+            _ => fold(self.gather(base, offs)),
         }
     }
 
@@ -122,11 +193,11 @@ impl Samples {
         match self {
             Samples::Empty => panic!("samples of a brick without values"),
             Samples::F32(v) => from.iter().zip(to).for_each(|(&i, o)| out[o] = v[i]),
-            Samples::Words8(w, t) => from
+            Samples::Words8(w, t, _) => from
                 .iter()
                 .zip(to)
                 .for_each(|(&i, o)| out[o] = look(t, w[i])),
-            Samples::Words16(w, t) => from
+            Samples::Words16(w, t, _) => from
                 .iter()
                 .zip(to)
                 .for_each(|(&i, o)| out[o] = look(t, w[i])),
@@ -138,8 +209,8 @@ impl Samples {
         match self {
             Samples::Empty => Cow::Borrowed(&[]),
             Samples::F32(v) => Cow::Borrowed(v),
-            Samples::Words8(w, t) => Cow::Owned(w.iter().map(|&x| look(t, x)).collect()),
-            Samples::Words16(w, t) => Cow::Owned(w.iter().map(|&x| look(t, x)).collect()),
+            Samples::Words8(w, t, _) => Cow::Owned(w.iter().map(|&x| look(t, x)).collect()),
+            Samples::Words16(w, t, _) => Cow::Owned(w.iter().map(|&x| look(t, x)).collect()),
         }
     }
 
@@ -180,15 +251,20 @@ mod tests {
     use proptest::prelude::*;
 
     /// The same samples as f32, 8-bit words and 16-bit words (the 16-bit
-    /// table holds the 8-bit one's values at the 8-bit words).
+    /// word `w << 8 | 3` has the value of 8-bit word `w`, so the tables
+    /// rise in the same orders).
     fn three(words: &[u8], table: &[f32]) -> [Samples; 3] {
         let t8: [f32; 256] = std::array::from_fn(|i| table[i]);
-        let t16: Vec<f32> = (0..65536).map(|i| table[i % 256]).collect();
+        let t16: Vec<f32> = (0..65536).map(|i| table[i >> 8]).collect();
         let t16: Arc<[f32; 65536]> = Arc::<[f32]>::from(t16).try_into().expect("65536");
         [
             Samples::F32(words.iter().map(|&w| t8[w as usize]).collect()),
-            Samples::Words8(words.to_vec(), Arc::new(t8)),
-            Samples::Words16(words.iter().map(|&w| w as u16 | 0x300).collect(), t16),
+            Samples::Words8(words.to_vec(), Arc::new(t8), Order::of(&t8)),
+            Samples::Words16(
+                words.iter().map(|&w| (w as u16) << 8 | 3).collect(),
+                t16.clone(),
+                Order::of(&t16[..]),
+            ),
         ]
     }
 
@@ -200,7 +276,25 @@ mod tests {
                 prop_oneof![any::<f32>(), Just(f32::NAN), Just(-0.0f32)], 256),
             base in any::<prop::sample::Index>(),
             offs in proptest::array::uniform8(0usize..8),
+            shape in 0usize..3,
         ) {
+            // Random, rising with the words unsigned, or rising with them
+            // signed (NaN for code words anywhere).
+            let mut table = table;
+            if shape > 0 {
+                let mut v: Vec<f32> = table.iter().copied().filter(|x| !x.is_nan()).collect();
+                v.sort_by(f32::total_cmp);
+                let mut v = v.into_iter();
+                let order: Vec<usize> = match shape {
+                    1 => (0..256).collect(),
+                    _ => (128..256).chain(0..128).collect(),
+                };
+                for i in order {
+                    if !table[i].is_nan() {
+                        table[i] = v.next().expect("as many as left out");
+                    }
+                }
+            }
             let n = words.len();
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             let reps = three(&words, &table);
@@ -217,6 +311,19 @@ mod tests {
                 s.gather_into(offs.map(|o| base + o), [7, 6, 5, 4, 3, 2, 1, 0], &mut out);
                 let rev: Vec<u32> = (0..8).map(|k| want[base + offs[7 - k]]).collect();
                 prop_assert_eq!(bits(&out), rev);
+                // The bound: the largest value, or NaN from an ordered
+                // table's largest word.
+                let vals = offs.map(|o| want[base + o]).map(f32::from_bits);
+                let fold = vals.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x));
+                let top = s.top(base, offs);
+                let ordered = match &s {
+                    Samples::Words8(_, _, o) | Samples::Words16(_, _, o) => *o != Order::None,
+                    _ => false,
+                };
+                prop_assert!(top == fold || (top.is_nan() && ordered), "{} {}", top, fold);
+                if shape > 0 && !matches!(s, Samples::F32(_)) {
+                    prop_assert!(ordered);
+                }
                 prop_assert_eq!(bits(s.make_f32()), want.clone());
                 prop_assert!(matches!(s, Samples::F32(_)));
             }

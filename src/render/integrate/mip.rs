@@ -33,15 +33,15 @@ pub(super) fn mip<T: Real>(
 /// Raises `best` to the largest value of the interpolant of `v`'s cell
 /// where the ray enters and leaves it.
 fn raise(best: &mut f64, coords: [&[f64]; 3], ray: &Ray, v: &Visit, acc: &mut Accessor) {
-    let f = acc.vertices(v.cell);
+    let (b, l) = acc.brick(v.cell);
     // The interpolant never exceeds the largest vertex value (NaN
     // vertices give NaN, which max ignores): a cell whose vertices are
-    // all <= best cannot raise it.
-    let top = f.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x));
-    if top as f64 <= *best {
+    // all <= best cannot raise it. From the words of a 16-bit file, one
+    // lookup (render/samples.rs); NaN, no bound, never skips.
+    if b.vertex_top(l) as f64 <= *best {
         return;
     }
-    let c = CellEval::new(coords, v.cell, f);
+    let c = CellEval::new(coords, v.cell, b.vertices(l));
     *best = best
         .max(c.value(at(ray, v.t_enter)))
         .max(c.value(at(ray, v.t_exit)));
