@@ -287,7 +287,9 @@ impl RBrick {
         let iso = match h.classification {
             Classification::Iso { iso } => iso,
             Classification::TransferFunction { .. } => {
-                return RBrick::from_payload_reference(h, id, no_object, raw, planes)
+                return RBrick::from_payload_tf(h, id, no_object, raw, planes).unwrap_or_else(
+                    || RBrick::from_payload_reference(h, id, no_object, raw, planes),
+                )
             }
         };
         let mut b = RBrick::uniform(h, id, 0);
@@ -382,6 +384,50 @@ impl RBrick {
         b.codes = Codes::Plane(plane);
         b.add_planes(h, id, raw, planes);
         b
+    }
+
+    /// [`RBrick::from_payload`] for a file classified by a transfer
+    /// function, through per-word tables (render/tf_cells.rs): `None`
+    /// for files whose words those tables cannot take (the reference
+    /// path then decodes them). Values in f32, through the
+    /// [`SampleTable`].
+    fn from_payload_tf(
+        h: &crate::format::Header,
+        id: u64,
+        no_object: bool,
+        raw: &[u8],
+        planes: Planes,
+    ) -> Option<RBrick> {
+        let mut b = RBrick::uniform(h, id, 0);
+        let samples = b.cells.map(|c| (c + 1) as usize);
+        let n = samples.iter().product();
+        let mut plane = Vec::with_capacity(b.cells.iter().product::<u32>() as usize);
+        let done = TF.with_borrow_mut(|f| {
+            let key = super::tf_cells::key(h);
+            if f.built_for.as_ref() != Some(&key) {
+                f.words = super::tf_cells::TfWords::new(h);
+                f.table = f.words.as_ref().and(SampleTable::new(h, None, to_f32));
+                f.built_for = Some(key);
+            }
+            let (Some(w), Some(t)) = (&f.words, &f.table) else {
+                return false;
+            };
+            if no_object {
+                t.corner_codes(raw, samples, &mut plane);
+                return true;
+            }
+            let mut v = Vec::new();
+            t.decode(raw, n, &mut f.kinds, &mut f.codes, &mut v);
+            w.classify(raw, samples, &f.kinds, &f.codes, &mut f.scratch, &mut plane);
+            b.values = Samples::F32(v);
+            true
+        });
+        if !done {
+            return None;
+        }
+        b.codes = Codes::Plane(plane);
+        b.add_planes(h, id, raw, planes);
+        Some(b)
     }
 
     /// [`RBrick::from_payload`] the way it was first written, kept as the
@@ -651,7 +697,20 @@ struct FastScratch {
     words: Option<WordValues>,
 }
 
+/// Per-thread tables and buffers of [`RBrick::from_payload_tf`].
+#[derive(Default)]
+struct TfScratch {
+    /// The file the tables are for (built, or found unusable, once).
+    built_for: Option<super::tf_cells::Key>,
+    words: Option<super::tf_cells::TfWords>,
+    table: Option<SampleTable>,
+    kinds: Vec<u8>,
+    codes: Vec<u8>,
+    scratch: super::tf_cells::Scratch,
+}
+
 thread_local! {
+    static TF: std::cell::RefCell<TfScratch> = std::cell::RefCell::new(TfScratch::default());
     static READ: std::cell::RefCell<ReadScratch> = std::cell::RefCell::new(ReadScratch::default());
     static FAST: std::cell::RefCell<FastScratch> = std::cell::RefCell::new(FastScratch::default());
     static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
@@ -1269,8 +1328,8 @@ static EMPTY: RBrick = RBrick {
 
 #[cfg(test)]
 mod tests {
-    use super::{Codes, Lru, Planes, RBrick, Samples};
-    use crate::classify::Classification;
+    use super::{Codes, Lru, Planes, RBrick, Samples, OBJECT};
+    use crate::classify::{Classification, TfPoint, TransferFunction};
     use crate::format::word::Word;
     use crate::format::{CodeEncoding, Header};
     use crate::input::{Dtype, Rescale};
@@ -1391,6 +1450,123 @@ mod tests {
             let f32_bytes = |b: &RBrick| b.bytes - b.values.bytes() + 4 * b.values.len();
             prop_assert_eq!(f32_bytes(&fast), slow.bytes);
             prop_assert_eq!(&fast.block_max, &slow.block_max);
+        }
+    }
+
+    /// A cell whose largest value sits on a control point with opacity,
+    /// after a point without: a 1-cell by its top value alone (no point
+    /// with opacity lies strictly inside its range), which the fast path
+    /// must see as the reference does.
+    #[test]
+    fn tf_cell_by_its_top_value() {
+        let enc = CodeEncoding::IntRange { base: 200, max: 50 };
+        let rescale = Rescale {
+            slope: 1.0,
+            intercept: 0.0,
+        };
+        let mut h = header(Dtype::U8, enc, rescale, 0.0, [2, 2, 2]);
+        let point = |value, opacity| TfPoint {
+            value,
+            opacity,
+            color: [1.0; 3],
+        };
+        h.classification = Classification::TransferFunction {
+            tf: TransferFunction {
+                points: vec![point(7.0, 0.0), point(10.0, 1.0)],
+            },
+        };
+        for (words, class) in [([5u8, 10], OBJECT), ([5, 6], 0), ([8, 9], OBJECT)] {
+            let raw: Vec<u8> = words.iter().copied().cycle().take(8).collect();
+            let fast = RBrick::from_payload_tf(&h, 0, false, &raw, Planes::NONE).expect("fast");
+            let slow = RBrick::from_payload_reference(&h, 0, false, &raw, Planes::NONE);
+            for b in [&fast, &slow] {
+                assert!(
+                    matches!(&b.codes, Codes::Plane(p) if p[..] == [class]),
+                    "{words:?}"
+                );
+            }
+        }
+    }
+
+    proptest! {
+        /// The transfer-function fast path (render/tf_cells.rs) equals
+        /// the reference on random bricks of every storage type: codes
+        /// and values bit for bit, control points on, just off and between
+        /// sample values, zero and positive opacities, both slopes. It
+        /// runs whenever the values rise with the words (a slope >= 0 and
+        /// words of at most 16 bits).
+        #[test]
+        fn tf_decode_equals_reference(
+            ty in 0usize..9,
+            samples in proptest::array::uniform3(2u64..8),
+            pick in proptest::collection::vec((any::<u8>(), any::<u64>()), 1..400),
+            base_pick in any::<u64>(),
+            max in 0u32..=254,
+            slope in prop_oneof![Just(1.0), Just(-1.0), Just(0.5), Just(1e30), Just(0.0), -4.0f64..4.0],
+            intercept in prop_oneof![Just(0.0), Just(-1024.0), -1e3f64..1e3],
+            points in proptest::collection::vec(
+                (0usize..400, prop_oneof![Just(0.0), Just(1e-9), Just(-1e-9), -10.0f64..10.0],
+                 prop_oneof![Just(0.0), Just(0.0), Just(0.5), Just(1.0)]),
+                1..6),
+            no_object in any::<bool>(),
+            offset in 0usize..2,
+            few_codes in any::<bool>(),
+        ) {
+            let storage = [Dtype::U8, Dtype::I8, Dtype::U16, Dtype::I16, Dtype::U32,
+                Dtype::I32, Dtype::I64, Dtype::F32, Dtype::F64][ty];
+            let enc = if storage.is_float() {
+                CodeEncoding::NanPayload { max }
+            } else {
+                let (lo, hi) = storage.int_range();
+                let span = (hi as i128 - lo as i128 - max as i128).max(1);
+                let base = (lo as i128 + (base_pick as i128 % span)) as i64;
+                CodeEncoding::IntRange { base, max }
+            };
+            let n = samples.iter().product::<u64>() as usize;
+            // Mostly value words, so that many cells are decided by the
+            // transfer function (a code word among the 8 decides alone).
+            let pick: Vec<(u8, u64)> = pick
+                .iter()
+                .enumerate()
+                .map(|(i, &(k, b))| (if few_codes && i % 16 != 0 { 4 + k % 4 } else { k }, b))
+                .collect();
+            let payload = crate::with_word!(storage, W => words::<W>(&enc, max, &pick, n));
+            let rescale = Rescale { slope, intercept };
+            let mut h = header(storage, enc, rescale, 0.0, samples);
+            let (mut vals, mut codes) = (Vec::new(), Vec::new());
+            crate::format::brick::decode_words(&h, &payload, n, crate::format::brick::Values::Rescaled, &mut vals, &mut codes);
+            // Control points at sample values (ties), just off them, or
+            // between; strictly increasing.
+            let mut tf: Vec<TfPoint> = points
+                .iter()
+                .map(|&(i, off, opacity)| {
+                    let v = vals[i % n];
+                    let value = if v.is_finite() { v + off } else { off };
+                    TfPoint { value, opacity, color: [1.0; 3] }
+                })
+                .collect();
+            tf.sort_by(|a, b| a.value.total_cmp(&b.value));
+            tf.dedup_by(|a, b| a.value == b.value);
+            h.classification = Classification::TransferFunction {
+                tf: TransferFunction { points: tf },
+            };
+            let mut buf = vec![0u8; offset];
+            buf.extend_from_slice(&payload);
+            let raw = &buf[offset..];
+            let fast = RBrick::from_payload(&h, 0, no_object, raw, Planes::NONE);
+            let slow = RBrick::from_payload_reference(&h, 0, no_object, raw, Planes::NONE);
+            let plane = |b: &RBrick| match &b.codes {
+                Codes::Plane(p) => p.clone(),
+                Codes::Uniform(c) => vec![*c],
+            };
+            prop_assert_eq!(plane(&fast), plane(&slow));
+            let bits = |b: &RBrick| b.values.to_f32().iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+            prop_assert_eq!(bits(&fast), bits(&slow));
+            prop_assert_eq!(fast.bytes, slow.bytes);
+            let ran = RBrick::from_payload_tf(&h, 0, no_object, raw, Planes::NONE).is_some();
+            if storage.size() <= 2 && slope >= 0.0 {
+                prop_assert!(ran);
+            }
         }
     }
 

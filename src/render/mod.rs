@@ -43,6 +43,7 @@ pub mod shade;
 pub mod shard;
 mod stats;
 pub mod template;
+mod tf_cells;
 mod tiles;
 pub mod traverse;
 
