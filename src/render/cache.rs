@@ -1386,6 +1386,44 @@ mod tests {
         out
     }
 
+    /// Storage type `ty` of the nine and a code encoding for it with
+    /// codes up to `max` (an integer range placed by `base_pick`).
+    fn storage_of(ty: usize, max: u32, base_pick: u64) -> (Dtype, CodeEncoding) {
+        let storage = [
+            Dtype::U8,
+            Dtype::I8,
+            Dtype::U16,
+            Dtype::I16,
+            Dtype::U32,
+            Dtype::I32,
+            Dtype::I64,
+            Dtype::F32,
+            Dtype::F64,
+        ][ty];
+        let enc = if storage.is_float() {
+            CodeEncoding::NanPayload { max }
+        } else {
+            let (lo, hi) = storage.int_range();
+            let span = (hi as i128 - lo as i128 - max as i128).max(1);
+            let base = (lo as i128 + (base_pick as i128 % span)) as i64;
+            CodeEncoding::IntRange { base, max }
+        };
+        (storage, enc)
+    }
+
+    /// A brick's code plane (one code for a uniform brick).
+    fn plane_of(b: &RBrick) -> Vec<u8> {
+        match &b.codes {
+            Codes::Plane(p) => p.clone(),
+            Codes::Uniform(c) => vec![*c],
+        }
+    }
+
+    /// A brick's values as f32 bits.
+    fn value_bits(b: &RBrick) -> Vec<u32> {
+        b.values.to_f32().iter().map(|v| v.to_bits()).collect()
+    }
+
     proptest! {
         /// The fast decode equals the reference (decode_words + the
         /// per-cell rule) on random bricks of every storage type: codes,
@@ -1407,16 +1445,7 @@ mod tests {
             offset in 0usize..2,
             block_max in any::<bool>(),
         ) {
-            let storage = [Dtype::U8, Dtype::I8, Dtype::U16, Dtype::I16, Dtype::U32,
-                Dtype::I32, Dtype::I64, Dtype::F32, Dtype::F64][ty];
-            let enc = if storage.is_float() {
-                CodeEncoding::NanPayload { max }
-            } else {
-                let (lo, hi) = storage.int_range();
-                let span = (hi as i128 - lo as i128 - max as i128).max(1);
-                let base = (lo as i128 + (base_pick as i128 % span)) as i64;
-                CodeEncoding::IntRange { base, max }
-            };
+            let (storage, enc) = storage_of(ty, max, base_pick);
             let n = samples.iter().product::<u64>() as usize;
             let payload = crate::with_word!(storage, W => words::<W>(&enc, max, &pick, n));
             let rescale = Rescale { slope, intercept };
@@ -1434,13 +1463,8 @@ mod tests {
             let planes = Planes { block_max, ..Planes::NONE };
             let fast = RBrick::from_payload(&h, 0, no_object, raw, planes);
             let slow = RBrick::from_payload_reference(&h, 0, no_object, raw, planes);
-            let plane = |b: &RBrick| match &b.codes {
-                Codes::Plane(p) => p.clone(),
-                Codes::Uniform(c) => vec![*c],
-            };
-            prop_assert_eq!(plane(&fast), plane(&slow));
-            let bits = |b: &RBrick| b.values.to_f32().iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
-            prop_assert_eq!(bits(&fast), bits(&slow));
+            prop_assert_eq!(plane_of(&fast), plane_of(&slow));
+            prop_assert_eq!(value_bits(&fast), value_bits(&slow));
             let words = matches!(fast.values, Samples::Words8(..) | Samples::Words16(..));
             prop_assert_eq!(
                 words,
@@ -1512,16 +1536,7 @@ mod tests {
             offset in 0usize..2,
             few_codes in any::<bool>(),
         ) {
-            let storage = [Dtype::U8, Dtype::I8, Dtype::U16, Dtype::I16, Dtype::U32,
-                Dtype::I32, Dtype::I64, Dtype::F32, Dtype::F64][ty];
-            let enc = if storage.is_float() {
-                CodeEncoding::NanPayload { max }
-            } else {
-                let (lo, hi) = storage.int_range();
-                let span = (hi as i128 - lo as i128 - max as i128).max(1);
-                let base = (lo as i128 + (base_pick as i128 % span)) as i64;
-                CodeEncoding::IntRange { base, max }
-            };
+            let (storage, enc) = storage_of(ty, max, base_pick);
             let n = samples.iter().product::<u64>() as usize;
             // Mostly value words, so that many cells are decided by the
             // transfer function (a code word among the 8 decides alone).
@@ -1555,13 +1570,8 @@ mod tests {
             let raw = &buf[offset..];
             let fast = RBrick::from_payload(&h, 0, no_object, raw, Planes::NONE);
             let slow = RBrick::from_payload_reference(&h, 0, no_object, raw, Planes::NONE);
-            let plane = |b: &RBrick| match &b.codes {
-                Codes::Plane(p) => p.clone(),
-                Codes::Uniform(c) => vec![*c],
-            };
-            prop_assert_eq!(plane(&fast), plane(&slow));
-            let bits = |b: &RBrick| b.values.to_f32().iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
-            prop_assert_eq!(bits(&fast), bits(&slow));
+            prop_assert_eq!(plane_of(&fast), plane_of(&slow));
+            prop_assert_eq!(value_bits(&fast), value_bits(&slow));
             prop_assert_eq!(fast.bytes, slow.bytes);
             let ran = RBrick::from_payload_tf(&h, 0, no_object, raw, Planes::NONE).is_some();
             if storage.size() <= 2 && slope >= 0.0 {
