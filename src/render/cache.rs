@@ -37,8 +37,9 @@ pub fn to_f32(v: f64) -> f32 {
 pub use super::traverse::OBJECT;
 
 /// A brick as the renderer uses it: a dense byte plane of cell codes
-/// (255 = 1-cell) and f32 rescaled sample values (NaN where the word held
-/// a code: those samples are vertices of no 1-cell).
+/// (255 = 1-cell) and the rescaled sample values, as f32 or as the stored
+/// words with their table ([`Samples`]; NaN where the word held a code:
+/// those samples are vertices of no 1-cell).
 #[derive(Debug)]
 pub struct RBrick {
     /// Global index of the first cell (= first sample).
@@ -141,14 +142,6 @@ impl RBrick {
     pub fn vertex_top(&self, l: [u32; 3]) -> f32 {
         let (base, offs) = self.corner_offsets(l);
         self.values.top(base, offs)
-    }
-
-    /// Value of local sample `s`.
-    #[inline(always)]
-    pub fn value(&self, s: [usize; 3]) -> f32 {
-        let sx = self.cells[0] as usize + 1;
-        let sy = self.cells[1] as usize + 1;
-        self.values.get((s[2] * sy + s[1]) * sx + s[0])
     }
 
     /// The sample index of local cell `l`'s minimum corner and the offsets
@@ -273,8 +266,10 @@ impl RBrick {
     /// over whole rows. 8- and 16-bit words go through a per-thread
     /// [`SampleTable`]. A brick the index marks as holding no 1-cell needs
     /// only the corner codes and no values (through the table, only the
-    /// corner words are read). Transfer functions take the reference
-    /// path.
+    /// corner words are read). The values of 8- and 16-bit words are
+    /// kept as words unless a plane derived from them is asked for
+    /// (render/samples.rs). Transfer functions take
+    /// `from_payload_tf` where it can, else the reference path.
     ///
     /// [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
     pub fn from_payload(
@@ -406,7 +401,10 @@ impl RBrick {
             let key = super::tf_cells::key(h);
             if f.built_for.as_ref() != Some(&key) {
                 f.words = super::tf_cells::TfWords::new(h);
-                f.table = f.words.as_ref().and(SampleTable::new(h, None, to_f32));
+                f.table = f
+                    .words
+                    .as_ref()
+                    .and_then(|_| SampleTable::new(h, None, to_f32));
                 f.built_for = Some(key);
             }
             let (Some(w), Some(t)) = (&f.words, &f.table) else {
@@ -431,8 +429,9 @@ impl RBrick {
     }
 
     /// [`RBrick::from_payload`] the way it was first written, kept as the
-    /// reference the fast path is tested against (and the path of
-    /// transfer-function files): [`decode_words`] into f64 values and
+    /// reference the fast paths are tested against (and the path of
+    /// transfer-function files those cannot take): [`decode_words`] into
+    /// f64 values and
     /// `Option` codes, then [`RBrick::assemble`] cell by cell.
     #[doc(hidden)]
     pub fn from_payload_reference(

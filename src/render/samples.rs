@@ -7,8 +7,9 @@
 //! quarter for 8-bit ones, and no f32 plane to write when a brick is
 //! decoded. The table is built by the same per-word rule as the f32
 //! plane, so every lookup gives the f32 plane's bits (NaN for code
-//! words) and images do not change. Wider words, and bricks whose values
-//! the renderer rewrites or derives planes from, hold f32.
+//! words) and images do not change. Wider words, transfer-function files
+//! (whose composite reads every value it samples), and bricks whose values
+//! the renderer rewrites or derives planes from hold f32.
 //! docs/BENCHMARKS.md, "Values as stored words".
 
 use std::borrow::Cow;
@@ -104,7 +105,7 @@ impl std::fmt::Debug for Samples {
 }
 
 /// One word's value from its table (`N` is 256 for `u8` words and
-/// 65536 for `u16` ones, so the mask is no-op and the load unchecked).
+/// 65536 for `u16` ones, so the mask is a no-op and the load unchecked).
 #[inline(always)]
 fn look<W: Into<usize>, const N: usize>(t: &[f32; N], w: W) -> f32 {
     t[w.into() & (N - 1)]
