@@ -36,8 +36,8 @@ fn raise(best: &mut f64, coords: [&[f64]; 3], ray: &Ray, v: &Visit, acc: &mut Ac
     let (b, l) = acc.brick(v.cell);
     // The interpolant never exceeds the largest vertex value (NaN
     // vertices give NaN, which max ignores): a cell whose vertices are
-    // all <= best cannot raise it. From the words of a 16-bit file, one
-    // lookup (render/samples.rs); NaN, no bound, never skips.
+    // all <= best cannot raise it. For 8- and 16-bit words, one lookup
+    // (render/samples.rs); NaN, no bound, never skips.
     if b.vertex_top(l) as f64 <= *best {
         return;
     }
