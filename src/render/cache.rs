@@ -166,7 +166,7 @@ impl RBrick {
 
     /// A brick without payload: every cell a 0-cell with `code` (a
     /// uniform brick, or one stood in by its index code).
-    fn uniform(h: &crate::format::Header, id: u64, code: u32) -> RBrick {
+    pub(super) fn uniform(h: &crate::format::Header, id: u64, code: u32) -> RBrick {
         let coords = h.brick_coords(id);
         RBrick {
             first: std::array::from_fn(|k| (coords[k] * h.brick_size as u64) as u32),
@@ -269,7 +269,7 @@ impl RBrick {
     /// corner words are read). The values of 8- and 16-bit words are
     /// kept as words unless a plane derived from them is asked for
     /// (render/samples.rs). Transfer functions take
-    /// `from_payload_tf` where it can, else the reference path.
+    /// render/tf_cells.rs where it can, else the reference path.
     ///
     /// [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
     pub fn from_payload(
@@ -282,7 +282,7 @@ impl RBrick {
         let iso = match h.classification {
             Classification::Iso { iso } => iso,
             Classification::TransferFunction { .. } => {
-                return RBrick::from_payload_tf(h, id, no_object, raw, planes).unwrap_or_else(
+                return super::tf_cells::decode(h, id, no_object, raw, planes).unwrap_or_else(
                     || RBrick::from_payload_reference(h, id, no_object, raw, planes),
                 )
             }
@@ -381,53 +381,6 @@ impl RBrick {
         b
     }
 
-    /// [`RBrick::from_payload`] for a file classified by a transfer
-    /// function, through per-word tables (render/tf_cells.rs): `None`
-    /// for files whose words those tables cannot take (the reference
-    /// path then decodes them). Values in f32, through the
-    /// [`SampleTable`].
-    fn from_payload_tf(
-        h: &crate::format::Header,
-        id: u64,
-        no_object: bool,
-        raw: &[u8],
-        planes: Planes,
-    ) -> Option<RBrick> {
-        let mut b = RBrick::uniform(h, id, 0);
-        let samples = b.cells.map(|c| (c + 1) as usize);
-        let n = samples.iter().product();
-        let mut plane = Vec::with_capacity(b.cells.iter().product::<u32>() as usize);
-        let done = TF.with_borrow_mut(|f| {
-            let key = super::tf_cells::key(h);
-            if f.built_for.as_ref() != Some(&key) {
-                f.words = super::tf_cells::TfWords::new(h);
-                f.table = f
-                    .words
-                    .as_ref()
-                    .and_then(|_| SampleTable::new(h, None, to_f32));
-                f.built_for = Some(key);
-            }
-            let (Some(w), Some(t)) = (&f.words, &f.table) else {
-                return false;
-            };
-            if no_object {
-                t.corner_codes(raw, samples, &mut plane);
-                return true;
-            }
-            let mut v = Vec::new();
-            t.decode(raw, n, &mut f.kinds, &mut f.codes, &mut v);
-            w.classify(raw, samples, &f.kinds, &f.codes, &mut f.scratch, &mut plane);
-            b.values = Samples::F32(v);
-            true
-        });
-        if !done {
-            return None;
-        }
-        b.codes = Codes::Plane(plane);
-        b.add_planes(h, id, raw, planes);
-        Some(b)
-    }
-
     /// [`RBrick::from_payload`] the way it was first written, kept as the
     /// reference the fast paths are tested against (and the path of
     /// transfer-function files those cannot take): [`decode_words`] into
@@ -463,7 +416,13 @@ impl RBrick {
 
     /// The planes beside codes and values that `planes` asks for, and the
     /// brick's byte count.
-    fn add_planes(&mut self, h: &crate::format::Header, id: u64, raw: &[u8], planes: Planes) {
+    pub(super) fn add_planes(
+        &mut self,
+        h: &crate::format::Header,
+        id: u64,
+        raw: &[u8],
+        planes: Planes,
+    ) {
         let coords = h.brick_coords(id);
         let b = self;
         if planes.octants {
@@ -696,20 +655,7 @@ struct FastScratch {
     words: Option<WordValues>,
 }
 
-/// Per-thread tables and buffers of [`RBrick::from_payload_tf`].
-#[derive(Default)]
-struct TfScratch {
-    /// The file the tables are for (built, or found unusable, once).
-    built_for: Option<super::tf_cells::Key>,
-    words: Option<super::tf_cells::TfWords>,
-    table: Option<SampleTable>,
-    kinds: Vec<u8>,
-    codes: Vec<u8>,
-    scratch: super::tf_cells::Scratch,
-}
-
 thread_local! {
-    static TF: std::cell::RefCell<TfScratch> = std::cell::RefCell::new(TfScratch::default());
     static READ: std::cell::RefCell<ReadScratch> = std::cell::RefCell::new(ReadScratch::default());
     static FAST: std::cell::RefCell<FastScratch> = std::cell::RefCell::new(FastScratch::default());
     static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
@@ -1500,7 +1446,8 @@ mod tests {
         };
         for (words, class) in [([5u8, 10], OBJECT), ([5, 6], 0), ([8, 9], OBJECT)] {
             let raw: Vec<u8> = words.iter().copied().cycle().take(8).collect();
-            let fast = RBrick::from_payload_tf(&h, 0, false, &raw, Planes::NONE).expect("fast");
+            let fast =
+                super::super::tf_cells::decode(&h, 0, false, &raw, Planes::NONE).expect("fast");
             let slow = RBrick::from_payload_reference(&h, 0, false, &raw, Planes::NONE);
             for b in [&fast, &slow] {
                 assert!(
@@ -1572,7 +1519,7 @@ mod tests {
             prop_assert_eq!(plane_of(&fast), plane_of(&slow));
             prop_assert_eq!(value_bits(&fast), value_bits(&slow));
             prop_assert_eq!(fast.bytes, slow.bytes);
-            let ran = RBrick::from_payload_tf(&h, 0, no_object, raw, Planes::NONE).is_some();
+            let ran = super::super::tf_cells::decode(&h, 0, no_object, raw, Planes::NONE).is_some();
             if storage.size() <= 2 && slope >= 0.0 {
                 prop_assert!(ran);
             }

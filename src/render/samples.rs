@@ -48,21 +48,42 @@ impl Order {
     /// The order of `table` (256 or 65536 entries, indexed by the words'
     /// bits).
     pub fn of(table: &[f32]) -> Order {
-        let rising = |idx: &mut dyn Iterator<Item = usize>| {
-            let mut last = f32::NEG_INFINITY;
-            idx.map(|i| table[i])
-                .filter(|v| !v.is_nan())
-                .all(|v| std::mem::replace(&mut last, v) <= v)
-        };
-        let half = table.len() / 2;
-        if rising(&mut (0..table.len())) {
-            Order::Unsigned
-        } else if rising(&mut (half..table.len()).chain(0..half)) {
-            Order::Signed
-        } else {
-            Order::None
+        let v = |i: usize| Some(table[i]).filter(|v| !v.is_nan());
+        match rising_flip(table.len(), v) {
+            Some(0) => Order::Unsigned,
+            Some(_) => Order::Signed,
+            None => Order::None,
         }
     }
+
+    /// The key under which word `w` (its bits, `bits` wide) sorts in
+    /// this order as an unsigned integer.
+    #[inline(always)]
+    fn key(self, w: u16, bits: u32) -> u16 {
+        match self {
+            Order::Signed => w ^ (1 << (bits - 1)),
+            _ => w,
+        }
+    }
+}
+
+/// What to XOR into a word (`len` = 256 or 65536 words, indexed by their
+/// bits) so that the values `value` gives (`None` left out) never fall as
+/// the result rises as an unsigned integer: 0 (unsigned order) or the
+/// sign bit (two's-complement order); `None` when neither holds. Shared
+/// by [`Order::of`] and the transfer-function tables (render/tf_cells.rs).
+pub fn rising_flip<V: PartialOrd + Copy>(
+    len: usize,
+    value: impl Fn(usize) -> Option<V>,
+) -> Option<u16> {
+    let sign = (len / 2) as u16;
+    let rising = |flip: u16| {
+        let mut last: Option<V> = None;
+        (0..len)
+            .filter_map(|k| value((k as u16 ^ flip) as usize))
+            .all(|v| last.replace(v).is_none_or(|l| l <= v))
+    };
+    [0, sign].into_iter().find(|&f| rising(f))
 }
 
 /// The shared table of a file's word values, in the shape [`Samples`]
@@ -165,25 +186,27 @@ impl Samples {
     /// word. For words in [`Order`], the value of the largest word.
     #[inline(always)]
     pub fn top(&self, base: usize, offs: [usize; 8]) -> f32 {
-        let fold = |v: [f32; 8]| v.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x));
+        // The word of the largest key, and its value.
+        fn largest<W: Copy + Into<u16>>(g: [W; 8], o: Order, bits: u32) -> W {
+            let mut best = g[0];
+            for &x in &g[1..] {
+                if o.key(x.into(), bits) > o.key(best.into(), bits) {
+                    best = x;
+                }
+            }
+            best
+        }
         match self {
             Samples::Words8(w, t, o) if *o != Order::None => {
-                let g = gather8(base, offs, |i| w[i]);
-                let top = match o {
-                    Order::Signed => g.iter().map(|&x| x as i8).max().map(|x| x as u8),
-                    _ => g.iter().copied().max(),
-                };
-                look(t, top.unwrap_or(0))
+                look(t, largest(gather8(base, offs, |i| w[i]), *o, 8))
             }
             Samples::Words16(w, t, o) if *o != Order::None => {
-                let g = gather8(base, offs, |i| w[i]);
-                let top = match o {
-                    Order::Signed => g.iter().map(|&x| x as i16).max().map(|x| x as u16),
-                    _ => g.iter().copied().max(),
-                };
-                look(t, top.unwrap_or(0))
+                look(t, largest(gather8(base, offs, |i| w[i]), *o, 16))
             }
-            _ => fold(self.gather(base, offs)),
+            _ => self
+                .gather(base, offs)
+                .iter()
+                .fold(f32::NEG_INFINITY, |m, &x| m.max(x)),
         }
     }
 

@@ -25,20 +25,23 @@
 //! words, take the reference path. A property test checks this path
 //! against the reference decoder bit for bit (render/cache.rs).
 //!
-//! [`RBrick::from_payload`]: super::cache::RBrick::from_payload
 //! [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
 //! [`TransferFunction::nonzero_on`]: crate::classify::TransferFunction::nonzero_on
 //! [`decode_words`]: crate::format::brick::decode_words
 
 use crate::classify::Classification;
-use crate::format::brick::{decode_words, Values, SAMPLE_CODE};
+use crate::format::brick::{decode_words, SampleTable, Values, SAMPLE_CODE};
 use crate::format::Header;
 
+use super::cache::{to_f32, Codes, Planes, RBrick};
+use super::samples::Samples;
+
+use super::samples::rising_flip;
 use super::traverse::OBJECT;
 
 /// What a [`TfWords`] is built from: the storage, code encoding, rescale
 /// and classification of a file.
-pub type Key = (
+type Key = (
     crate::input::Dtype,
     crate::format::CodeEncoding,
     [u64; 2],
@@ -46,7 +49,7 @@ pub type Key = (
 );
 
 /// The [`Key`] of `h`.
-pub fn key(h: &Header) -> Key {
+fn key(h: &Header) -> Key {
     (
         h.storage,
         h.codes,
@@ -55,9 +58,73 @@ pub fn key(h: &Header) -> Key {
     )
 }
 
+/// Brick `id` of a file classified by a transfer function from its
+/// decompressed payload `raw`, as [`RBrick::from_payload`] gives it:
+/// codes by the per-word tables, values in f32 through the decoder's
+/// [`SampleTable`], then the planes `planes` asks for. `None` for files
+/// whose words the tables cannot take (module docs): the reference
+/// decoder then reads them.
+pub(super) fn decode(
+    h: &Header,
+    id: u64,
+    no_object: bool,
+    raw: &[u8],
+    planes: Planes,
+) -> Option<RBrick> {
+    let mut b = RBrick::uniform(h, id, 0);
+    let samples = b.cells.map(|c| (c + 1) as usize);
+    let n = samples.iter().product();
+    let mut plane = Vec::with_capacity(b.cells.iter().product::<u32>() as usize);
+    let done = TF.with_borrow_mut(|f| {
+        let key = key(h);
+        if f.built_for.as_ref() != Some(&key) {
+            f.words = TfWords::new(h);
+            f.table = f
+                .words
+                .as_ref()
+                .and_then(|_| SampleTable::new(h, None, to_f32));
+            f.built_for = Some(key);
+        }
+        let (Some(w), Some(t)) = (&f.words, &f.table) else {
+            return false;
+        };
+        if no_object {
+            t.corner_codes(raw, samples, &mut plane);
+            return true;
+        }
+        let mut v = Vec::new();
+        t.decode(raw, n, &mut f.kinds, &mut f.codes, &mut v);
+        w.classify(raw, samples, &f.kinds, &f.codes, &mut f.scratch, &mut plane);
+        b.values = Samples::F32(v);
+        true
+    });
+    if !done {
+        return None;
+    }
+    b.codes = Codes::Plane(plane);
+    b.add_planes(h, id, raw, planes);
+    Some(b)
+}
+
+/// Per-thread tables and buffers of [`decode`].
+#[derive(Default)]
+struct TfScratch {
+    /// The file the tables are for (built, or found unusable, once).
+    built_for: Option<Key>,
+    words: Option<TfWords>,
+    table: Option<SampleTable>,
+    kinds: Vec<u8>,
+    codes: Vec<u8>,
+    scratch: Scratch,
+}
+
+thread_local! {
+    static TF: std::cell::RefCell<TfScratch> = std::cell::RefCell::new(TfScratch::default());
+}
+
 /// Per word (its native-endian bits as the index) what the cell rule
 /// needs of it; see the module docs.
-pub struct TfWords {
+struct TfWords {
     /// XORed into a word to make its order an unsigned one (0, or the
     /// sign bit when the values rise with the words as signed integers).
     flip: u16,
@@ -73,7 +140,7 @@ impl TfWords {
     /// The table of `h`'s words: `None` unless the file is classified by
     /// a transfer function, its words have at most 16 bits, and the
     /// values of its value words rise with the words (module docs).
-    pub fn new(h: &Header) -> Option<TfWords> {
+    fn new(h: &Header) -> Option<TfWords> {
         let Classification::TransferFunction { tf } = &h.classification else {
             return None;
         };
@@ -91,15 +158,7 @@ impl TfWords {
         if (0..len).any(|i| codes[i].is_none() && vals[i].is_nan()) {
             return None;
         }
-        let sign = 1u16 << (8 * size - 1);
-        let rising = |flip: u16| {
-            let mut last = f64::NEG_INFINITY;
-            (0..len)
-                .map(|k| (k as u16 ^ flip) as usize)
-                .filter(|&i| codes[i].is_none())
-                .all(|i| std::mem::replace(&mut last, vals[i]) <= vals[i])
-        };
-        let flip = [0, sign].into_iter().find(|&f| rising(f))?;
+        let flip = rising_flip(len, |i| codes[i].is_none().then_some(vals[i]))?;
         let mut points: Vec<f64> = tf
             .points
             .iter()
@@ -134,8 +193,7 @@ impl TfWords {
     /// `None`), `raw` its words. `keys`, `lo_*` and `hi_*` are scratch.
     ///
     /// [`SampleTable::decode`]: crate::format::brick::SampleTable::decode
-    #[allow(clippy::too_many_arguments)]
-    pub fn classify(
+    fn classify(
         &self,
         raw: &[u8],
         samples: [usize; 3],
@@ -221,7 +279,7 @@ impl TfWords {
 
 /// Per-thread buffers of [`TfWords::classify`].
 #[derive(Default)]
-pub struct Scratch {
+struct Scratch {
     keys: Vec<u16>,
     or_x: Vec<u8>,
     lo_x: Vec<u16>,
