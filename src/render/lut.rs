@@ -27,6 +27,8 @@
 //! head CT are byte-identical to the exact evaluation's in both cases
 //! (docs/BENCHMARKS.md, "Composite and MIP per-sample cost").
 
+use glam::Vec4;
+
 use crate::classify::TransferFunction;
 
 /// Premultiplied colour and step-corrected opacity at uniformly spaced
@@ -41,8 +43,13 @@ pub struct TfLut {
     /// `[r a, g a, b a, a]` with `a` the corrected opacity.
     entries: Vec<[f64; 4]>,
     /// The same entries rounded to f32, for the f32 sampler
-    /// ([`TfLut::sample32`]).
-    entries32: Vec<[f32; 4]>,
+    /// ([`TfLut::sample32`]), as SIMD vectors: one sample's interpolation
+    /// is then three vector operations.
+    entries32: Vec<Vec4>,
+    /// `v0`, `inv_h` and `last_bin` in f32, for the same sampler.
+    v0_32: f32,
+    inv_h32: f32,
+    last_bin32: f32,
 }
 
 impl TfLut {
@@ -106,29 +113,40 @@ impl TfLut {
             v0,
             inv_h,
             last_bin,
-            entries32: entries.iter().map(|e| e.map(|x| x as f32)).collect(),
+            entries32: entries
+                .iter()
+                .map(|e| Vec4::from_array(e.map(|x| x as f32)))
+                .collect(),
             entries,
+            v0_32: v0 as f32,
+            inv_h32: inv_h as f32,
+            last_bin32: last_bin as f32,
         }
     }
 
-    /// [`TfLut::sample`] in f32, for the f32 sampler: the bin position is
-    /// computed in f64 from the f32 value (so it is as exact as the f64
-    /// table's), the interpolation between the f32-rounded entries in
-    /// f32. Differs from [`TfLut::sample`] by the entries' rounding,
-    /// about 6e-8 relative.
+    /// [`TfLut::sample`] in f32, for the f32 sampler: `[r a, g a, b a,
+    /// a]` at `v`. The bin position is computed in f32 from the f32 value
+    /// with the f32-rounded `v0` and `1 / h`: a relative error of a few
+    /// 1e-7 of `v - v0`, the same order as the f32 interpolation that
+    /// produced `v`, so the table is read at a value off by at most a few
+    /// 1e-7 of the transfer function's span (about 1e-3 HU for
+    /// skin-bone's 4100 HU). docs/TRADEOFFS.md ("Composite sampler")
+    /// measures the image difference against the f64 sampler.
     #[inline(always)]
-    pub fn sample32(&self, v: f32) -> [f32; 4] {
+    pub fn sample32(&self, v: f32) -> Vec4 {
         // NaN and values below the first entry take x = 0 (max(NaN) is
         // the other operand); NaN is then made transparent below.
-        let x = ((v as f64 - self.v0) * self.inv_h).max(0.0);
-        let x = x.min(self.last_bin + 1.0);
-        let i = bin(x, self.last_bin);
-        let f = (x - i as f64) as f32;
-        let (a, b) = (&self.entries32[i], &self.entries32[i + 1]);
+        let x = ((v - self.v0_32) * self.inv_h32)
+            .max(0.0)
+            .min(self.last_bin32 + 1.0);
+        // In [0, last_bin]: the conversion cannot saturate.
+        let i = x.min(self.last_bin32) as i32 as usize;
+        let f = x - i as f32;
+        let (a, b) = (self.entries32[i], self.entries32[i + 1]);
         if v.is_nan() {
-            return [0.0; 4];
+            return Vec4::ZERO;
         }
-        std::array::from_fn(|k| a[k] + f * (b[k] - a[k]))
+        a + f * (b - a)
     }
 
     /// Premultiplied colour and corrected opacity at `v`; NaN is

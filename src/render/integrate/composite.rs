@@ -10,7 +10,7 @@
 //! the cells is f64 either way, so every exact traversal gives the same
 //! image with either sampler.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
@@ -80,13 +80,12 @@ pub(super) fn composite32<T: Real>(
         du: Vec3::ZERO,
         inv: Vec3::ZERO,
         grads: [Vec3A::ZERO; 8],
-        col: Vec3::ZERO,
-        alpha: 0.0,
+        acc: Vec4::ZERO,
     };
     let counts = march(ctx, ray, acc, clock, step, &mut s);
-    px.hit = s.alpha > 0.0;
-    px.alpha = s.alpha;
-    px.rgb = s.col.to_array();
+    px.hit = s.acc.w > 0.0;
+    px.alpha = s.acc.w;
+    px.rgb = s.acc.truncate().to_array();
     counts
 }
 
@@ -295,8 +294,9 @@ struct Sampler32<'a> {
     /// vectors for the per-sample interpolation (the same lane arithmetic
     /// as `Vec3`'s, so the same bits).
     grads: [Vec3A; 8],
-    col: Vec3,
-    alpha: f32,
+    /// The ray's premultiplied colour and opacity so far, `[r, g, b, a]`:
+    /// a sample is composited into all four lanes at once.
+    acc: Vec4,
 }
 
 impl Sampler for Sampler32<'_> {
@@ -323,7 +323,7 @@ impl Sampler for Sampler32<'_> {
         let uc = self.u.clamp(Vec3::ZERO, Vec3::ONE);
         self.u += self.du;
         let mut s = self.lut.sample32(self.c.value(uc));
-        if s[3] == 0.0 {
+        if s.w == 0.0 {
             return Flow::Continue;
         }
         if self.look.on {
@@ -332,12 +332,11 @@ impl Sampler for Sampler32<'_> {
             } else {
                 self.c.gradient(uc) * self.inv
             };
-            s = self.look.apply(s, g);
+            s = Vec4::from_array(self.look.apply(s.to_array(), g));
         }
-        let w = 1.0 - self.alpha;
-        self.col += w * Vec3::new(s[0], s[1], s[2]);
-        self.alpha += w * s[3];
-        if self.alpha > self.stop {
+        // Front to back: colour and opacity both gain (1 - a) s.
+        self.acc += (1.0 - self.acc.w) * s;
+        if self.acc.w > self.stop {
             Flow::Stop
         } else {
             Flow::Continue
