@@ -16,6 +16,7 @@ use crate::format::brick::{
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
+use super::held::{self, Held};
 use super::samples::{Samples, WordValues};
 
 /// A sample value as the renderer holds it: rounded to f32 and saturated
@@ -1043,16 +1044,14 @@ pub struct Accessor<'a, 'v> {
     brick_size: u32,
     bricks: [u64; 3],
     cur_id: u64,
-    /// Slot of `recent` holding the current brick ([`RECENT`]: none, after
-    /// an error). An index, not an `Arc`: switching bricks touches no
-    /// reference count shared with other threads.
+    /// Slot of `held` holding the current brick ([`held::NONE`]: none,
+    /// after an error). An index, not an `Arc`: switching bricks touches
+    /// no reference count shared with other threads.
     cur: usize,
-    /// The last [`RECENT`] bricks this accessor used, tried before the
-    /// shared cache: rays of one tile cross the same few bricks over and
-    /// over, and every trip to the shared cache takes its lock (which
-    /// kept two threads from rendering faster than one).
-    recent: [(u64, Option<Arc<RBrick>>); RECENT],
-    next_slot: usize,
+    /// The bricks this accessor used (up to [`held::HELD`]), tried before
+    /// the shared cache, whose every lookup takes its lock: the rays of a
+    /// tile cross the same bricks over and over (render/held.rs).
+    held: Held<RBrick>,
     /// See [`BrickCache::get`].
     lazy_min: Option<u8>,
     pub counters: CacheCounters,
@@ -1063,9 +1062,9 @@ pub struct Accessor<'a, 'v> {
 }
 
 /// Bricks an [`Accessor`] keeps besides the shared cache's budget (at
-/// most this many per worker thread; they are also counted in the budget
-/// while the shared cache holds them).
-pub const RECENT: usize = 8;
+/// most this many per accessor, i.e. per tile in flight; they are also
+/// counted in the budget while the shared cache holds them).
+pub const HELD: usize = held::HELD;
 
 /// Default smallest code for which CD stands an unread brick in by its
 /// smallest code: below it, reading the brick's own (larger) codes pays
@@ -1093,9 +1092,8 @@ impl<'a, 'v> Accessor<'a, 'v> {
             brick_size: h.brick_size,
             bricks: h.bricks,
             cur_id: u64::MAX,
-            cur: RECENT,
-            recent: std::array::from_fn(|_| (u64::MAX, None)),
-            next_slot: 0,
+            cur: held::NONE,
+            held: Held::new(),
             lazy_min,
             counters: CacheCounters::default(),
             error: None,
@@ -1131,14 +1129,14 @@ impl<'a, 'v> Accessor<'a, 'v> {
     #[inline]
     pub fn brick(&mut self, c: [u32; 3]) -> (&RBrick, [u32; 3]) {
         // Fast path: the cell is in the current brick (no division).
-        if let Some((_, Some(b))) = self.recent.get(self.cur) {
+        if let Some(b) = self.held.get(self.cur) {
             let l = [
                 c[0].wrapping_sub(b.first[0]),
                 c[1].wrapping_sub(b.first[1]),
                 c[2].wrapping_sub(b.first[2]),
             ];
             if l[0] < b.cells[0] && l[1] < b.cells[1] && l[2] < b.cells[2] {
-                return (self.recent[self.cur].1.as_deref().expect("checked"), l);
+                return (self.held.get(self.cur).expect("checked"), l);
             }
         }
         self.brick_slow(c)
@@ -1151,30 +1149,25 @@ impl<'a, 'v> Accessor<'a, 'v> {
         let id = (bc[2] as u64 * self.bricks[1] + bc[1] as u64) * self.bricks[0] + bc[0] as u64;
         if id != self.cur_id {
             self.cur_id = id;
-            if let Some(i) = self.recent.iter().position(|r| r.0 == id) {
+            if let Some(i) = self.held.find(id) {
                 self.counters.cache_hits += 1;
                 self.cur = i;
             } else {
                 self.cur = match self.cache.get(id, self.lazy_min, &mut self.counters) {
-                    Ok(b) => {
-                        let i = self.next_slot;
-                        self.recent[i] = (id, Some(b));
-                        self.next_slot = (i + 1) % RECENT;
-                        i
-                    }
+                    Ok(b) => self.held.insert(id, b),
                     Err(e) => {
                         if self.error.is_none() {
                             self.error = Some(e);
                         }
-                        RECENT
+                        held::NONE
                     }
                 };
             }
         }
         let l = [c[0] - bc[0] * bs, c[1] - bc[1] * bs, c[2] - bc[2] * bs];
-        match self.recent.get(self.cur) {
-            Some((_, Some(b))) => (b, l),
-            _ => (&EMPTY, [0; 3]),
+        match self.held.get(self.cur) {
+            Some(b) => (b, l),
+            None => (&EMPTY, [0; 3]),
         }
     }
 }

@@ -30,6 +30,7 @@ mod clock;
 mod colour;
 mod error;
 pub mod gradient;
+mod held;
 mod integrate;
 pub mod job;
 pub mod lut;
