@@ -309,8 +309,18 @@ fn render_tiles<T: Real>(
         .collect();
     let ctx = Ctx::new(&grid, h, camera, opts);
     progress.begin("render tiles", tiles.len() as u64);
+    // One tile per rayon leaf. rayon splits an indexed range adaptively:
+    // a few halvings up front and more only when a thread steals, and a
+    // leaf runs sequentially, beyond stealing. The tiles' costs differ
+    // by orders of magnitude (empty air against the middle of a head), so
+    // one thread ended a 2-thread composite with a quarter of the frame
+    // left in its leaf while the other waited (docs/BENCHMARKS.md,
+    // "Tiles: one per rayon leaf"). With single-tile leaves every tile
+    // not yet started can be stolen; each steal still takes half of what
+    // is left, a contiguous run of the Morton order.
     let results = tiles
         .par_iter()
+        .with_max_len(1)
         .map(|&(tx, ty)| {
             if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
                 return TileOut::skipped(tx * ts, ty * ts);
