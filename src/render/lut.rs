@@ -299,6 +299,77 @@ mod tests {
         }
     }
 
+    /// `sample32(v)` is the f64 table read at a value within a few f32
+    /// rounding errors of `v` (relative to the table's span), up to the
+    /// entries' rounding to f32: every channel lies within the range the
+    /// f64 table takes over `[v - d, v + d]`, which is piecewise linear
+    /// and so bounded by its values at the ends and at the entries in
+    /// between. At the extremes: NaN is transparent, infinities and
+    /// values beyond the points take the end entries.
+    #[test]
+    fn sample32_reads_the_f64_table_near_the_value() {
+        let steep = tf(&[
+            (0.0, 0.0, [1.0; 3]),
+            (500.0, 0.0, [1.0; 3]),
+            (500.01, 1.0, [1.0, 0.0, 0.0]),
+            (1000.0, 1.0, [0.0, 0.0, 1.0]),
+        ]);
+        let mut off = skin_bone();
+        off.points[2].value += 0.1 * 2f64.sqrt();
+        for (t, lo, hi) in [
+            (skin_bone(), -1100.0, 1500.0),
+            (off, -1100.0, 1500.0),
+            (steep, -10.0, 1010.0),
+        ] {
+            let lut = TfLut::new(&t, 0.5);
+            let (v0, v1) = (t.points[0].value, t.points[t.points.len() - 1].value);
+            let d = 8.0 * f32::EPSILON as f64 * v0.abs().max(v1.abs()).max(v1 - v0);
+            let n = 100_000;
+            for i in 0..=n {
+                let v = (lo + (hi - lo) * i as f64 / n as f64) as f32;
+                let got = lut.sample32(v).to_array();
+                let (a, b) = (v as f64 - d, v as f64 + d);
+                let mut range = [lut.sample(a), lut.sample(b)];
+                let bins = |v: f64| ((v - lut.v0) * lut.inv_h).clamp(0.0, lut.last_bin + 1.0);
+                let mut near: Vec<[f64; 4]> = (bins(a).ceil() as usize..=bins(b).floor() as usize)
+                    .map(|j| lut.entries[j])
+                    .collect();
+                near.extend_from_slice(&range[..]);
+                range[0] = near.iter().fold([f64::INFINITY; 4], |m, e| {
+                    std::array::from_fn(|k| m[k].min(e[k]))
+                });
+                range[1] = near.iter().fold([f64::NEG_INFINITY; 4], |m, e| {
+                    std::array::from_fn(|k| m[k].max(e[k]))
+                });
+                for k in 0..4 {
+                    let g = got[k] as f64;
+                    assert!(
+                        g >= range[0][k] - 1e-6 && g <= range[1][k] + 1e-6,
+                        "{v}: channel {k} {g} outside {:?}",
+                        (range[0][k], range[1][k])
+                    );
+                }
+            }
+            let first = lut.entries32[0];
+            let last = lut.entries32[lut.entries32.len() - 1];
+            for v in [f32::NEG_INFINITY, f32::MIN, (v0 - 1.0) as f32] {
+                assert_eq!(lut.sample32(v), first, "{v}");
+            }
+            // The last bin at its far end: a + 1 (b - a), within an ulp of b.
+            for v in [f32::INFINITY, f32::MAX, (v1 + 1.0) as f32] {
+                let g = lut.sample32(v);
+                assert!((g - last).abs().max_element() < 1e-6, "{v}: {g} vs {last}");
+            }
+            assert_eq!(lut.sample32(f32::NAN), Vec4::ZERO);
+        }
+        // A single point: the same entry everywhere.
+        let one = TfLut::new(&tf(&[(5.0, 0.3, [0.2, 0.4, 0.6])]), 2.0);
+        for v in [f32::NEG_INFINITY, 0.0, 5.0, 7.0, f32::INFINITY] {
+            assert_eq!(one.sample32(v), one.entries32[0], "{v}");
+        }
+        assert_eq!(one.sample32(f32::NAN), Vec4::ZERO);
+    }
+
     #[test]
     fn close_points_get_finer_bins_and_opaque_ends_stay_bounded() {
         // Points 0.01 apart over a range of 1000: h <= 0.01 / 16 up to the
