@@ -72,7 +72,7 @@ pub struct RBrick {
     /// otherwise.
     pub block_max: Vec<f32>,
     /// Per sample, its vertex gradient ([`Planes::grads`],
-    /// [`brick_gradients`](super::gradient::brick_gradients)): for the
+    /// `gradient::brick_gradients`): for the
     /// shaded composite, bricks with values only; empty otherwise.
     pub grads: Vec<glam::Vec3>,
 }

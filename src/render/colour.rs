@@ -18,7 +18,7 @@ pub enum Colouring {
     /// Surface and composite: the pixel's colour as it is.
     Rgb,
     /// Grey from `lo` to `hi`; `None` for the automatic window
-    /// ([`auto_window`]).
+    /// (`auto_window`).
     Mip { window: Option<[f64; 2]> },
     /// Heat map scaled to the largest step count of the whole image.
     Cost,

@@ -91,7 +91,7 @@ pub struct RenderOptions {
     /// 16-bit and float outputs need. Off by default: the frame then
     /// carries its 8-bit planes only, and a 1024^2 frame writes 16 MB less
     /// of fresh memory (docs/BENCHMARKS.md, "Per-frame memory"). A
-    /// [`RenderJob`](super::RenderJob) turns it on for its `--bit-depth`.
+    /// [`RenderJob`](super::job::RenderJob) turns it on for its `--bit-depth`.
     pub unrounded: bool,
 }
 
@@ -199,7 +199,7 @@ impl CompositeLook {
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Window {
     /// The 1st to the 99.9th percentile of the image's values
-    /// ([`auto_window`](super::colour::auto_window)).
+    /// (`colour::auto_window`).
     #[default]
     Auto,
     /// The file's whole value range (`--window full`; before the

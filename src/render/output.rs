@@ -159,7 +159,7 @@ pub fn image_files(path: &Path, depth: bool, bits: Bits) -> Result<Vec<PathBuf>,
 }
 
 /// Writes `frame` to `path` as PNG, TIFF or JPEG by its extension
-/// ([`image_format`]; 8-bit RGB); the depth mode (PNG) also writes `path`
+/// (`image_format`; 8-bit RGB); the depth mode (PNG) also writes `path`
 /// with `.f32` (raw little-endian f32, NaN = miss) and a 16-bit PNG
 /// `*.depth16.png` ([`image_files`]). The files are committed as one set
 /// (fsutil::FileSet): all are written to temporary files first, then

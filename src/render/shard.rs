@@ -5,7 +5,7 @@
 //! the parts belong to one render (same file contents, camera, options and
 //! N), that every shard and every tile is there exactly once, and colours
 //! the image with the same code as a single-process render
-//! ([`tiles::finish`](super::tiles::finish)), so the bytes are the same.
+//! (`tiles::finish`), so the bytes are the same.
 //! A single-process render never comes here: it calls the tile scheduler
 //! and the image output directly.
 //!

@@ -723,7 +723,7 @@ fn lerp(a: f32, b: f32, t: f32) -> f32 {
 /// Boundaries are partial-volume ramps, not steps: every surface (each
 /// ellipsoid, shell and cylinder, and the planes ending the neck and the
 /// spine) blends the layers on either side by a clamped linear ramp of the
-/// approximate signed distance to it (see [`Ellipsoid`]), centred on the
+/// approximate signed distance to it (see `Ellipsoid`), centred on the
 /// surface, `1.5 x` the largest of the x and y spacings and the z gaps
 /// beside the slice wide. The layers nest (brain and ventricles inside the
 /// skull, inside the scalp, inside the head, over the neck and spine; the

@@ -321,7 +321,7 @@ pub enum Flow {
 /// `visit` for every 1-cell it passes with positive length, in order, until
 /// `visit` says stop or the ray leaves the volume. Returns the step counts.
 /// A ray that fails [`Ray::check`], or a non-finite `t_min`, visits nothing
-/// (see [`Frame::new`](frame::Frame) for how extreme directions are
+/// (see `frame::Frame::new` for how extreme directions are
 /// scaled).
 ///
 /// The method is chosen once per ray; the loop then runs one walker
