@@ -42,10 +42,12 @@ pub struct TfLut {
     last_bin: f64,
     /// `[r a, g a, b a, a]` with `a` the corrected opacity.
     entries: Vec<[f64; 4]>,
-    /// The same entries rounded to f32, for the f32 sampler
-    /// ([`TfLut::sample32`]), as SIMD vectors: one sample's interpolation
-    /// is then three vector operations.
-    entries32: Vec<Vec4>,
+    /// Per bin `i`, the entry at its start rounded to f32 and the f32
+    /// difference to the next (`[e_i, e_(i+1) - e_i]`, as SIMD vectors),
+    /// for the f32 sampler ([`TfLut::sample32`]): a sample's
+    /// interpolation is one load of the pair, one multiplication and one
+    /// addition, with the same bits as `a + f (b - a)` computed per sample.
+    bins32: Vec<[Vec4; 2]>,
     /// `v0`, `inv_h` and `last_bin` in f32, for the same sampler.
     v0_32: f32,
     inv_h32: f32,
@@ -113,9 +115,12 @@ impl TfLut {
             v0,
             inv_h,
             last_bin,
-            entries32: entries
-                .iter()
-                .map(|e| Vec4::from_array(e.map(|x| x as f32)))
+            bins32: entries
+                .windows(2)
+                .map(|w| {
+                    let [a, b] = [w[0], w[1]].map(|e| Vec4::from_array(e.map(|x| x as f32)));
+                    [a, b - a]
+                })
                 .collect(),
             entries,
             v0_32: v0 as f32,
@@ -139,14 +144,18 @@ impl TfLut {
         let x = ((v - self.v0_32) * self.inv_h32)
             .max(0.0)
             .min(self.last_bin32 + 1.0);
-        // In [0, last_bin]: the conversion cannot saturate.
-        let i = x.min(self.last_bin32) as i32 as usize;
+        // SAFETY: `x` is finite and in [0, last_bin + 1] (`max` takes 0 for
+        // NaN, `min` bounds infinities), so its minimum with `last_bin`
+        // (at most MAX_BINS - 1) truncates to an i32 in [0, last_bin]. One
+        // conversion instruction, where `as` adds the saturation and NaN
+        // checks, and an i32 converts back to f32 in one more.
+        let i: i32 = unsafe { x.min(self.last_bin32).to_int_unchecked() };
         let f = x - i as f32;
-        let (a, b) = (self.entries32[i], self.entries32[i + 1]);
+        let [a, d] = self.bins32[i as usize];
         if v.is_nan() {
             return Vec4::ZERO;
         }
-        a + f * (b - a)
+        a + f * d
     }
 
     /// Premultiplied colour and corrected opacity at `v`; NaN is
@@ -350,8 +359,9 @@ mod tests {
                     );
                 }
             }
-            let first = lut.entries32[0];
-            let last = lut.entries32[lut.entries32.len() - 1];
+            let e32 = |e: [f64; 4]| Vec4::from_array(e.map(|x| x as f32));
+            let first = e32(lut.entries[0]);
+            let last = e32(lut.entries[lut.entries.len() - 1]);
             for v in [f32::NEG_INFINITY, f32::MIN, (v0 - 1.0) as f32] {
                 assert_eq!(lut.sample32(v), first, "{v}");
             }
@@ -365,7 +375,8 @@ mod tests {
         // A single point: the same entry everywhere.
         let one = TfLut::new(&tf(&[(5.0, 0.3, [0.2, 0.4, 0.6])]), 2.0);
         for v in [f32::NEG_INFINITY, 0.0, 5.0, 7.0, f32::INFINITY] {
-            assert_eq!(one.sample32(v), one.entries32[0], "{v}");
+            let e = Vec4::from_array(one.entries[0].map(|x| x as f32));
+            assert_eq!(one.sample32(v), e, "{v}");
         }
         assert_eq!(one.sample32(f32::NAN), Vec4::ZERO);
     }
