@@ -132,8 +132,7 @@ impl RBrick {
     /// The 8 vertex values of local cell `l`, x fastest.
     #[inline(always)]
     pub fn vertices(&self, l: [u32; 3]) -> [f32; 8] {
-        let (base, offs) = self.corner_offsets(l);
-        self.values.gather(base, offs)
+        self.values.gather(self.corner_offsets(l))
     }
 
     /// An upper bound of the 8 vertex values of local cell `l`
@@ -141,19 +140,21 @@ impl RBrick {
     /// bound.
     #[inline(always)]
     pub fn vertex_top(&self, l: [u32; 3]) -> f32 {
-        let (base, offs) = self.corner_offsets(l);
-        self.values.top(base, offs)
+        self.values.top(self.corner_offsets(l))
     }
 
-    /// The sample index of local cell `l`'s minimum corner and the offsets
-    /// of its 8 vertices from it, x fastest.
+    /// The 8 vertices of local cell `l` in the brick's sample planes: its
+    /// minimum corner's sample index and the row and slice steps.
     #[inline(always)]
-    fn corner_offsets(&self, l: [u32; 3]) -> (usize, [usize; 8]) {
+    fn corner_offsets(&self, l: [u32; 3]) -> super::samples::Corners {
         let sx = (self.cells[0] + 1) as usize;
         let sy = (self.cells[1] + 1) as usize;
         let base = (l[2] as usize * sy + l[1] as usize) * sx + l[0] as usize;
-        let z = sx * sy;
-        (base, [0, 1, sx, sx + 1, z, z + 1, z + sx, z + sx + 1])
+        super::samples::Corners {
+            base,
+            sx,
+            z: sx * sy,
+        }
     }
 
     /// The 8 entries of per-sample plane `v` (the values, or the gradient
@@ -161,8 +162,7 @@ impl RBrick {
     /// offsets.
     #[inline(always)]
     pub fn corners<T: Copy>(&self, v: &[T], l: [u32; 3]) -> [T; 8] {
-        let (base, offs) = self.corner_offsets(l);
-        super::samples::gather8(base, offs, |i| v[i])
+        super::samples::gather8(v, self.corner_offsets(l), |x| x)
     }
 
     /// A brick without payload: every cell a 0-cell with `code` (a

@@ -168,24 +168,23 @@ impl Samples {
         }
     }
 
-    /// The values at `base + o` for each offset `o` of `offs` (a cell's 8
-    /// vertices: loads at fixed offsets).
+    /// The values at the 8 vertices `c` (x fastest).
     #[inline(always)]
-    pub fn gather(&self, base: usize, offs: [usize; 8]) -> [f32; 8] {
+    pub fn gather(&self, c: Corners) -> [f32; 8] {
         match self {
             Samples::Empty => panic!("vertices of a brick without values"),
-            Samples::F32(v) => gather8(base, offs, |i| v[i]),
-            Samples::Words8(w, t, _) => gather8(base, offs, |i| look(t, w[i])),
-            Samples::Words16(w, t, _) => gather8(base, offs, |i| look(t, w[i])),
+            Samples::F32(v) => gather8(v, c, |x| x),
+            Samples::Words8(w, t, _) => gather8(w, c, |x| look(t, x)),
+            Samples::Words16(w, t, _) => gather8(w, c, |x| look(t, x)),
         }
     }
 
-    /// An upper bound of the values at `base + o` for the 8 offsets `o`:
-    /// their largest (NaN left out; `-inf` if all are NaN), or NaN (no
-    /// bound known) when the largest word of an ordered table is a code
-    /// word. For words in [`Order`], the value of the largest word.
+    /// An upper bound of the values at the 8 vertices `c`: their
+    /// largest (NaN left out; `-inf` if all are NaN), or NaN (no bound
+    /// known) when the largest word of an ordered table is a code word.
+    /// For words in [`Order`], the value of the largest word.
     #[inline(always)]
-    pub fn top(&self, base: usize, offs: [usize; 8]) -> f32 {
+    pub fn top(&self, c: Corners) -> f32 {
         // The word of the largest key, and its value.
         fn largest<W: Copy + Into<u16>>(g: [W; 8], o: Order, bits: u32) -> W {
             let mut best = g[0];
@@ -198,13 +197,13 @@ impl Samples {
         }
         match self {
             Samples::Words8(w, t, o) if *o != Order::None => {
-                look(t, largest(gather8(base, offs, |i| w[i]), *o, 8))
+                look(t, largest(gather8(w, c, |x| x), *o, 8))
             }
             Samples::Words16(w, t, o) if *o != Order::None => {
-                look(t, largest(gather8(base, offs, |i| w[i]), *o, 16))
+                look(t, largest(gather8(w, c, |x| x), *o, 16))
             }
             _ => self
-                .gather(base, offs)
+                .gather(c)
                 .iter()
                 .fold(f32::NEG_INFINITY, |m, &x| m.max(x)),
         }
@@ -251,19 +250,62 @@ impl Samples {
     }
 }
 
-/// `f` at `base + o` for the 8 offsets, written out: `[T; 8]::map` is
-/// not always inlined, and this is on every cell a ray samples.
+/// A cell's 8 vertices in a plane of samples, x fastest: sample `base`
+/// (the minimum corner) and the steps `sx` (one row) and `z` (one
+/// slice) to the others.
+#[derive(Clone, Copy, Debug)]
+pub struct Corners {
+    pub base: usize,
+    pub sx: usize,
+    pub z: usize,
+}
+
+impl Corners {
+    /// The vertices' sample indices, x fastest; the last is the largest.
+    #[inline(always)]
+    pub fn indices(self) -> [usize; 8] {
+        let Corners { base: b, sx, z } = self;
+        [
+            b,
+            b + 1,
+            b + sx,
+            b + sx + 1,
+            b + z,
+            b + z + 1,
+            b + z + sx,
+            b + z + sx + 1,
+        ]
+    }
+}
+
+/// `f` of the entries of `v` at the 8 vertices `c`, written out (`[T;
+/// 8]::map` is not always inlined, and this is on every cell a ray
+/// samples), with one bounds check for all eight instead of one each.
+///
+/// Panics if a vertex lies beyond `v`.
 #[inline(always)]
-pub fn gather8<T, F: Fn(usize) -> T>(base: usize, o: [usize; 8], f: F) -> [T; 8] {
+pub fn gather8<T: Copy, U, F: Fn(T) -> U>(v: &[T], c: Corners, f: F) -> [U; 8] {
+    // The largest index, saturating: a sum that would wrap fails the check.
+    let last = c
+        .base
+        .saturating_add(c.z)
+        .saturating_add(c.sx)
+        .saturating_add(1);
+    assert!(last < v.len(), "vertex {last} of a plane of {}", v.len());
+    // SAFETY: every index below is at most `base + z + sx + 1 = last`,
+    // computed without wrapping (it did not saturate, as `last < len`),
+    // and `last < v.len()`.
+    let at = |i: usize| f(unsafe { *v.get_unchecked(i) });
+    let [i0, i1, i2, i3, i4, i5, i6, i7] = c.indices();
     [
-        f(base + o[0]),
-        f(base + o[1]),
-        f(base + o[2]),
-        f(base + o[3]),
-        f(base + o[4]),
-        f(base + o[5]),
-        f(base + o[6]),
-        f(base + o[7]),
+        at(i0),
+        at(i1),
+        at(i2),
+        at(i3),
+        at(i4),
+        at(i5),
+        at(i6),
+        at(i7),
     ]
 }
 
@@ -299,7 +341,8 @@ mod tests {
             table in proptest::collection::vec(
                 prop_oneof![any::<f32>(), Just(f32::NAN), Just(-0.0f32)], 256),
             base in any::<prop::sample::Index>(),
-            offs in proptest::array::uniform8(0usize..8),
+            sx in 0usize..3,
+            z in 0usize..5,
             shape in 0usize..3,
         ) {
             // Random, rising with the words unsigned, or rising with them
@@ -323,23 +366,24 @@ mod tests {
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             let reps = three(&words, &table);
             let want = bits(&reps[0].to_f32());
-            let base = base.index(n - 7);
+            let c = Corners { base: base.index(n - (z + sx + 1)), sx, z };
+            let idx = c.indices();
             for mut s in reps {
                 prop_assert_eq!(s.len(), n);
                 prop_assert_eq!(bits(&s.to_f32()), want.clone());
                 let each: Vec<f32> = (0..n).map(|i| s.get(i)).collect();
                 prop_assert_eq!(bits(&each), want.clone());
-                let g = s.gather(base, offs);
-                prop_assert_eq!(bits(&g), offs.map(|o| want[base + o]).to_vec());
+                let g = s.gather(c);
+                prop_assert_eq!(bits(&g), idx.map(|i| want[i]).to_vec());
                 let mut out = [0.0f32; 8];
-                s.gather_into(offs.map(|o| base + o), [7, 6, 5, 4, 3, 2, 1, 0], &mut out);
-                let rev: Vec<u32> = (0..8).map(|k| want[base + offs[7 - k]]).collect();
+                s.gather_into(idx, [7, 6, 5, 4, 3, 2, 1, 0], &mut out);
+                let rev: Vec<u32> = (0..8).map(|k| want[idx[7 - k]]).collect();
                 prop_assert_eq!(bits(&out), rev);
                 // The bound: the largest value, or NaN from an ordered
                 // table's largest word.
-                let vals = offs.map(|o| want[base + o]).map(f32::from_bits);
+                let vals = idx.map(|i| want[i]).map(f32::from_bits);
                 let fold = vals.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x));
-                let top = s.top(base, offs);
+                let top = s.top(c);
                 let ordered = match &s {
                     Samples::Words8(_, _, o) | Samples::Words16(_, _, o) => *o != Order::None,
                     _ => false,

@@ -23,13 +23,22 @@ pub(super) struct Frame<'g, T> {
     pub(super) d: [T; 3],
     /// `1 / d` (+inf where `d == 0`).
     inv_d: [T; 3],
-    /// Axes whose `1 / d` overflows (subnormal `d`): divide instead.
-    div: [bool; 3],
+    /// Axes crossed by multiplying with `1 / d`: `d != 0` and `1 / d`
+    /// finite. Elsewhere `d == 0` (never crossed) or `1 / d` overflows
+    /// (subnormal `d`), and [`Frame::plane_t`] divides instead.
+    mul: [bool; 3],
     mirror: [bool; 3],
+    /// [`Frame::real`] without a branch: per axis `!0` and `n` where
+    /// mirrored, else `0` and `0` (`(v ^ !0) + n = n - 1 - v`).
+    flip: [u32; 3],
+    shift: [u32; 3],
     /// Cells per axis.
     pub(super) n: [u32; 3],
     /// The exact power of two the direction was divided by (1 in f64).
     p: f64,
+    /// `1 / p`, also a power of two and exact: [`Frame::to_t`]
+    /// multiplies by it, which rounds as the division by `p` does.
+    inv_p: f64,
 }
 
 /// Where a walk starts: the first cell (mirrored frame) and the ray's
@@ -69,7 +78,6 @@ impl<'g, T: Real> Frame<'g, T> {
         let mirror: [bool; 3] = std::array::from_fn(|k| ray.dir[k] < 0.0);
         let d: [T; 3] = std::array::from_fn(|k| T::of(ray.dir[k].abs() / p));
         let inv_d = d.map(|x| T::one() / x);
-        let div = std::array::from_fn(|k| d[k] != T::zero() && !inv_d[k].is_finite());
         let o: [T; 3] = std::array::from_fn(|k| {
             T::of(if mirror[k] {
                 -ray.origin[k]
@@ -84,10 +92,13 @@ impl<'g, T: Real> Frame<'g, T> {
             o,
             d,
             inv_d,
-            div,
+            mul: std::array::from_fn(|k| d[k] != T::zero() && inv_d[k].is_finite()),
             mirror,
+            flip: mirror.map(|m| if m { !0 } else { 0 }),
+            shift: std::array::from_fn(|k| if mirror[k] { grid.ncells[k] } else { 0 }),
             n: grid.ncells,
             p,
+            inv_p: 1.0 / p,
         }
     }
 
@@ -140,7 +151,7 @@ impl<'g, T: Real> Frame<'g, T> {
     /// The ray's `t` of the frame's parameter `t`.
     #[inline(always)]
     pub(super) fn to_t(&self, t: T) -> f64 {
-        t.f64() / self.p
+        t.f64() * self.inv_p
     }
 
     /// The octant of the ray's direction (bit `k` set when axis `k` is
@@ -156,12 +167,12 @@ impl<'g, T: Real> Frame<'g, T> {
     /// in the step (paper section 4.1, last paragraph), monotone in `j`.
     #[inline(always)]
     pub(super) fn plane_t(&self, k: usize, j: u32) -> T {
-        if self.d[k] == T::zero() {
-            T::infinity()
-        } else if self.div[k] {
-            (self.s[k][j as usize] - self.o[k]) / self.d[k]
-        } else {
+        if self.mul[k] {
             (self.s[k][j as usize] - self.o[k]) * self.inv_d[k]
+        } else if self.d[k] == T::zero() {
+            T::infinity()
+        } else {
+            (self.s[k][j as usize] - self.o[k]) / self.d[k]
         }
     }
 
@@ -238,13 +249,7 @@ impl<'g, T: Real> Frame<'g, T> {
     /// Original cell index of mirrored cell `v`.
     #[inline(always)]
     pub(super) fn real(&self, v: [u32; 3]) -> [u32; 3] {
-        std::array::from_fn(|k| {
-            if self.mirror[k] {
-                self.n[k] - 1 - v[k]
-            } else {
-                v[k]
-            }
-        })
+        std::array::from_fn(|k| (v[k] ^ self.flip[k]).wrapping_add(self.shift[k]))
     }
 }
 
