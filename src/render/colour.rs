@@ -375,7 +375,6 @@ fn colour_px(scale: Scale, p: &Px) -> [f32; 4] {
     }
 }
 
-/// Black -> purple -> orange -> yellow-white heat map.
 /// `(x * 255).round() as u8`, the colour channel `x` in 8 bits, with
 /// the same result for every `x` (NaN and below 0 give 0, above 1 give
 /// 255), without a call to libm's `roundf` (the default x86-64 target
@@ -396,6 +395,7 @@ pub(crate) fn to8(x: f32) -> u8 {
     }
 }
 
+/// Black -> purple -> orange -> yellow-white heat map.
 fn heat(x: f32) -> [u8; 3] {
     let stops: [(f32, [f32; 3]); 4] = [
         (0.0, [0.0, 0.0, 0.0]),
