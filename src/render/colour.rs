@@ -268,7 +268,6 @@ pub(crate) fn colour_blocks(
     let (mut rgb, mut alpha) = (vec![0u8; 3 * n], vec![0u8; n]);
     let mut linear = vec![0f32; if unrounded { 4 * n } else { 0 }];
     let mut steps = vec![0u32; n];
-    let to8 = to8;
     // Row `y` of the planes (`linear` when kept).
     let row = |y: usize,
                rgb: &mut [u8],
@@ -412,6 +411,8 @@ fn heat(x: f32) -> [u8; 3] {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use proptest::prelude::*;
 
     #[test]
     fn to8_rounds_as_round_does() {
@@ -451,12 +452,9 @@ mod tests {
         // And a dense sweep of [-0.01, 1.01].
         xs.extend((0..=1_020_000).map(|i| -0.01 + i as f32 * 1e-6));
         for x in xs {
-            assert_eq!(super::to8(x), want(x), "{x:e} ({:#x})", x.to_bits());
+            assert_eq!(to8(x), want(x), "{x:e} ({:#x})", x.to_bits());
         }
     }
-
-    use super::*;
-    use proptest::prelude::*;
 
     // The colouring as it was before `colour_blocks`: one gathered pixel
     // buffer, coloured sequentially, the window by a full sort. The

@@ -334,6 +334,35 @@ mod tests {
         ]
     }
 
+    #[test]
+    #[should_panic(expected = "vertex 7 of a plane of 7")]
+    fn a_vertex_beyond_the_plane_is_refused() {
+        // base 1, row 2, slice 3: the last vertex is sample 7 of 0..7.
+        gather8(
+            &[0u8; 7],
+            Corners {
+                base: 1,
+                sx: 2,
+                z: 3,
+            },
+            |x| x,
+        );
+    }
+
+    #[test]
+    #[should_panic(expected = "vertex 18446744073709551615")]
+    fn a_wrapping_vertex_is_refused() {
+        gather8(
+            &[0u8; 8],
+            Corners {
+                base: usize::MAX - 2,
+                sx: 1,
+                z: 1,
+            },
+            |x| x,
+        );
+    }
+
     proptest! {
         #[test]
         fn representations_read_alike(
