@@ -397,6 +397,10 @@ mod tests {
             let want = bits(&reps[0].to_f32());
             let c = Corners { base: base.index(n - (z + sx + 1)), sx, z };
             let idx = c.indices();
+            // The vertices x fastest, written out here rather than taken
+            // from `indices` alone.
+            let b = c.base;
+            prop_assert_eq!(idx, [b, b + 1, b + sx, b + sx + 1, b + z, b + z + 1, b + z + sx, b + z + sx + 1]);
             for mut s in reps {
                 prop_assert_eq!(s.len(), n);
                 prop_assert_eq!(bits(&s.to_f32()), want.clone());
