@@ -814,6 +814,11 @@ pub struct RenderArgs {
     /// it (from the index) is at least this; 255 reads every brick entered.
     #[arg(long, default_value_t = 16)]
     pub cd_lazy_min: u8,
+    /// Trace every pixel's ray, also those no brick with 1-cells projects
+    /// onto (by default they are drawn as misses without a ray: the same
+    /// image; docs/BENCHMARKS.md, "Culling by the brick index").
+    #[arg(long)]
+    pub no_cull: bool,
     /// Brick cache budget in MiB.
     #[arg(long, default_value_t = 512)]
     pub cache_mb: usize,
@@ -1090,6 +1095,7 @@ impl RenderArgs {
                 },
                 iso: self.iso()?,
                 unrounded: self.bit_depth != cdvol::render::Bits::Eight,
+                cull: !self.no_cull,
             },
             template: self.traversal == TraversalArg::Template,
             output: self.output.clone(),

@@ -6,6 +6,7 @@
 //! options.rs     Mode, RenderOptions; the checks before any ray
 //! camera.rs      a ray per pixel (orthographic or perspective)
 //! tiles.rs       Morton-ordered tiles, one rayon task each; Shard
+//!   -> cull.rs       pixels no brick with 1-cells projects onto: no ray
 //!   -> cache.rs      decoded bricks under a byte budget, shared
 //!   -> traverse/     fvt | cd | cd-aniso | octree | dda: the 1-cells a
 //!                    ray passes (paper section 4.1, Figs. 11-12)
@@ -28,6 +29,7 @@ pub mod cache;
 pub mod camera;
 mod clock;
 mod colour;
+mod cull;
 mod error;
 pub mod gradient;
 mod held;

@@ -93,6 +93,10 @@ pub struct RenderOptions {
     /// of fresh memory (docs/BENCHMARKS.md, "Per-frame memory"). A
     /// [`RenderJob`](super::job::RenderJob) turns it on for its `--bit-depth`.
     pub unrounded: bool,
+    /// Leave untraced the pixels whose rays can meet no 1-cell, judged
+    /// from the brick index (render/cull.rs): the same image, fewer rays
+    /// and bricks. On by default; the cost map always traces every ray.
+    pub cull: bool,
 }
 
 /// Default of [`RenderOptions::early_stop`].
@@ -230,6 +234,7 @@ impl RenderOptions {
             normals: Normals::default(),
             iso: None,
             unrounded: false,
+            cull: true,
         }
     }
 }

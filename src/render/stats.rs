@@ -16,6 +16,10 @@ pub struct Stats {
     pub macro_steps: u64,
     pub cell_steps: u64,
     pub hits: u64,
+    /// Rays left untraced because no brick with 1-cells projects onto
+    /// their pixel (render/cull.rs); counted in `rays`, not in `steps`.
+    #[serde(default)]
+    pub rays_culled: u64,
     /// Brick payloads read and decoded into the cache (a brick evicted
     /// and needed again counts again; two threads racing to decode the
     /// same brick count once).
@@ -81,6 +85,7 @@ impl Stats {
             macro_steps: steps.macro_steps,
             cell_steps: steps.cell_steps,
             hits,
+            rays_culled: 0,
             bricks_read: cc.bricks_read,
             bricks_distinct: cache.distinct_read(),
             bricks_skipped: cc.bricks_skipped,
@@ -109,6 +114,7 @@ impl Stats {
         self.macro_steps += o.macro_steps;
         self.cell_steps += o.cell_steps;
         self.hits += o.hits;
+        self.rays_culled += o.rays_culled;
         self.bricks_read += o.bricks_read;
         self.bricks_distinct += o.bricks_distinct;
         self.bricks_skipped += o.bricks_skipped;

@@ -15,6 +15,7 @@ use super::cache::{Accessor, BrickCache, CacheCounters};
 use super::camera::Camera;
 use super::clock::{self, Clock, TileTime};
 use super::colour::{colour_blocks, Colouring, PxBlock};
+use super::cull::Cover;
 use super::error::RenderError;
 use super::integrate::{pixel, Ctx, Px};
 use super::options::{check_render, Precision, RenderOptions};
@@ -142,6 +143,7 @@ fn render_shard_until(
     let mut cc = CacheCounters::default();
     let mut hits = 0u64;
     let mut rays = 0u64;
+    let mut culled = 0u64;
     let mut tiles = Vec::with_capacity(results.len());
     let mut times = Vec::with_capacity(results.len());
     for r in results {
@@ -151,6 +153,7 @@ fn render_shard_until(
         steps.add(&r.steps);
         cc.add(&r.cache);
         hits += r.hits;
+        culled += r.culled;
         rays += r.pixels.len() as u64;
         times.push(r.time);
         tiles.push(TilePx {
@@ -162,6 +165,7 @@ fn render_shard_until(
     }
     let mut stats = Stats::counted(rays, hits, &steps, &cc, cache, opts, t0);
     (stats.width, stats.height) = (w, hgt);
+    stats.rays_culled = culled;
     (
         stats.seconds_tiles,
         stats.seconds_traverse,
@@ -308,6 +312,7 @@ fn render_tiles<T: Real>(
         .map(|(_, t)| t)
         .collect();
     let ctx = Ctx::new(&grid, h, camera, opts);
+    let cover = super::cull::Cover::of(vol, camera, opts);
     progress.begin("render tiles", tiles.len() as u64);
     // One tile per rayon leaf. rayon splits an indexed range adaptively:
     // a few halvings up front and more only when a thread steals, and a
@@ -325,7 +330,7 @@ fn render_tiles<T: Real>(
             if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
                 return TileOut::skipped(tx * ts, ty * ts);
             }
-            let r = render_tile(&ctx, cache, tx * ts, ty * ts, ts);
+            let r = render_tile(&ctx, cover.as_ref(), cache, tx * ts, ty * ts, ts);
             progress.advance(1);
             r
         })
@@ -356,6 +361,8 @@ struct TileOut {
     steps: StepCounts,
     cache: CacheCounters,
     hits: u64,
+    /// Pixels left untraced (render/cull.rs).
+    culled: u64,
     time: TileTime,
     error: Option<FormatError>,
 }
@@ -371,6 +378,7 @@ impl TileOut {
             steps: StepCounts::default(),
             cache: CacheCounters::default(),
             hits: 0,
+            culled: 0,
             time: TileTime::default(),
             error: None,
         }
@@ -378,8 +386,16 @@ impl TileOut {
 }
 
 /// Renders the tile at `(x0, y0)`, at most `ts` pixels square, with one
-/// accessor in front of the shared cache.
-fn render_tile<T: Real>(ctx: &Ctx<T>, cache: &BrickCache, x0: u32, y0: u32, ts: u32) -> TileOut {
+/// accessor in front of the shared cache; a pixel `cover` leaves out is a
+/// miss without a ray (render/cull.rs).
+fn render_tile<T: Real>(
+    ctx: &Ctx<T>,
+    cover: Option<&Cover>,
+    cache: &BrickCache,
+    x0: u32,
+    y0: u32,
+    ts: u32,
+) -> TileOut {
     let cam = ctx.camera;
     let w = ts.min(cam.width - x0);
     let hh = ts.min(cam.height - y0);
@@ -389,9 +405,15 @@ fn render_tile<T: Real>(ctx: &Ctx<T>, cache: &BrickCache, x0: u32, y0: u32, ts: 
     let mut pixels = Vec::with_capacity((w * hh) as usize);
     let mut steps = StepCounts::default();
     let mut hits = 0;
+    let mut culled = 0;
     let mut clock = Clock::start();
     for y in y0..y0 + hh {
         for x in x0..x0 + w {
+            if cover.is_some_and(|c| !c.covered(x, y)) {
+                culled += 1;
+                pixels.push(Px::MISS);
+                continue;
+            }
             let ray = cam.ray(x, y);
             clock.begin_ray(pixels.len() as u32, &acc);
             let (p, s) = pixel(ctx, &ray, &mut acc, &mut clock);
@@ -410,6 +432,7 @@ fn render_tile<T: Real>(ctx: &Ctx<T>, cache: &BrickCache, x0: u32, y0: u32, ts: 
         steps,
         cache: acc.counters,
         hits,
+        culled,
         error: acc.error.take(),
     }
 }

@@ -17,6 +17,7 @@ mod common;
 mod bad_input;
 mod batch;
 mod composite;
+mod cull;
 mod data_extremes;
 mod dda_planes;
 mod dicom;

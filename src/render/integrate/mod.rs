@@ -38,6 +38,19 @@ pub struct Px {
     pub(crate) hit: bool,
 }
 
+impl Px {
+    /// The pixel of a ray that meets no 1-cell, as every integrator but
+    /// the cost map draws it (no hit, no colour, no depth) and as a culled
+    /// pixel is drawn without a ray (render/cull.rs).
+    pub(crate) const MISS: Px = Px {
+        rgb: [0.0; 3],
+        alpha: 0.0,
+        depth: f32::NAN,
+        steps: 0,
+        hit: false,
+    };
+}
+
 /// What every integrator reads: the grid in the traversal's arithmetic,
 /// the sample positions, the camera, the options and the file's iso value.
 pub(crate) struct Ctx<'a, T> {

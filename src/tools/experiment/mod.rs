@@ -212,6 +212,8 @@ fn opts(mode: Mode, precision: Precision, hit_params: HitParams) -> RenderOption
     RenderOptions {
         precision,
         hit_params,
+        // The paper's figures count the steps of every ray.
+        cull: false,
         ..RenderOptions::new(mode, Method::Cd { min_leap: 1 })
     }
 }

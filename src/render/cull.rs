@@ -1,0 +1,311 @@
+//! Image-space culling: the pixels whose rays can meet no 1-cell, found
+//! from the brick index before any ray is cast, so their rays are never
+//! traced and the bricks they would have crossed are never read.
+//!
+//! Every integrator but the cost map draws a pixel from the 1-cells its ray
+//! visits (paper section 4: the traversal only decides which cells), and a
+//! ray that visits none is drawn as a miss: no hit, no sample, no maximum.
+//! A 1-cell lies inside a brick the index does not mark as holding no
+//! 1-cell (for a narrowed scene, render/scene.rs, also one whose index
+//! value maximum reaches the scene's iso value). So a pixel whose ray
+//! passes through none of those bricks' boxes is a miss, whatever the
+//! traversal, and the culled image is the traced one byte for byte
+//! (tests/all/cull.rs checks it against tracing every ray).
+//!
+//! The test is conservative: each such brick's box (its cells' extent in
+//! mm, rectilinear spacing included) is projected through the camera and
+//! the bounding rectangle of its 8 projected corners, widened by a margin
+//! of one pixel, is marked in a bitmap of the image. A pixel outside every
+//! rectangle is culled. The cost map ([`Mode::Cost`]) traces every ray: it
+//! shows what the traversal costs.
+
+use glam::DVec3;
+
+use super::camera::{Camera, Projection};
+use super::options::{Mode, RenderOptions};
+use crate::format::reader::PackedVolume;
+
+/// The pixels whose rays may meet a 1-cell: one bit a pixel, row by row.
+pub(crate) struct Cover {
+    width: u32,
+    /// `u64` words per row.
+    stride: usize,
+    bits: Vec<u64>,
+}
+
+impl Cover {
+    /// The cover of `vol`'s object bricks seen by `camera`, or `None` when
+    /// every ray is to be traced: culling off, the cost map, or a camera
+    /// inside or behind some object brick (perspective only), where the
+    /// projection of its box is unbounded.
+    pub(crate) fn of(vol: &PackedVolume, camera: &Camera, opts: &RenderOptions) -> Option<Cover> {
+        if !opts.cull || matches!(opts.mode, Mode::Cost) {
+            return None;
+        }
+        let h = vol.header();
+        let narrow = super::options::narrowing(h, opts);
+        let (w, hh) = (camera.width, camera.height);
+        let stride = (w as usize).div_ceil(64);
+        let mut cover = Cover {
+            width: w,
+            stride,
+            bits: vec![0; stride * hh as usize],
+        };
+        let coords = [h.axes[0].coords(), h.axes[1].coords(), h.axes[2].coords()];
+        let proj = Projector::new(camera);
+        for (id, e) in vol.index().iter().enumerate() {
+            if e.has_no_object() {
+                continue;
+            }
+            if let (Some(iso), Some(m)) = (narrow, e.value_max()) {
+                // As render/scene.rs judges a brick: no scene 1-cell.
+                if super::cache::to_f32(m) < iso {
+                    continue;
+                }
+            }
+            let b = h.brick_coords(id as u64);
+            let range: [(u64, u64); 3] = std::array::from_fn(|k| h.brick_cells(k, b[k]));
+            let lo = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].0 as usize]));
+            let hi = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].1 as usize]));
+            let rect = proj.rect(lo, hi)?;
+            cover.fill(rect);
+        }
+        Some(cover)
+    }
+
+    /// Whether pixel `(x, y)`'s ray may meet a 1-cell.
+    #[inline]
+    pub(crate) fn covered(&self, x: u32, y: u32) -> bool {
+        let i = y as usize * self.stride + (x / 64) as usize;
+        self.bits[i] >> (x % 64) & 1 == 1
+    }
+
+    /// Pixels covered.
+    #[cfg(test)]
+    fn count(&self) -> u64 {
+        self.bits.iter().map(|w| w.count_ones() as u64).sum()
+    }
+
+    /// Marks the pixels of `r` (inclusive, already clipped to the image).
+    fn fill(&mut self, r: Option<[u32; 4]>) {
+        let Some([x0, y0, x1, y1]) = r else {
+            return;
+        };
+        debug_assert!(x1 < self.width);
+        for y in y0..=y1 {
+            let row = &mut self.bits[y as usize * self.stride..][..self.stride];
+            let (w0, w1) = ((x0 / 64) as usize, (x1 / 64) as usize);
+            let first = !0u64 << (x0 % 64);
+            let last = !0u64 >> (63 - x1 % 64);
+            if w0 == w1 {
+                row[w0] |= first & last;
+            } else {
+                row[w0] |= first;
+                for word in &mut row[w0 + 1..w1] {
+                    *word = !0;
+                }
+                row[w1] |= last;
+            }
+        }
+    }
+}
+
+/// A point's pixel position under a camera: the inverse of
+/// [`Camera::ray`], `px = (sx + 1) w / 2 - 1/2` from the screen
+/// coordinate `sx` the ray of pixel `px` is cast at.
+struct Projector {
+    eye: DVec3,
+    forward: DVec3,
+    right: DVec3,
+    up: DVec3,
+    /// Screen half extents: mm at the eye plane (orthographic) or the
+    /// tangents of the half angles (perspective).
+    half_w: f64,
+    half_h: f64,
+    persp: bool,
+    w: f64,
+    h: f64,
+}
+
+impl Projector {
+    fn new(c: &Camera) -> Projector {
+        let (w, h) = (c.width as f64, c.height as f64);
+        let (half_h, persp) = match c.projection {
+            Projection::Ortho { frame_mm } => (0.5 * frame_mm, false),
+            Projection::Persp { fov_deg } => ((0.5 * fov_deg).to_radians().tan(), true),
+        };
+        Projector {
+            eye: c.eye,
+            forward: c.forward,
+            right: c.right,
+            up: c.up,
+            half_w: half_h * w / h,
+            half_h,
+            persp,
+            w,
+            h,
+        }
+    }
+
+    /// The pixel rectangle `[x0, y0, x1, y1]` (inclusive, clipped) that
+    /// holds the projection of the box `[lo, hi]`, widened by the margin;
+    /// `Some(None)` when it lies outside the image, `None` when it cannot
+    /// be bounded (perspective: a corner at or behind the eye plane).
+    fn rect(&self, lo: DVec3, hi: DVec3) -> Option<Option<[u32; 4]>> {
+        let (mut x0, mut y0) = (f64::INFINITY, f64::INFINITY);
+        let (mut x1, mut y1) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+        let mut far = 0.0f64;
+        for i in 0..8 {
+            let p = DVec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            );
+            let d = p - self.eye;
+            far = far.max(d.length());
+            let (mut sx, mut sy) = (d.dot(self.right), d.dot(self.up));
+            if self.persp {
+                let z = d.dot(self.forward);
+                if !(z > 1e-9 * d.length()) {
+                    return None;
+                }
+                sx /= z;
+                sy /= z;
+            }
+            let px = (sx / self.half_w + 1.0) * 0.5 * self.w - 0.5;
+            let py = (1.0 - sy / self.half_h) * 0.5 * self.h - 0.5;
+            if !(px.is_finite() && py.is_finite()) {
+                return None;
+            }
+            x0 = x0.min(px);
+            x1 = x1.max(px);
+            y0 = y0.min(py);
+            y1 = y1.max(py);
+        }
+        // One pixel, plus the rounding of the rays' own arithmetic: about
+        // 1e-15 of the distance, in pixels here 1e-9 of it.
+        let pixel = if self.persp {
+            2.0 * self.half_h / self.h * far
+        } else {
+            2.0 * self.half_h / self.h
+        };
+        let m = 1.0 + 1e-9 * far / pixel;
+        let (x0, y0) = ((x0 - m).floor().max(0.0), (y0 - m).floor().max(0.0));
+        let (x1, y1) = (
+            (x1 + m).ceil().min(self.w - 1.0),
+            (y1 + m).ceil().min(self.h - 1.0),
+        );
+        if !(x0 <= x1 && y0 <= y1) {
+            return Some(None);
+        }
+        Some(Some([x0 as u32, y0 as u32, x1 as u32, y1 as u32]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bare(width: u32, height: u32) -> Cover {
+        let stride = (width as usize).div_ceil(64);
+        Cover {
+            width,
+            stride,
+            bits: vec![0; stride * height as usize],
+        }
+    }
+
+    /// Rectangles filled word by word mark exactly their pixels, at every
+    /// position against the 64-pixel words.
+    #[test]
+    fn fill_marks_exactly_the_rectangle() {
+        let (w, h) = (150u32, 5u32);
+        for x0 in [0u32, 1, 63, 64, 65, 127, 128, 149] {
+            for x1 in [x0, x0 + 1, 63, 64, 100, 127, 128, 149] {
+                if x1 < x0 || x1 >= w {
+                    continue;
+                }
+                let mut c = bare(w, h);
+                c.fill(Some([x0, 1, x1, 3]));
+                for y in 0..h {
+                    for x in 0..w {
+                        let want = (1..=3).contains(&y) && (x0..=x1).contains(&x);
+                        assert_eq!(c.covered(x, y), want, "{x0}..={x1}: ({x}, {y})");
+                    }
+                }
+                assert_eq!(c.count(), 3 * (x1 - x0 + 1) as u64);
+            }
+        }
+    }
+
+    /// The projection inverts `Camera::ray`: a point on pixel (x, y)'s ray
+    /// projects into that pixel, orthographic and perspective.
+    #[test]
+    fn projection_inverts_the_rays() {
+        let cams = [
+            Camera::look_at(
+                [300.0, -80.0, 120.0],
+                [50.0, 40.0, 30.0],
+                [0.0, 0.0, 1.0],
+                Projection::Ortho { frame_mm: 180.0 },
+                97,
+                61,
+            )
+            .unwrap(),
+            Camera::look_at(
+                [300.0, -80.0, 120.0],
+                [50.0, 40.0, 30.0],
+                [0.0, 0.0, 1.0],
+                Projection::Persp { fov_deg: 40.0 },
+                97,
+                61,
+            )
+            .unwrap(),
+        ];
+        for cam in cams {
+            let p = Projector::new(&cam);
+            for (x, y) in [(0, 0), (96, 60), (13, 47), (50, 30)] {
+                let r = cam.ray(x, y);
+                for t in [1.0, 200.0, 350.0] {
+                    let q = r.origin + t * r.dir;
+                    let rect = p.rect(q, q).unwrap().unwrap();
+                    assert!(
+                        rect[0] <= x && x <= rect[2],
+                        "{:?} {x} {rect:?}",
+                        cam.projection
+                    );
+                    assert!(
+                        rect[1] <= y && y <= rect[3],
+                        "{:?} {y} {rect:?}",
+                        cam.projection
+                    );
+                    // A point is widened by the margin only: 3 pixels.
+                    assert!(rect[2] - rect[0] <= 3 && rect[3] - rect[1] <= 3, "{rect:?}");
+                }
+            }
+        }
+    }
+
+    /// Perspective boxes at or behind the eye plane cannot be bounded;
+    /// boxes beside the image are empty.
+    #[test]
+    fn unbounded_and_outside() {
+        let cam = Camera::look_at(
+            [0.0, 0.0, 0.0],
+            [0.0, 100.0, 0.0],
+            [0.0, 0.0, 1.0],
+            Projection::Persp { fov_deg: 30.0 },
+            64,
+            64,
+        )
+        .unwrap();
+        let p = Projector::new(&cam);
+        assert!(p
+            .rect(DVec3::new(-1.0, -1.0, -1.0), DVec3::new(1.0, 1.0, 1.0))
+            .is_none());
+        assert_eq!(
+            p.rect(DVec3::new(500.0, 10.0, 0.0), DVec3::new(510.0, 20.0, 5.0)),
+            Some(None)
+        );
+    }
+}
