@@ -54,8 +54,21 @@ fn draw(
     method: Method,
     cull: bool,
 ) -> (Frame, Stats) {
+    draw_at(vol, cam, mode, method, cull, None)
+}
+
+/// [`draw`] at the scene iso value `iso` (`render --iso`).
+fn draw_at(
+    vol: &PackedVolume,
+    cam: &Camera,
+    mode: &Mode,
+    method: Method,
+    cull: bool,
+    iso: Option<f64>,
+) -> (Frame, Stats) {
     let o = cdvol::render::RenderOptions {
         cull,
+        iso,
         ..common::test_opts(mode.clone(), method)
     };
     render(vol, cam, &o, &NoProgress).unwrap_or_else(|e| panic!("{mode:?} {method:?}: {e}"))
@@ -80,6 +93,24 @@ fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
             prop_assert_eq!(*culled.get_or_insert(sc.rays_culled), sc.rays_culled);
         }
     }
+    // A narrowed scene (render/scene.rs) culls also the bricks whose
+    // index maximum lies below its iso value.
+    for mode in [
+        Mode::Mip,
+        Mode::Depth {
+            hit: HitMethod::Int,
+        },
+    ] {
+        let method = Method::Cd { min_leap: 1 };
+        let (fc, sc) = draw_at(vol, cam, &mode, method, true, Some(150.0));
+        let (ft, st) = draw_at(vol, cam, &mode, method, false, Some(150.0));
+        prop_assert!(
+            common::same_frame(&fc, &ft),
+            "{mode:?} at 150: images differ"
+        );
+        prop_assert_eq!(sc.hits, st.hits);
+        prop_assert!(sc.rays_culled >= culled.unwrap_or(0));
+    }
     // The cost map traces every ray.
     let (_, s) = draw(vol, cam, &Mode::Cost, Method::Cd { min_leap: 1 }, true);
     prop_assert_eq!(s.rays_culled, 0);
@@ -101,14 +132,22 @@ fn positions(o: f64, gaps: &[f64]) -> String {
     )
 }
 
-/// A random sparse volume: a few boxes of value 200 (one of them can be a
-/// single sample) in values below the iso value of 100, on rectilinear
-/// axes.
+/// A random sparse volume: a few boxes of value 120 or 200 (one of them
+/// can be a single sample) in values below the iso value of 100, on
+/// rectilinear axes.
 fn sparse() -> impl Strategy<Value = ([usize; 3], Vec<f64>, [Vec<f64>; 3])> {
     (6usize..22, 6usize..22, 4usize..16)
         .prop_flat_map(|(x, y, z)| {
             let boxes = proptest::collection::vec(
-                (0..x, 0..y, 0..z, 1usize..4, 1usize..4, 1usize..4),
+                (
+                    0..x,
+                    0..y,
+                    0..z,
+                    1usize..4,
+                    1usize..4,
+                    1usize..4,
+                    prop_oneof![Just(120.0), Just(200.0)],
+                ),
                 0..4,
             );
             let gaps = |n: usize| proptest::collection::vec(0.3f64..2.5, n - 1);
@@ -118,11 +157,11 @@ fn sparse() -> impl Strategy<Value = ([usize; 3], Vec<f64>, [Vec<f64>; 3])> {
             let mut v: Vec<f64> = (0..d[0] * d[1] * d[2])
                 .map(|i| ((i as u64 * 2654435761 + seed as u64) % 90) as f64)
                 .collect();
-            for (x0, y0, z0, sx, sy, sz) in boxes {
+            for (x0, y0, z0, sx, sy, sz, value) in boxes {
                 for z in z0..(z0 + sz).min(d[2]) {
                     for y in y0..(y0 + sy).min(d[1]) {
                         for x in x0..(x0 + sx).min(d[0]) {
-                            v[(z * d[1] + y) * d[0] + x] = 200.0;
+                            v[(z * d[1] + y) * d[0] + x] = value;
                         }
                     }
                 }
@@ -137,7 +176,7 @@ proptest! {
     #[test]
     fn culled_renders_are_the_traced_ones(
         (dims, values, gaps) in sparse(),
-        brick in prop_oneof![Just(4u32), Just(8)],
+        brick in prop_oneof![Just(4usize), Just(8)],
         az in -180.0f64..180.0,
         el in -89.0f64..89.0,
         fov in prop_oneof![Just(None), (10.0f64..100.0).prop_map(Some)],
