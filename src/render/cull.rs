@@ -279,8 +279,9 @@ mod tests {
                         "{:?} {y} {rect:?}",
                         cam.projection
                     );
-                    // A point is widened by the margin only: 3 pixels.
-                    assert!(rect[2] - rect[0] <= 3 && rect[3] - rect[1] <= 3, "{rect:?}");
+                    // A point is widened by the margin only: at most 2
+                    // pixels a side once rounded out.
+                    assert!(rect[2] - rect[0] <= 4 && rect[3] - rect[1] <= 4, "{rect:?}");
                 }
             }
         }
