@@ -198,18 +198,13 @@ impl Camera {
         let (w, h) = (self.width as f64, self.height as f64);
         let sx = (px as f64 + 0.5) / w * 2.0 - 1.0;
         let sy = 1.0 - (py as f64 + 0.5) / h * 2.0;
+        let (half_w, half_h) = self.half_extents();
         match self.projection {
-            Projection::Ortho { frame_mm } => {
-                let half_h = 0.5 * frame_mm;
-                let half_w = half_h * w / h;
-                Ray {
-                    origin: self.eye + sx * half_w * self.right + sy * half_h * self.up,
-                    dir: self.forward,
-                }
-            }
-            Projection::Persp { fov_deg } => {
-                let half_h = (0.5 * fov_deg).to_radians().tan();
-                let half_w = half_h * w / h;
+            Projection::Ortho { .. } => Ray {
+                origin: self.eye + sx * half_w * self.right + sy * half_h * self.up,
+                dir: self.forward,
+            },
+            Projection::Persp { .. } => {
                 let d = self.forward + sx * half_w * self.right + sy * half_h * self.up;
                 Ray {
                     origin: self.eye,
@@ -217,6 +212,17 @@ impl Camera {
                 }
             }
         }
+    }
+
+    /// Half the screen across and up, which [`Camera::ray`] scales its
+    /// screen coordinates in `[-1, 1]` by: mm (orthographic) or the
+    /// tangents of the half angles of view (perspective).
+    pub(crate) fn half_extents(&self) -> (f64, f64) {
+        let half_h = match self.projection {
+            Projection::Ortho { frame_mm } => 0.5 * frame_mm,
+            Projection::Persp { fov_deg } => (0.5 * fov_deg).to_radians().tan(),
+        };
+        (half_h * self.width as f64 / self.height as f64, half_h)
     }
 }
 

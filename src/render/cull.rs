@@ -118,8 +118,7 @@ struct Projector {
     forward: DVec3,
     right: DVec3,
     up: DVec3,
-    /// Screen half extents: mm at the eye plane (orthographic) or the
-    /// tangents of the half angles (perspective).
+    /// [`Camera::half_extents`].
     half_w: f64,
     half_h: f64,
     persp: bool,
@@ -129,21 +128,17 @@ struct Projector {
 
 impl Projector {
     fn new(c: &Camera) -> Projector {
-        let (w, h) = (c.width as f64, c.height as f64);
-        let (half_h, persp) = match c.projection {
-            Projection::Ortho { frame_mm } => (0.5 * frame_mm, false),
-            Projection::Persp { fov_deg } => ((0.5 * fov_deg).to_radians().tan(), true),
-        };
+        let (half_w, half_h) = c.half_extents();
         Projector {
             eye: c.eye,
             forward: c.forward,
             right: c.right,
             up: c.up,
-            half_w: half_h * w / h,
+            half_w,
             half_h,
-            persp,
-            w,
-            h,
+            persp: matches!(c.projection, Projection::Persp { .. }),
+            w: c.width as f64,
+            h: c.height as f64,
         }
     }
 

@@ -44,16 +44,7 @@ fn packed_tf(
     values: &[f64],
     pos: &[Vec<f64>; 3],
 ) -> PackedVolume {
-    let axis = |p: &Vec<f64>| {
-        format!(
-            "{{\"positions\": [{}]}}",
-            p.iter()
-                .map(|x| format!("{x:?}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        )
-    };
-    let (ax, ay, az) = (axis(&pos[0]), axis(&pos[1]), axis(&pos[2]));
+    let [ax, ay, az] = [0, 1, 2].map(|k| common::axis_json(&pos[k]));
     let side = write_stack(dir, "v", dims, "u8", values, [&ax, &ay, &az], "");
     let src = cdvol::input::open(&side).unwrap();
     let mut o = PrepOptions::new(Classification::TransferFunction { tf: tf() });

@@ -123,13 +123,7 @@ fn positions(o: f64, gaps: &[f64]) -> String {
     for g in gaps {
         p.push(p[p.len() - 1] + g);
     }
-    format!(
-        "{{\"positions\": [{}]}}",
-        p.iter()
-            .map(|x| format!("{x:?}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    )
+    common::axis_json(&p)
 }
 
 /// A random sparse volume: a few boxes of value 120 or 200 (one of them

@@ -55,6 +55,12 @@ pub fn write_stack(
     p
 }
 
+/// A sidecar axis of sample positions (mm), as `write_stack` takes it.
+pub fn axis_json(positions: &[f64]) -> String {
+    let p: Vec<String> = positions.iter().map(|x| format!("{x:?}")).collect();
+    format!("{{\"positions\": [{}]}}", p.join(", "))
+}
+
 /// Iso classification oracle: 1 when the largest non-NaN vertex value of a
 /// cell is >= iso.
 pub fn classify_iso(values: &[f64], dims: [usize; 3], iso: f64) -> Vec<u8> {
