@@ -34,6 +34,7 @@ mod harden_memory;
 mod harden_options;
 mod harden_reader;
 mod layout;
+mod mip;
 mod normals;
 mod orient;
 mod prep;
