@@ -319,6 +319,15 @@ pub fn options_differ(h: &crate::format::Header, opts: &PrepOptions) -> Vec<Stri
             yn(opts.gradient_halo)
         ));
     }
+    // A file of an older version reads as well as a new one: only one
+    // newer than asked for (`--format-version 2` for older readers) is
+    // remade.
+    if h.format_version > opts.format_version {
+        d.push(format!(
+            "format-version {} -> {}",
+            h.format_version, opts.format_version
+        ));
+    }
     if h.zstd_level != opts.zstd_level {
         d.push(format!(
             "zstd-level {} -> {}",

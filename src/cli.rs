@@ -280,6 +280,11 @@ pub struct PrepSettings {
     /// zstd compression level of brick payloads.
     #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
     pub zstd_level: i32,
+    /// Format version to write: 3 (the default) stores sample words as
+    /// byte planes, smaller and faster to decode; 2 is the layout cdvol
+    /// builds before byte planes read (docs/FORMAT.md).
+    #[arg(long, value_name = "N", default_value_t = cdvol::format::FORMAT_VERSION)]
+    pub format_version: u32,
     /// Also compute anisotropic (octant) codes, paper section 4.2.1.
     #[arg(long)]
     pub aniso: bool,
@@ -356,6 +361,7 @@ impl PrepSettings {
             stamp: None,
             auto_envelope: false,
             mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
+            format_version: self.format_version,
         };
         opts.check().map_err(prep_error)?;
         Ok(opts)
@@ -370,6 +376,7 @@ pub fn prep_error(e: cdvol::prep::PrepError) -> anyhow::Error {
         let flag = match *field {
             "brick_size" => "--brick",
             "zstd_level" => "--zstd-level",
+            "format_version" => "--format-version",
             other => other,
         };
         return anyhow::anyhow!("option {flag}: {e}");

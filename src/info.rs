@@ -21,6 +21,8 @@ pub struct AxisInfo {
 pub struct Info {
     pub file: String,
     pub file_bytes: u64,
+    /// The file's format version (docs/FORMAT.md).
+    pub format_version: u32,
     pub source: String,
     /// The input's notes (a DICOM series' z spacing report).
     pub notes: Vec<String>,
@@ -83,6 +85,7 @@ impl Info {
         Info {
             file: vol.path().display().to_string(),
             file_bytes: vol.file_len(),
+            format_version: h.format_version,
             source: h.source.clone(),
             notes: h.notes.clone(),
             orientation: h
@@ -136,6 +139,12 @@ impl Info {
             self.file,
             mib(self.file_bytes)
         );
+        let layout = if self.format_version >= crate::format::BYTE_PLANES_VERSION {
+            "sample words as byte planes"
+        } else {
+            "sample words interleaved"
+        };
+        let _ = writeln!(o, "format       version {} ({layout})", self.format_version);
         let _ = writeln!(o, "source       {}", self.source);
         for n in &self.notes {
             let _ = writeln!(o, "             {n}");

@@ -19,7 +19,9 @@ use crate::dt::{self, BackwardDt, FileSpill, ForwardDt, OctantBlocks, ANISO_BLOC
 use crate::format::histogram::HistogramBuilder;
 use crate::format::word::{choose_encoding, Word};
 use crate::format::writer::PackedWriter;
-use crate::format::{CodeEncoding, FormatError, Header, Summary, FORMAT_VERSION};
+use crate::format::{
+    CodeEncoding, FormatError, Header, Summary, FORMAT_VERSION, OLDEST_WRITE_VERSION,
+};
 use crate::input::{InputError, SliceSource};
 use crate::progress::Progress;
 use crate::with_word;
@@ -53,6 +55,10 @@ pub struct PrepOptions {
     /// modality guessed from the data ([`guess_modality`]); replaces
     /// `classification` ([`PrepOptions::resolved`]).
     pub auto_envelope: bool,
+    /// Format version to write ([`OLDEST_WRITE_VERSION`] to
+    /// [`FORMAT_VERSION`], the default): version 2 is read by cdvol
+    /// builds before byte planes (`prep --format-version 2`).
+    pub format_version: u32,
 }
 
 impl PrepOptions {
@@ -68,6 +74,7 @@ impl PrepOptions {
             stamp: None,
             mem_limit: None,
             auto_envelope: false,
+            format_version: FORMAT_VERSION,
         }
     }
 
@@ -97,7 +104,8 @@ impl PrepOptions {
     }
 
     /// Checks the ranges [`prep`] needs before it reads anything:
-    /// `brick_size` a multiple of 4 in 4..=1024, `zstd_level` in -7..=22.
+    /// `brick_size` a multiple of 4 in 4..=1024, `zstd_level` in -7..=22,
+    /// `format_version` one prep writes.
     pub fn check(&self) -> Result<(), PrepError> {
         let b = self.brick_size;
         if !(4..=1024).contains(&b) || !b.is_multiple_of(ANISO_BLOCK) {
@@ -112,6 +120,13 @@ impl PrepOptions {
                 field: "zstd_level",
                 value: self.zstd_level.to_string(),
                 msg: "expected -7..=22".into(),
+            });
+        }
+        if !(OLDEST_WRITE_VERSION..=FORMAT_VERSION).contains(&self.format_version) {
+            return Err(PrepError::Option {
+                field: "format_version",
+                value: self.format_version.to_string(),
+                msg: format!("expected {OLDEST_WRITE_VERSION} to {FORMAT_VERSION}"),
             });
         }
         Ok(())
@@ -482,7 +497,7 @@ pub fn prep(
     // ---- Pass 2: backward transform, embed codes, write bricks. ----
     let bricks = [ncx, ncy, ncz].map(|c| c.div_ceil(b) as u64);
     let mut header = Header {
-        format_version: FORMAT_VERSION,
+        format_version: opts.format_version,
         dims: [nx as u64, ny as u64, nz as u64],
         axes: meta.grid.axes.clone(),
         dtype: meta.dtype,
@@ -515,7 +530,7 @@ pub fn prep(
             ),
         });
     }
-    let mut writer = PackedWriter::create(out, header.brick_count())?;
+    let mut writer = PackedWriter::create(out, header.brick_count(), header.format_version)?;
     let mut hist = vec![0u64; codes.max_code() as usize + 1];
     let mut bwd = BackwardDt::new(ncx, ncy, ncz, opts.aniso).with_dda(opts.dda);
     // Distances of cell slices z0..=z1 of the current slab (the last one
@@ -813,6 +828,15 @@ fn emit_slab<W: Word>(
                 }
                 debug_assert_eq!(bytes.len(), n_bytes);
                 let raw_len = bytes.len() as u64;
+                let bytes = if h.byte_planes() {
+                    let n = h.words_len(c) as usize;
+                    let mut planes = Vec::with_capacity(n_bytes);
+                    crate::format::planes::split(&bytes[..n], size_of::<W>(), &mut planes);
+                    planes.extend_from_slice(&bytes[n..]);
+                    planes
+                } else {
+                    bytes
+                };
                 // One compression context per rayon job, reused across bricks.
                 let compressed = match comp {
                     Ok(c) => c.compress(&bytes),

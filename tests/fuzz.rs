@@ -675,6 +675,13 @@ fn apply(b: Vec<u8>, m: &Mutation, base: &Base) -> Vec<u8> {
                         8
                     };
                     let mut raw = palette_words(hd, words, *seed);
+                    if hd.byte_planes() {
+                        // Stored as the file's layout stores words, so they
+                        // read back as the palette's words.
+                        let mut planes = Vec::with_capacity(raw.len());
+                        cdvol::format::planes::split(&raw, hd.storage.size(), &mut planes);
+                        raw = planes;
+                    }
                     while raw.len() < want {
                         raw.push(mix(seed ^ raw.len() as u64) as u8);
                     }

@@ -9,6 +9,7 @@
 
 pub mod brick;
 pub mod histogram;
+pub mod planes;
 pub mod reader;
 pub mod word;
 pub mod writer;
@@ -26,9 +27,19 @@ pub const MAGIC: &[u8; 8] = b"CDVOLPK\x01";
 /// Last 8 bytes of every complete packed file.
 pub const END_MAGIC: &[u8; 8] = b"CDVOLEND";
 /// Format version written by this crate. Version 2 adds the index's
-/// brick value maxima ([`FLAG_VALUE_MAX`]); readers take every version
-/// from [`OLDEST_READ_VERSION`] to this one and refuse others.
-pub const FORMAT_VERSION: u32 = 2;
+/// brick value maxima ([`FLAG_VALUE_MAX`]); version 3 stores each
+/// payload's sample words as byte planes ([`BYTE_PLANES_VERSION`]).
+/// Readers take every version from [`OLDEST_READ_VERSION`] to this one
+/// and refuse others.
+pub const FORMAT_VERSION: u32 = 3;
+/// The first format version whose payloads hold their sample words as
+/// byte planes ([`planes`]): byte 0 of every word, then byte 1, and so
+/// on. Earlier versions interleave them (word after word).
+pub const BYTE_PLANES_VERSION: u32 = 3;
+/// The oldest format version prep can still write (`prep
+/// --format-version`), for sites whose older cdvol builds read their
+/// files: version 2 is the newest layout without byte planes.
+pub const OLDEST_WRITE_VERSION: u32 = 2;
 /// The oldest format version this crate reads (version 1: no value
 /// maxima in the index).
 pub const OLDEST_READ_VERSION: u32 = 1;
@@ -203,6 +214,17 @@ impl Header {
         }))
     }
 
+    /// Bytes of brick `c`'s sample words (the front of its payload).
+    pub fn words_len(&self, c: [u64; 3]) -> u64 {
+        self.brick_samples(c).iter().product::<u64>() * self.storage.size() as u64
+    }
+
+    /// Whether the payloads hold their sample words as byte planes
+    /// ([`BYTE_PLANES_VERSION`]; one-byte words are the same either way).
+    pub fn byte_planes(&self) -> bool {
+        self.format_version >= BYTE_PLANES_VERSION && self.storage.size() > 1
+    }
+
     /// Decompressed payload size of a full (not edge) brick: the largest.
     pub fn max_payload_len(&self) -> u64 {
         let s = self.brick_size as u64 + 1;
@@ -228,8 +250,7 @@ impl Header {
 
     /// Exact decompressed payload size of brick `c`.
     pub fn payload_len(&self, c: [u64; 3]) -> u64 {
-        let s = self.brick_samples(c);
-        let words = s[0] * s[1] * s[2] * self.storage.size() as u64;
+        let words = self.words_len(c);
         let aniso = self.brick_blocks(c).map_or(0, |b| 8 * b[0] * b[1] * b[2]);
         words + aniso + self.dda_len(c)
     }

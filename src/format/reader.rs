@@ -325,7 +325,9 @@ impl PackedVolume {
     /// [`read_payload`](Self::read_payload) into buffers the caller keeps
     /// (`comp`: the stored bytes, `raw`: the decompressed payload, both
     /// cleared and refilled) with the caller's decompression context, so
-    /// a reader of many bricks allocates nothing per brick. Returns false
+    /// a reader of many bricks allocates nothing per brick. `raw` gets the
+    /// sample words interleaved whatever the file's layout
+    /// ([`Header::byte_planes`]); `comp` is then scratch. Returns false
     /// for a uniform brick (no payload; both buffers left empty).
     pub fn read_payload_into(
         &self,
@@ -369,6 +371,14 @@ impl PackedVolume {
                 id,
                 format!("payload is {} bytes, expected {want}", raw.len()),
             ));
+        }
+        if self.header.byte_planes() {
+            // The stored bytes are no longer needed: they hold the planes
+            // while the words are joined back in place.
+            let n = self.header.words_len(self.header.brick_coords(id)) as usize;
+            comp.clear();
+            comp.extend_from_slice(&raw[..n]);
+            super::planes::join(comp, self.header.storage.size(), &mut raw[..n]);
         }
         Ok(true)
     }

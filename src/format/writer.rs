@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use super::{
     FormatError, Header, IndexEntry, END_MAGIC, FLAG_NO_OBJECT, FLAG_UNIFORM, FLAG_VALUE_MAX,
-    FORMAT_VERSION, MAGIC, PREAMBLE_LEN,
+    MAGIC, PREAMBLE_LEN,
 };
 
 pub struct PackedWriter {
@@ -17,11 +17,15 @@ pub struct PackedWriter {
     tmp: BufWriter<tempfile::NamedTempFile>,
     pos: u64,
     index: Vec<IndexEntry>,
+    version: u32,
 }
 
 impl PackedWriter {
-    /// Starts a packed file that will become `target` with `bricks` bricks.
-    pub fn create(target: &Path, bricks: u64) -> Result<PackedWriter, FormatError> {
+    /// Starts a packed file of format `version` that will become `target`
+    /// with `bricks` bricks. The caller lays the payloads out for that
+    /// version ([`Header::byte_planes`]) and gives [`finish`](Self::finish)
+    /// a header of the same version.
+    pub fn create(target: &Path, bricks: u64, version: u32) -> Result<PackedWriter, FormatError> {
         let io = |what, source| FormatError::Io {
             path: target.to_path_buf(),
             what,
@@ -32,7 +36,7 @@ impl PackedWriter {
         let mut w = BufWriter::with_capacity(1 << 20, tmp);
         let mut pre = [0u8; PREAMBLE_LEN as usize];
         pre[..8].copy_from_slice(MAGIC);
-        pre[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+        pre[8..12].copy_from_slice(&version.to_le_bytes());
         w.write_all(&pre).map_err(|e| io("cannot write", e))?;
         let n = usize::try_from(bricks).map_err(|_| FormatError::Header {
             path: target.to_path_buf(),
@@ -43,6 +47,7 @@ impl PackedWriter {
             tmp: w,
             pos: PREAMBLE_LEN,
             index: vec![IndexEntry::default(); n],
+            version,
         })
     }
 
@@ -116,6 +121,15 @@ impl PackedWriter {
 
     /// Writes the trailer and footer, syncs, and renames into place.
     pub fn finish(mut self, header: &Header) -> Result<(), FormatError> {
+        if header.format_version != self.version {
+            return Err(FormatError::Header {
+                path: self.target.clone(),
+                msg: format!(
+                    "header says format version {}, the file was started as {}",
+                    header.format_version, self.version
+                ),
+            });
+        }
         let json = serde_json::to_vec(header).map_err(|e| FormatError::Header {
             path: self.target.clone(),
             msg: e.to_string(),
@@ -132,7 +146,7 @@ impl PackedWriter {
         footer.extend_from_slice(&(json.len() as u64).to_le_bytes());
         footer.extend_from_slice(&(index.len() as u64).to_le_bytes());
         footer.extend_from_slice(&crc.finalize().to_le_bytes());
-        footer.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        footer.extend_from_slice(&self.version.to_le_bytes());
         footer.extend_from_slice(END_MAGIC);
         self.tmp
             .write_all(&json)

@@ -16,6 +16,7 @@ mod common;
 
 mod bad_input;
 mod batch;
+mod byte_planes;
 mod composite;
 mod cull;
 mod data_extremes;
