@@ -9,7 +9,10 @@
 # usage: tools/bench-first-frame.sh WORKDIR BIN... 
 #   env: SIZES="256 512 1024" (phantoms WORKDIR/phN.cdv, made if missing),
 #        TRAV="cd fvt", REPS=5, THREADS=1, EXTRA="" (more render flags,
-#        e.g. "--cd-lazy-min 4"), SIZE=1024 (image edge)
+#        e.g. "--cd-lazy-min 4"), SIZE=1024 (image edge),
+#        VERSIONS="" (e.g. "2 3": each phantom also prepared by the first
+#        binary with `--format-version V` as WORKDIR/phN-vV.cdv, and every
+#        binary renders every version, interleaved)
 set -euo pipefail
 work=$1
 shift
@@ -19,31 +22,51 @@ for n in ${SIZES:-256 512 1024}; do
     if [ ! -f "$work/ph$n.cdv" ]; then
         "${bins[0]}" phantom ct -q --dims "$n,$n,$n" --dtype u16 -o "$work/ph$n.json" > /dev/null
         "${bins[0]}" prep -q --iso 300 "$work/ph$n.json" -o "$work/ph$n.cdv" > /dev/null
-        rm -f "$work/ph$n.raw"
+    fi
+    for v in ${VERSIONS:-}; do
+        if [ ! -f "$work/ph$n-v$v.cdv" ]; then
+            [ -f "$work/ph$n.raw" ] ||
+                "${bins[0]}" phantom ct -q --dims "$n,$n,$n" --dtype u16 -o "$work/ph$n.json" > /dev/null
+            "${bins[0]}" prep -q --iso 300 --format-version "$v" "$work/ph$n.json" \
+                -o "$work/ph$n-v$v.cdv" > /dev/null
+        fi
+    done
+    rm -f "$work/ph$n.raw"
+done
+# The runs: every binary on the default file, or on every version's file.
+cases=()
+for i in "${!bins[@]}"; do
+    if [ -z "${VERSIONS:-}" ]; then
+        cases+=("$i:")
+    else
+        for v in $VERSIONS; do cases+=("$i:-v$v"); done
     fi
 done
-run() { # bin file traversal -> "cold warm bricks_read"
+run() { # bin file traversal -> "cold warm bricks_read cold_decode"
     "$1" render -q "$2" -o "$work/ff.png" --width "${SIZE:-1024}" --height "${SIZE:-1024}" \
         --view 30,20 --threads "${THREADS:-1}" --frames 2 --orbit 0 --traversal "$3" \
         ${EXTRA:-} --stats "$work/ff.json" > /dev/null
-    python3 -c "import json; d=json.load(open('$work/ff.json')); print(d[0]['seconds_total'], d[1]['seconds_total'], d[0]['bricks_read'])"
+    python3 -c "import json; d=json.load(open('$work/ff.json')); print(d[0]['seconds_total'], d[1]['seconds_total'], d[0]['bricks_read'], d[0]['seconds_decode'])"
 }
 median() { sort -g | awk '{a[NR]=$1} END {print (NR%2 ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2)}'; }
-printf '| volume | traversal | binary | cold s | warm s | cold/warm | bricks read |\n|---|---|---|---|---|---|---|\n'
+printf '| volume | traversal | binary | file | cold s | warm s | cold/warm | bricks read | cold decode s |\n|---|---|---|---|---|---|---|---|---|\n'
 for n in ${SIZES:-256 512 1024}; do
     for t in ${TRAV:-cd fvt}; do
         rm -f "$work"/ff.*.txt
         for _ in $(seq "${REPS:-5}"); do
-            for i in "${!bins[@]}"; do
-                run "${bins[$i]}" "$work/ph$n.cdv" "$t" >> "$work/ff.$i.txt"
+            for k in "${!cases[@]}"; do
+                i=${cases[$k]%%:*}
+                run "${bins[$i]}" "$work/ph$n${cases[$k]#*:}.cdv" "$t" >> "$work/ff.$k.txt"
             done
         done
-        for i in "${!bins[@]}"; do
-            c=$(cut -d' ' -f1 "$work/ff.$i.txt" | median)
-            w=$(cut -d' ' -f2 "$work/ff.$i.txt" | median)
-            b=$(cut -d' ' -f3 "$work/ff.$i.txt" | median)
-            printf '| %d^3 | %s | %s | %.3f | %.3f | %.2f | %s |\n' "$n" "$t" "${bins[$i]}" "$c" "$w" \
-                "$(echo "$c / $w" | bc -l)" "$b"
+        for k in "${!cases[@]}"; do
+            i=${cases[$k]%%:*}
+            c=$(cut -d' ' -f1 "$work/ff.$k.txt" | median)
+            w=$(cut -d' ' -f2 "$work/ff.$k.txt" | median)
+            b=$(cut -d' ' -f3 "$work/ff.$k.txt" | median)
+            dc=$(cut -d' ' -f4 "$work/ff.$k.txt" | median)
+            printf '| %d^3 | %s | %s | ph%d%s.cdv | %.3f | %.3f | %.2f | %s | %.3f |\n' "$n" "$t" "${bins[$i]}" \
+                "$n" "${cases[$k]#*:}" "$c" "$w" "$(echo "$c / $w" | bc -l)" "$b" "$dc"
         done
     done
 done
