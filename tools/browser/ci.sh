@@ -8,17 +8,26 @@
 #
 # usage: tools/browser/ci.sh [CDVOL] [CT_SIDECAR]   (defaults:
 #        target/debug/cdvol as `cargo test` left it, target/ct/cranium.json)
+#        tools/browser/ci.sh --install   only installs chromium and the npm
+#        package (.ci/run does it in the background while cargo builds)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
+install() {
+    if ! command -v chromium >/dev/null; then
+        as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
+        as_root apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -q chromium >/dev/null
+    fi
+    (cd "$root/tools/browser" && npm ci --no-audit --no-fund --silent)
+}
+if [ "${1:-}" = --install ]; then
+    install
+    exit 0
+fi
 cdvol=$(realpath "${1:-$root/target/debug/cdvol}")
 ct=$(realpath "${2:-$root/target/ct/cranium.json}")
-if ! command -v chromium >/dev/null; then
-    as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
-    as_root apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -q chromium >/dev/null
-fi
+install
 cd "$root/tools/browser"
-npm ci --no-audit --no-fund --silent
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$cdvol" -q prep "$ct" --iso 300 -o "$work/ct.cdv" >/dev/null

@@ -2,7 +2,7 @@
 # A real one-node Slurm cluster on this machine, from Debian's packages,
 # for testing the sbatch scripts beside this file (tools/slurm/test-array.sh).
 #
-# usage: tools/slurm/local-cluster.sh start|stop|status|env
+# usage: tools/slurm/local-cluster.sh start|stop|status|env|install
 #
 #   start   installs slurm-wlm and munge with apt-get if they are missing,
 #           creates the munge key if it is missing, starts a private munged,
@@ -16,6 +16,8 @@
 #           3 if the cluster is not running.
 #   env     prints `export SLURM_CONF=...`: eval "$(local-cluster.sh env)"
 #           lets sbatch, squeue, sinfo ... talk to this cluster.
+#   install only installs the packages `start` would (.ci/run does it in
+#           the background while cargo builds).
 #
 # Everything (config, state, spool, logs, pid files, munge socket) lives in
 # one private directory, $CDVOL_SLURM_DIR (default /tmp/cdvol-slurm); nothing
@@ -348,5 +350,6 @@ case ${1:-} in
     stop) cmd_stop ;;
     status) cmd_status ;;
     env) echo "export SLURM_CONF=$conf" ;;
-    *) echo "usage: $0 start|stop|status|env" >&2; exit 2 ;;
+    install) install_packages ;;
+    *) echo "usage: $0 start|stop|status|env|install" >&2; exit 2 ;;
 esac
