@@ -22,6 +22,13 @@ use cdvol::progress::{NoProgress, Progress};
 use cdvol::tools::phantom;
 use cli::{Cli, Command, PhantomCmd};
 
+/// Brick planes come from a pool of 2 MiB huge-page chunks, reused from
+/// brick to brick; everything else from the system allocator
+/// (cdvol::memory::pool).
+#[cfg(target_os = "linux")]
+#[global_allocator]
+static ALLOC: cdvol::memory::pool::PlanePool = cdvol::memory::pool::PlanePool::new();
+
 /// indicatif bars on stderr; hidden when stderr is not a terminal.
 struct Bars {
     bar: Mutex<Option<ProgressBar>>,

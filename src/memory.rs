@@ -11,6 +11,9 @@
 //! on free, so RSS tracks the cache budget (measured in
 //! docs/BENCHMARKS.md, "Larger than RAM").
 
+#[cfg(target_os = "linux")]
+pub mod pool;
+
 /// Allocations at or above this size get their own mapping.
 pub const MMAP_THRESHOLD: usize = 64 << 10;
 

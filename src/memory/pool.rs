@@ -1,0 +1,490 @@
+//! A slab pool for brick planes, in 2 MiB chunks backed by huge pages.
+//!
+//! A render decodes thousands of bricks, and each brick's planes (16-bit
+//! words: 72 KiB for a brick of 32^3 cells; codes: 32 KiB; f32 values:
+//! 144 KiB) used to be fresh memory from the kernel: one page fault, one
+//! page clearing and one memory-cgroup charge per 4 KiB page, about 69,000
+//! faults for the first 1024^2 frame of a 1024^3 volume, and a quarter of
+//! its time in the kernel (docs/BENCHMARKS.md, "Brick planes from a
+//! pool"). [`PlanePool`] serves allocations of [`MIN`] to [`MAX`] bytes
+//! from chunks of [`CHUNK`] bytes, aligned to 2 MiB and marked
+//! `MADV_HUGEPAGE`, so where transparent huge pages are enabled (`always`
+//! or `madvise`) a chunk is one fault. A freed slot is reused by the next
+//! allocation of its size class without the kernel; a chunk whose slots
+//! are all free is returned to the system unless it is its class's only
+//! chunk with free slots, so memory still follows the brick cache's budget
+//! (the aim of [`super::bound_heap_fragmentation`]).
+//!
+//! The command-line binary installs it as the global allocator
+//! (`src/main.rs`); the library does not, so programs that link cdvol keep
+//! their own. Every other allocation goes to the system allocator.
+//!
+//! Layout of a chunk: one 4 KiB page of [`Header`], then slots of a whole
+//! number of pages, so every slot is page-aligned. A slot's size class is
+//! its size rounded up to pages; `dealloc` finds the class from the
+//! `Layout` (the same one `alloc` got) and the chunk from the address.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::ptr::{self, null_mut};
+use std::sync::Mutex;
+
+/// Bytes of a chunk: the size of an x86-64 huge page.
+pub const CHUNK: usize = 2 << 20;
+/// Smallest allocation the pool takes: a brick's code plane of 32^3 cells.
+pub const MIN: usize = 32 << 10;
+/// Largest allocation the pool takes. Above it a chunk holds too few slots
+/// (7 of 256 KiB); such buffers go to the system allocator.
+pub const MAX: usize = 256 << 10;
+const PAGE: usize = 4096;
+/// Size classes: slots of 1 to `MAX / PAGE` pages (index = pages).
+const CLASSES: usize = MAX / PAGE + 1;
+
+/// The first page of every chunk.
+#[repr(C)]
+struct Header {
+    /// Pages per slot (the size class).
+    pages: usize,
+    /// Slots handed out and not yet freed.
+    live: usize,
+    /// Slots ever handed out from the chunk's untouched end: slots at and
+    /// above this index have never been used.
+    bump: usize,
+    /// Freed slots, each holding the address of the next in its first
+    /// bytes (null ends the list).
+    free: *mut u8,
+    /// The class's chunks with free slots, doubly linked (null ends).
+    prev: *mut Header,
+    next: *mut Header,
+    /// Whether the chunk is in that list.
+    listed: bool,
+}
+
+impl Header {
+    fn slots(&self) -> usize {
+        (CHUNK - PAGE) / (self.pages * PAGE)
+    }
+
+    fn has_room(&self) -> bool {
+        !self.free.is_null() || self.bump < self.slots()
+    }
+}
+
+/// Per class, the head of its list of chunks with free slots.
+struct State {
+    partial: [*mut Header; CLASSES],
+    /// Chunks currently mapped (for tests and `--stats`-like reports).
+    chunks: usize,
+}
+
+// SAFETY: the raw pointers are only touched under the pool's mutex.
+unsafe impl Send for State {}
+
+/// The slab pool; see the module documentation. `const`-constructible so
+/// that it can be a `#[global_allocator]`.
+pub struct PlanePool {
+    state: Mutex<State>,
+}
+
+impl Default for PlanePool {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl PlanePool {
+    pub const fn new() -> PlanePool {
+        PlanePool {
+            state: Mutex::new(State {
+                partial: [null_mut(); CLASSES],
+                chunks: 0,
+            }),
+        }
+    }
+
+    /// The size class (pages per slot) of `layout`, if the pool serves it.
+    pub fn class(layout: Layout) -> Option<usize> {
+        let served = (MIN..=MAX).contains(&layout.size()) && layout.align() <= PAGE;
+        served.then(|| layout.size().div_ceil(PAGE))
+    }
+
+    /// Chunks currently mapped.
+    pub fn chunks(&self) -> usize {
+        self.lock().chunks
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        // A panic while the lock is held cannot leave the lists half
+        // changed (no code under the lock panics), so a poisoned lock is
+        // still consistent.
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// A slot of `pages` pages, or null if the system has no memory.
+    fn take(&self, pages: usize) -> *mut u8 {
+        let mut st = self.lock();
+        let mut h = st.partial[pages];
+        if h.is_null() {
+            h = new_chunk(pages);
+            if h.is_null() {
+                return null_mut();
+            }
+            st.chunks += 1;
+            // SAFETY: `h` is a fresh chunk's header, not in any list.
+            unsafe { push(&mut st, h) };
+        }
+        // SAFETY: `h` is a mapped chunk of this class with room (only such
+        // chunks are listed); its header and slots are ours under the lock.
+        unsafe {
+            let c = &mut *h;
+            let slot = if c.free.is_null() {
+                let s = (h as *mut u8).add(PAGE + c.bump * c.pages * PAGE);
+                c.bump += 1;
+                s
+            } else {
+                let s = c.free;
+                c.free = ptr::read(s as *const *mut u8);
+                s
+            };
+            c.live += 1;
+            if !c.has_room() {
+                unlink(&mut st, h);
+            }
+            slot
+        }
+    }
+
+    /// Returns `slot` (from [`take`](Self::take) with `pages`).
+    ///
+    /// # Safety
+    /// `slot` came from `take(pages)` of this pool and is not used again.
+    unsafe fn give(&self, slot: *mut u8, pages: usize) {
+        let h = (slot as usize & !(CHUNK - 1)) as *mut Header;
+        let mut st = self.lock();
+        // SAFETY: the chunk holding `slot` is mapped (it has a live slot)
+        // and its header is ours under the lock.
+        unsafe {
+            let c = &mut *h;
+            debug_assert_eq!(c.pages, pages, "a slot returned to another class");
+            ptr::write(slot as *mut *mut u8, c.free);
+            c.free = slot;
+            c.live -= 1;
+            if !c.listed {
+                push(&mut st, h);
+            }
+            // An empty chunk goes back to the system unless it is the
+            // class's only one with room (then the next brick reuses it).
+            if c.live == 0 && !(st.partial[pages] == h && c.next.is_null()) {
+                unlink(&mut st, h);
+                st.chunks -= 1;
+                drop(st);
+                unmap(h as *mut u8, CHUNK);
+            }
+        }
+    }
+}
+
+/// Adds `h` at the head of its class's list.
+///
+/// # Safety
+/// `h` is a mapped chunk's header, not in the list; the lock is held.
+unsafe fn push(st: &mut State, h: *mut Header) {
+    // SAFETY: as the caller promises; the old head is a mapped header.
+    unsafe {
+        let c = &mut *h;
+        let head = st.partial[c.pages];
+        c.prev = null_mut();
+        c.next = head;
+        c.listed = true;
+        if !head.is_null() {
+            (*head).prev = h;
+        }
+        st.partial[c.pages] = h;
+    }
+}
+
+/// Removes `h` from its class's list.
+///
+/// # Safety
+/// `h` is a mapped chunk's header in the list; the lock is held.
+unsafe fn unlink(st: &mut State, h: *mut Header) {
+    // SAFETY: as the caller promises; its neighbours are mapped headers.
+    unsafe {
+        let c = &mut *h;
+        if c.prev.is_null() {
+            st.partial[c.pages] = c.next;
+        } else {
+            (*c.prev).next = c.next;
+        }
+        if !c.next.is_null() {
+            (*c.next).prev = c.prev;
+        }
+        c.prev = null_mut();
+        c.next = null_mut();
+        c.listed = false;
+    }
+}
+
+/// A new chunk for slots of `pages` pages, aligned to [`CHUNK`], its
+/// header written; null if the system refuses the mapping.
+fn new_chunk(pages: usize) -> *mut Header {
+    // Map twice the size and trim to an aligned chunk.
+    // SAFETY: an anonymous private mapping at an address of the kernel's
+    // choice; the result is checked.
+    let raw = unsafe {
+        libc::mmap(
+            null_mut(),
+            2 * CHUNK,
+            libc::PROT_READ | libc::PROT_WRITE,
+            libc::MAP_PRIVATE | libc::MAP_ANONYMOUS,
+            -1,
+            0,
+        )
+    };
+    if raw == libc::MAP_FAILED {
+        return null_mut();
+    }
+    let raw = raw as usize;
+    let base = (raw + CHUNK - 1) & !(CHUNK - 1);
+    // SAFETY: both trimmed pieces lie in the mapping just made and hold
+    // nothing.
+    unsafe {
+        unmap(raw as *mut u8, base - raw);
+        unmap((base + CHUNK) as *mut u8, raw + 2 * CHUNK - base - CHUNK);
+        // Advice only: where huge pages are off it fails, and the chunk
+        // is 512 ordinary pages.
+        libc::madvise(base as *mut libc::c_void, CHUNK, libc::MADV_HUGEPAGE);
+        let h = base as *mut Header;
+        ptr::write(
+            h,
+            Header {
+                pages,
+                live: 0,
+                bump: 0,
+                free: null_mut(),
+                prev: null_mut(),
+                next: null_mut(),
+                listed: false,
+            },
+        );
+        h
+    }
+}
+
+/// Unmaps `len` bytes at `p` (nothing for 0).
+///
+/// # Safety
+/// The range is mapped and nothing in it is used again.
+unsafe fn unmap(p: *mut u8, len: usize) {
+    if len > 0 {
+        // SAFETY: as the caller promises. A failure would leave the range
+        // mapped (a leak, not a fault), so it is not checked.
+        unsafe { libc::munmap(p as *mut libc::c_void, len) };
+    }
+}
+
+// SAFETY: `alloc` returns page-aligned slots of at least the layout's size
+// (classes round up to pages, and the pool takes only alignments up to a
+// page) or the system allocator's memory; `dealloc` routes by the same
+// layout test, so each pointer returns to the allocator it came from.
+unsafe impl GlobalAlloc for PlanePool {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        match Self::class(layout) {
+            Some(pages) => self.take(pages),
+            // SAFETY: the caller's layout contract, passed on.
+            None => unsafe { System.alloc(layout) },
+        }
+    }
+
+    unsafe fn dealloc(&self, p: *mut u8, layout: Layout) {
+        match Self::class(layout) {
+            // SAFETY: `p` came from `alloc` with this layout, so from
+            // `take` with this class.
+            Some(pages) => unsafe { self.give(p, pages) },
+            // SAFETY: likewise from the system allocator.
+            None => unsafe { System.dealloc(p, layout) },
+        }
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        match Self::class(layout) {
+            Some(pages) => {
+                let p = self.take(pages);
+                if !p.is_null() {
+                    // SAFETY: a slot of at least `layout.size()` bytes.
+                    unsafe { ptr::write_bytes(p, 0, layout.size()) };
+                }
+                p
+            }
+            // SAFETY: the caller's layout contract, passed on.
+            None => unsafe { System.alloc_zeroed(layout) },
+        }
+    }
+
+    unsafe fn realloc(&self, p: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        // SAFETY (all arms): the caller's contract for `p`, `layout` and
+        // `new_size` (non-zero, fits isize with the alignment).
+        let new = unsafe { Layout::from_size_align_unchecked(new_size, layout.align()) };
+        match (Self::class(layout), Self::class(new)) {
+            (None, None) => unsafe { System.realloc(p, layout, new_size) },
+            // The slot already has room for the new size.
+            (Some(a), Some(b)) if a == b => p,
+            _ => unsafe {
+                let q = self.alloc(new);
+                if !q.is_null() {
+                    ptr::copy_nonoverlapping(p, q, layout.size().min(new_size));
+                    self.dealloc(p, layout);
+                }
+                q
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn layout(size: usize, align: usize) -> Layout {
+        Layout::from_size_align(size, align).unwrap()
+    }
+
+    #[test]
+    fn classes() {
+        assert_eq!(PlanePool::class(layout(MIN - 1, 8)), None);
+        assert_eq!(PlanePool::class(layout(MIN, 8)), Some(8));
+        assert_eq!(PlanePool::class(layout(MIN + 1, 8)), Some(9));
+        assert_eq!(PlanePool::class(layout(72 * 1024 + 2, 2)), Some(19));
+        assert_eq!(PlanePool::class(layout(MAX, 4)), Some(64));
+        assert_eq!(PlanePool::class(layout(MAX + 1, 4)), None);
+        assert_eq!(PlanePool::class(layout(MIN, 2 * PAGE)), None);
+    }
+
+    /// A slot's chunk is found from its address, slots are page-aligned,
+    /// freed slots are reused before new ones, and a chunk whose slots
+    /// are all free is unmapped unless it is its class's last with room.
+    #[test]
+    fn reuse_and_return() {
+        let pool = PlanePool::new();
+        let l = layout(72 * 1024, 2);
+        let per_chunk = (CHUNK - PAGE) / (18 * PAGE);
+        let ps: Vec<*mut u8> = (0..per_chunk + 1)
+            .map(|_| unsafe { pool.alloc(l) })
+            .collect();
+        assert!(ps
+            .iter()
+            .all(|p| !p.is_null() && (*p as usize).is_multiple_of(PAGE)));
+        assert_eq!(pool.chunks(), 2);
+        let (a, b) = (
+            ps[0] as usize & !(CHUNK - 1),
+            ps[per_chunk] as usize & !(CHUNK - 1),
+        );
+        assert_ne!(a, b);
+        assert!(ps[..per_chunk]
+            .iter()
+            .all(|&p| p as usize & !(CHUNK - 1) == a));
+        unsafe {
+            pool.dealloc(ps[3], l);
+            assert_eq!(pool.alloc(l), ps[3], "a freed slot is reused");
+            for &p in &ps[..per_chunk] {
+                pool.dealloc(p, l);
+            }
+        }
+        // The first chunk emptied while the second still had room.
+        assert_eq!(pool.chunks(), 1);
+        unsafe { pool.dealloc(ps[per_chunk], l) };
+        // The last chunk with room stays for the next brick.
+        assert_eq!(pool.chunks(), 1);
+        let p = unsafe { pool.alloc(l) };
+        assert_eq!(p as usize & !(CHUNK - 1), b);
+        unsafe { pool.dealloc(p, l) };
+    }
+
+    #[test]
+    fn zeroed_realloc_and_the_system_route() {
+        let pool = PlanePool::new();
+        unsafe {
+            let l = layout(40_000, 4);
+            let p = pool.alloc(l);
+            ptr::write_bytes(p, 0xAB, l.size());
+            pool.dealloc(p, l);
+            // The same slot again, cleared.
+            let z = pool.alloc_zeroed(l);
+            assert_eq!(z, p);
+            assert!(std::slice::from_raw_parts(z, l.size())
+                .iter()
+                .all(|&b| b == 0));
+            // Within the class: the same slot; out of it: moved, bytes kept.
+            *z = 7;
+            assert_eq!(pool.realloc(z, l, 40_900), z);
+            let big = pool.realloc(z, layout(40_900, 4), 300_000);
+            assert_eq!(*big, 7);
+            let small = pool.realloc(big, layout(300_000, 4), 100);
+            assert_eq!(*small, 7);
+            pool.dealloc(small, layout(100, 4));
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Random interleavings of allocations (pool sizes and others,
+        /// several classes) and frees: every block keeps its own bytes
+        /// and no two live blocks overlap; at the end at most one chunk
+        /// per class is still mapped.
+        #[test]
+        fn blocks_never_overlap(ops in prop::collection::vec((0usize..6, 0u8..3, any::<u8>()), 1..300)) {
+            let pool = PlanePool::new();
+            let sizes = [100, MIN, 72 * 1024 + 2, 144 * 1024, MAX, MAX + 4096];
+            let mut live: Vec<(*mut u8, Layout, u8)> = Vec::new();
+            for (s, op, fill) in ops {
+                if op < 2 || live.is_empty() {
+                    let l = layout(sizes[s], 4);
+                    let p = unsafe { pool.alloc(l) };
+                    prop_assert!(!p.is_null());
+                    unsafe { ptr::write_bytes(p, fill, l.size()) };
+                    live.push((p, l, fill));
+                } else {
+                    let (p, l, fill) = live.swap_remove(fill as usize % live.len());
+                    let bytes = unsafe { std::slice::from_raw_parts(p, l.size()) };
+                    prop_assert!(bytes.iter().all(|&b| b == fill), "a block was overwritten");
+                    unsafe { pool.dealloc(p, l) };
+                }
+            }
+            for &(p, l, fill) in &live {
+                let bytes = unsafe { std::slice::from_raw_parts(p, l.size()) };
+                prop_assert!(bytes.iter().all(|&b| b == fill), "a block was overwritten");
+                unsafe { pool.dealloc(p, l) };
+            }
+            prop_assert!(pool.chunks() <= 4, "{} chunks left", pool.chunks());
+        }
+    }
+
+    /// Two threads allocating and freeing at once see their own bytes.
+    #[test]
+    fn threads() {
+        let pool = std::sync::Arc::new(PlanePool::new());
+        let hs: Vec<_> = (0..2u8)
+            .map(|t| {
+                let pool = std::sync::Arc::clone(&pool);
+                std::thread::spawn(move || {
+                    let l = layout(MIN + 4096 * t as usize, 8);
+                    for round in 0..200u32 {
+                        let ps: Vec<_> = (0..20).map(|_| unsafe { pool.alloc(l) }).collect();
+                        for &p in &ps {
+                            unsafe { ptr::write_bytes(p, t ^ round as u8, l.size()) };
+                        }
+                        for &p in &ps {
+                            let b = unsafe { std::slice::from_raw_parts(p, l.size()) };
+                            assert!(b.iter().all(|&x| x == t ^ round as u8));
+                            unsafe { pool.dealloc(p, l) };
+                        }
+                    }
+                })
+            })
+            .collect();
+        for h in hs {
+            h.join().unwrap();
+        }
+        assert!(pool.chunks() <= 2);
+    }
+}
