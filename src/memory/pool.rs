@@ -19,7 +19,7 @@
 //! (`src/main.rs`); the library does not, so programs that link cdvol keep
 //! their own. Every other allocation goes to the system allocator.
 //!
-//! Layout of a chunk: one 4 KiB page of [`Header`], then slots of a whole
+//! Layout of a chunk: one 4 KiB page of `Header`, then slots of a whole
 //! number of pages, so every slot is page-aligned. A slot's size class is
 //! its size rounded up to pages; `dealloc` finds the class from the
 //! `Layout` (the same one `alloc` got) and the chunk from the address.
