@@ -201,6 +201,8 @@ pub struct SampleTable {
     values: std::sync::Arc<[f32]>,
     /// Per word: `kind << 8 | code`.
     kind_code: Vec<u16>,
+    /// The same as two range tests, for 16-bit words whose table has them.
+    ranges: Option<Ranges>,
 }
 
 /// What a [`SampleTable`] was built for (floats as bits).
@@ -246,15 +248,34 @@ impl SampleTable {
             &mut codes,
             Some((&mut values, map)),
         );
+        let kind_code: Vec<u16> = kinds
+            .iter()
+            .zip(&codes)
+            .map(|(&k, &c)| (k as u16) << 8 | c as u16)
+            .collect();
         Some(SampleTable {
             key: table_key(h, iso),
             values: values.into(),
-            kind_code: kinds
-                .iter()
-                .zip(&codes)
-                .map(|(&k, &c)| (k as u16) << 8 | c as u16)
-                .collect(),
+            ranges: Ranges::of(&kind_code),
+            kind_code,
         })
+    }
+
+    /// Whether this 16-bit table decodes kinds and codes by range tests
+    /// (for tests: the fast path is taken where it is expected).
+    #[doc(hidden)]
+    pub fn uses_ranges(&self) -> bool {
+        self.ranges.is_some()
+    }
+
+    /// This table with its range tests dropped (for tests: the lookup
+    /// path to compare with).
+    #[doc(hidden)]
+    pub fn without_ranges(self) -> SampleTable {
+        SampleTable {
+            ranges: None,
+            ..self
+        }
     }
 
     /// Whether this table decodes `h`'s words with `iso`.
@@ -316,7 +337,15 @@ impl SampleTable {
             *c = e as u8;
             f(i)
         };
-        if self.values.len() == 256 {
+        // 16-bit words in place (an aligned payload) with range tests.
+        let words = match self.ranges {
+            Some(_) => bytemuck::try_cast_slice::<u8, u16>(&raw[..2 * n]).ok(),
+            None => None,
+        };
+        if let (Some(r), Some(words)) = (self.ranges, words) {
+            r.fill(words, kinds, codes);
+            out.extend(words.iter().map(|&w| f(w as usize)));
+        } else if self.values.len() == 256 {
             out.extend(raw[..n].iter().zip(kc).map(|(&b, kc)| one(b as usize, kc)));
         } else {
             out.extend(
@@ -332,6 +361,95 @@ impl SampleTable {
     /// bits: 256 entries for 8-bit words, 65536 for 16-bit ones.
     pub fn values(&self) -> &std::sync::Arc<[f32]> {
         &self.values
+    }
+}
+
+/// The kinds and codes of a table of 16-bit words as two wrapping range
+/// tests instead of a lookup per word, so that the decode loop runs in
+/// vector registers: code words are one range of words (the code is the
+/// distance from its start, saturated to 254), and value words at or
+/// above the iso value one range in unsigned or in signed order (`flip`
+/// turns signed order into unsigned). [`Ranges::of`] derives them from a
+/// table and keeps them only if they give every one of the 65536 words
+/// exactly the table's kind and code, so a decode through them writes the
+/// table's bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Ranges {
+    code_lo: u16,
+    code_span: u16,
+    flip: u16,
+    above_lo: u16,
+    above_span: u16,
+    /// [`SAMPLE_ABOVE`], or 0 when no word is above the iso value.
+    above_bit: u8,
+}
+
+impl Ranges {
+    /// The kind and code of word `w`.
+    #[inline(always)]
+    fn kind_code(self, w: u16) -> (u8, u8) {
+        let d = w.wrapping_sub(self.code_lo);
+        let is_code = d <= self.code_span;
+        let above = (w ^ self.flip).wrapping_sub(self.above_lo) <= self.above_span;
+        let code = if d < 254 { d as u8 } else { 254 };
+        (
+            if is_code {
+                SAMPLE_CODE
+            } else {
+                above as u8 & self.above_bit
+            },
+            if is_code { code } else { 0 },
+        )
+    }
+
+    /// The ranges of a 16-bit table's `kind << 8 | code` entries, if
+    /// there are such ranges (see the type).
+    fn of(kind_code: &[u16]) -> Option<Ranges> {
+        if kind_code.len() != 1 << 16 {
+            return None;
+        }
+        let kind = |w: usize| (kind_code[w] >> 8) as u8;
+        let span = |mut keys: Box<dyn Iterator<Item = u16> + '_>| {
+            let first = keys.next()?;
+            let (lo, hi) = keys.fold((first, first), |(a, b), k| (a.min(k), b.max(k)));
+            Some((lo, hi - lo))
+        };
+        let (code_lo, code_span) = span(Box::new(
+            (0..=u16::MAX).filter(|&w| kind(w as usize) == SAMPLE_CODE),
+        ))?;
+        [0, 0x8000].into_iter().find_map(|flip: u16| {
+            let above = (0..=u16::MAX)
+                .filter(|&w| kind(w as usize) == SAMPLE_ABOVE)
+                .map(|w| w ^ flip);
+            let (above_lo, above_span, above_bit) = match span(Box::new(above)) {
+                Some((lo, s)) => (lo, s, SAMPLE_ABOVE),
+                None => (0, 0, 0),
+            };
+            let r = Ranges {
+                code_lo,
+                code_span,
+                flip,
+                above_lo,
+                above_span,
+                above_bit,
+            };
+            let exact = (0..=u16::MAX).all(|w| {
+                let (k, c) = r.kind_code(w);
+                kind_code[w as usize] == (k as u16) << 8 | c as u16
+            });
+            exact.then_some(r)
+        })
+    }
+
+    /// `kinds[i]` and `codes[i]` of `words[i]`, for every word.
+    fn fill(self, words: &[u16], kinds: &mut [u8], codes: &mut [u8]) {
+        let n = words.len();
+        let (kinds, codes) = (&mut kinds[..n], &mut codes[..n]);
+        for i in 0..n {
+            let (k, c) = self.kind_code(words[i]);
+            kinds[i] = k;
+            codes[i] = c;
+        }
     }
 }
 

@@ -1362,6 +1362,52 @@ mod tests {
         b.values.to_f32().iter().map(|v| v.to_bits()).collect()
     }
 
+    /// 16-bit tables decode kinds and codes by two range tests wherever
+    /// the words allow (unsigned and signed words, rising and falling
+    /// rescales, the iso value below, among and above the values, codes
+    /// at either end of the words), and give the lookup's bytes for all
+    /// 65536 words.
+    #[test]
+    fn range_tests_equal_the_lookup_for_every_word() {
+        use crate::format::brick::SampleTable;
+        let cases = [
+            (Dtype::U16, 65000, 1.0, 0.0, 300.0),
+            (Dtype::U16, 0, 1.0, -1024.0, 300.0),
+            (Dtype::I16, -32768, 1.0, 0.0, 300.0),
+            (Dtype::I16, 32000, -2.0, 5.0, 300.0),
+            (Dtype::I16, 100, 0.5, 0.0, -1e9),
+            (Dtype::U16, 1000, 1.0, 0.0, 1e9),
+            (Dtype::I16, 0, 1.0, 0.0, -32768.0),
+        ];
+        let words: Vec<u16> = (0..=u16::MAX).collect();
+        let raw: &[u8] = bytemuck::cast_slice(&words);
+        for (storage, base, slope, intercept, iso) in cases {
+            let enc = CodeEncoding::IntRange { base, max: 300 };
+            let h = header(storage, enc, Rescale { slope, intercept }, iso, [2, 2, 2]);
+            let t = SampleTable::new(&h, Some(iso), super::to_f32).unwrap();
+            assert!(
+                t.uses_ranges(),
+                "{storage:?} base {base} slope {slope} iso {iso}"
+            );
+            let decode = |t: &SampleTable| {
+                let (mut k, mut c, mut w) = (Vec::new(), Vec::new(), Vec::<u16>::new());
+                t.decode_words(raw, words.len(), &mut k, &mut c, &mut w);
+                let mut v = Vec::new();
+                t.decode(raw, words.len(), &mut k, &mut c, &mut v);
+                (k, c, w, v.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+            };
+            let fast = decode(&t);
+            assert!(
+                fast.0.contains(&2) && fast.1.contains(&254),
+                "codes saturate"
+            );
+            assert!(
+                fast == decode(&t.without_ranges()),
+                "{storage:?} {slope} {iso}"
+            );
+        }
+    }
+
     proptest! {
         /// The fast decode equals the reference (decode_words + the
         /// per-cell rule) on random bricks of every storage type: codes,
