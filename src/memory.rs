@@ -9,7 +9,10 @@
 //! RSS, 700 MiB above the cache it was allowed. Pinning the threshold at
 //! 64 KiB makes every large buffer its own mapping, returned to the system
 //! on free, so RSS tracks the cache budget (measured in
-//! docs/BENCHMARKS.md, "Larger than RAM").
+//! docs/BENCHMARKS.md, "Larger than RAM"). The binary's allocator
+//! ([`pool`], Linux) now takes the brick planes themselves out of that
+//! path: they come from huge-page chunks and are reused between bricks;
+//! the pin still applies to every other large buffer.
 
 #[cfg(target_os = "linux")]
 pub mod pool;
