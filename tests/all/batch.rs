@@ -142,6 +142,29 @@ fn mixed_inputs_one_broken_then_resume() {
     assert_eq!(status(&r, "a/head.json"), "done");
     assert_eq!(status(&r, "p1/ct"), "skipped");
     assert_eq!(status(&r, "broken/short.json"), "done");
+
+    // Asking for format version 2 (for older readers) redoes the version 3
+    // outputs; asking for 3 again keeps those version 2 files, which read
+    // as well.
+    let o = batch(&input, &out, &["--format-version", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = rows(&out, "batch.json");
+    for x in &r {
+        assert_eq!(x["status"], "done", "{x:#?}");
+        let why = x["reason"].as_str().unwrap_or_default();
+        assert!(why.contains("format-version 3 -> 2"), "{why}");
+    }
+    assert_eq!(
+        PackedVolume::open(&out.join("p1_ct.cdv"))
+            .unwrap()
+            .header()
+            .format_version,
+        2
+    );
+    let o = batch(&input, &out, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = rows(&out, "batch.json");
+    assert!(r.iter().all(|x| x["status"] == "skipped"), "{r:#?}");
 }
 
 #[test]
