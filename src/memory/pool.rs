@@ -135,18 +135,17 @@ impl PlanePool {
         // SAFETY: `h` is a mapped chunk of this class with room (only such
         // chunks are listed); its header and slots are ours under the lock.
         unsafe {
-            let c = &mut *h;
-            let slot = if c.free.is_null() {
-                let s = (h as *mut u8).add(PAGE + c.bump * c.pages * PAGE);
-                c.bump += 1;
+            let slot = if (*h).free.is_null() {
+                let s = (h as *mut u8).add(PAGE + (*h).bump * (*h).pages * PAGE);
+                (*h).bump += 1;
                 s
             } else {
-                let s = c.free;
-                c.free = ptr::read(s as *const *mut u8);
+                let s = (*h).free;
+                (*h).free = ptr::read(s as *const *mut u8);
                 s
             };
-            c.live += 1;
-            if !c.has_room() {
+            (*h).live += 1;
+            if !(*h).has_room() {
                 unlink(&mut st, h);
             }
             slot
@@ -161,19 +160,21 @@ impl PlanePool {
         let h = (slot as usize & !(CHUNK - 1)) as *mut Header;
         let mut st = self.lock();
         // SAFETY: the chunk holding `slot` is mapped (it has a live slot)
-        // and its header is ours under the lock.
+        // and its header is ours under the lock. The header is reached
+        // through `h` each time, never through a reference kept across
+        // `push` and `unlink`, which write it too.
         unsafe {
-            let c = &mut *h;
-            debug_assert_eq!(c.pages, pages, "a slot returned to another class");
-            ptr::write(slot as *mut *mut u8, c.free);
-            c.free = slot;
-            c.live -= 1;
-            if !c.listed {
+            debug_assert_eq!((*h).pages, pages, "a slot returned to another class");
+            ptr::write(slot as *mut *mut u8, (*h).free);
+            (*h).free = slot;
+            (*h).live -= 1;
+            if !(*h).listed {
                 push(&mut st, h);
             }
             // An empty chunk goes back to the system unless it is the
             // class's only one with room (then the next brick reuses it).
-            if c.live == 0 && !(st.partial[pages] == h && c.next.is_null()) {
+            let only = st.partial[pages] == h && (*h).next.is_null();
+            if (*h).live == 0 && !only {
                 unlink(&mut st, h);
                 st.chunks -= 1;
                 drop(st);
