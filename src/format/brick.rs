@@ -325,11 +325,23 @@ impl SampleTable {
         f: F,
     ) {
         kinds.clear();
-        kinds.resize(n, 0);
         codes.clear();
-        codes.resize(n, 0);
         out.clear();
         out.reserve_exact(n);
+        // 16-bit words in place (an aligned payload) with range tests:
+        // each plane written once, with no clearing pass before it.
+        let words = match self.ranges {
+            Some(_) => bytemuck::try_cast_slice::<u8, u16>(&raw[..2 * n]).ok(),
+            None => None,
+        };
+        if let (Some(r), Some(words)) = (self.ranges, words) {
+            kinds.extend(words.iter().map(|&w| r.kind_code(w).0));
+            codes.extend(words.iter().map(|&w| r.kind_code(w).1));
+            out.extend(words.iter().map(|&w| f(w as usize)));
+            return;
+        }
+        kinds.resize(n, 0);
+        codes.resize(n, 0);
         let kc = kinds.iter_mut().zip(codes.iter_mut());
         let one = |i: usize, (k, c): (&mut u8, &mut u8)| {
             let e = self.kind_code[i];
@@ -337,15 +349,7 @@ impl SampleTable {
             *c = e as u8;
             f(i)
         };
-        // 16-bit words in place (an aligned payload) with range tests.
-        let words = match self.ranges {
-            Some(_) => bytemuck::try_cast_slice::<u8, u16>(&raw[..2 * n]).ok(),
-            None => None,
-        };
-        if let (Some(r), Some(words)) = (self.ranges, words) {
-            r.fill(words, kinds, codes);
-            out.extend(words.iter().map(|&w| f(w as usize)));
-        } else if self.values.len() == 256 {
+        if self.values.len() == 256 {
             out.extend(raw[..n].iter().zip(kc).map(|(&b, kc)| one(b as usize, kc)));
         } else {
             out.extend(
@@ -440,17 +444,6 @@ impl Ranges {
             exact.then_some(r)
         })
     }
-
-    /// `kinds[i]` and `codes[i]` of `words[i]`, for every word.
-    fn fill(self, words: &[u16], kinds: &mut [u8], codes: &mut [u8]) {
-        let n = words.len();
-        let (kinds, codes) = (&mut kinds[..n], &mut codes[..n]);
-        for i in 0..n {
-            let (k, c) = self.kind_code(words[i]);
-            kinds[i] = k;
-            codes[i] = c;
-        }
-    }
 }
 
 /// A stored word kept as its [`SampleTable`] index.
@@ -481,6 +474,20 @@ impl SampleTable {
     pub fn corner_codes(&self, raw: &[u8], samples: [usize; 3], plane: &mut Vec<u8>) {
         let [sx, sy, sz] = samples;
         let size = if self.values.len() == 256 { 1 } else { 2 };
+        // 16-bit words in place (an aligned payload) with range tests.
+        let words = match self.ranges {
+            Some(_) => bytemuck::try_cast_slice::<u8, u16>(&raw[..2 * sx * sy * sz]).ok(),
+            None => None,
+        };
+        if let (Some(r), Some(words)) = (self.ranges, words) {
+            for z in 0..sz - 1 {
+                for y in 0..sy - 1 {
+                    let row = &words[(z * sy + y) * sx..(z * sy + y) * sx + sx - 1];
+                    plane.extend(row.iter().map(|&w| r.kind_code(w).1));
+                }
+            }
+            return;
+        }
         for z in 0..sz - 1 {
             for y in 0..sy - 1 {
                 let row = &raw[(z * sy + y) * sx * size..((z * sy + y) * sx + sx - 1) * size];

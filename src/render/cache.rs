@@ -1396,15 +1396,22 @@ mod tests {
                 t.decode(raw, words.len(), &mut k, &mut c, &mut v);
                 (k, c, w, v.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
             };
+            let slow = SampleTable::new(&h, Some(iso), super::to_f32)
+                .unwrap()
+                .without_ranges();
             let fast = decode(&t);
             assert!(
                 fast.0.contains(&2) && fast.1.contains(&254),
                 "codes saturate"
             );
-            assert!(
-                fast == decode(&t.without_ranges()),
-                "{storage:?} {slope} {iso}"
-            );
+            assert!(fast == decode(&slow), "{storage:?} {slope} {iso}");
+            // The cells' minimum-corner codes of a 64 x 32 x 32 brick of all
+            // the words.
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            t.corner_codes(raw, [64, 32, 32], &mut a);
+            slow.corner_codes(raw, [64, 32, 32], &mut b);
+            assert_eq!(a.len(), 63 * 31 * 31);
+            assert!(a == b, "corner codes, {storage:?} {slope} {iso}");
         }
     }
 
