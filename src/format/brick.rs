@@ -261,6 +261,15 @@ impl SampleTable {
         })
     }
 
+    /// The range tests and the first `n` words of `raw` in place, when
+    /// this table has range tests and the payload is aligned for 16-bit
+    /// words (else the caller looks words up in the table).
+    fn range_words<'a>(&self, raw: &'a [u8], n: usize) -> Option<(Ranges, &'a [u16])> {
+        let r = self.ranges?;
+        let words = bytemuck::try_cast_slice::<u8, u16>(&raw[..2 * n]).ok()?;
+        Some((r, words))
+    }
+
     /// Whether this 16-bit table decodes kinds and codes by range tests
     /// (for tests: the fast path is taken where it is expected).
     #[doc(hidden)]
@@ -328,13 +337,8 @@ impl SampleTable {
         codes.clear();
         out.clear();
         out.reserve_exact(n);
-        // 16-bit words in place (an aligned payload) with range tests:
-        // each plane written once, with no clearing pass before it.
-        let words = match self.ranges {
-            Some(_) => bytemuck::try_cast_slice::<u8, u16>(&raw[..2 * n]).ok(),
-            None => None,
-        };
-        if let (Some(r), Some(words)) = (self.ranges, words) {
+        // Each plane written once, with no clearing pass before it.
+        if let Some((r, words)) = self.range_words(raw, n) {
             kinds.extend(words.iter().map(|&w| r.kind_code(w).0));
             codes.extend(words.iter().map(|&w| r.kind_code(w).1));
             out.extend(words.iter().map(|&w| f(w as usize)));
@@ -412,20 +416,13 @@ impl Ranges {
         if kind_code.len() != 1 << 16 {
             return None;
         }
-        let kind = |w: usize| (kind_code[w] >> 8) as u8;
-        let span = |mut keys: Box<dyn Iterator<Item = u16> + '_>| {
-            let first = keys.next()?;
-            let (lo, hi) = keys.fold((first, first), |(a, b), k| (a.min(k), b.max(k)));
-            Some((lo, hi - lo))
-        };
-        let (code_lo, code_span) = span(Box::new(
-            (0..=u16::MAX).filter(|&w| kind(w as usize) == SAMPLE_CODE),
-        ))?;
+        let kind = |w: u16| (kind_code[w as usize] >> 8) as u8;
+        let (code_lo, code_span) = span((0..=u16::MAX).filter(|&w| kind(w) == SAMPLE_CODE))?;
         [0, 0x8000].into_iter().find_map(|flip: u16| {
             let above = (0..=u16::MAX)
-                .filter(|&w| kind(w as usize) == SAMPLE_ABOVE)
+                .filter(|&w| kind(w) == SAMPLE_ABOVE)
                 .map(|w| w ^ flip);
-            let (above_lo, above_span, above_bit) = match span(Box::new(above)) {
+            let (above_lo, above_span, above_bit) = match span(above) {
                 Some((lo, s)) => (lo, s, SAMPLE_ABOVE),
                 None => (0, 0, 0),
             };
@@ -444,6 +441,15 @@ impl Ranges {
             exact.then_some(r)
         })
     }
+}
+
+/// The smallest of `keys` and how far the largest lies above it.
+fn span(keys: impl Iterator<Item = u16>) -> Option<(u16, u16)> {
+    let (lo, hi) = keys.fold(None, |m, k| match m {
+        None => Some((k, k)),
+        Some((a, b)) => Some((k.min(a), k.max(b))),
+    })?;
+    Some((lo, hi - lo))
 }
 
 /// A stored word kept as its [`SampleTable`] index.
@@ -474,12 +480,7 @@ impl SampleTable {
     pub fn corner_codes(&self, raw: &[u8], samples: [usize; 3], plane: &mut Vec<u8>) {
         let [sx, sy, sz] = samples;
         let size = if self.values.len() == 256 { 1 } else { 2 };
-        // 16-bit words in place (an aligned payload) with range tests.
-        let words = match self.ranges {
-            Some(_) => bytemuck::try_cast_slice::<u8, u16>(&raw[..2 * sx * sy * sz]).ok(),
-            None => None,
-        };
-        if let (Some(r), Some(words)) = (self.ranges, words) {
+        if let Some((r, words)) = self.range_words(raw, sx * sy * sz) {
             for z in 0..sz - 1 {
                 for y in 0..sy - 1 {
                     let row = &words[(z * sy + y) * sx..(z * sy + y) * sx + sx - 1];
