@@ -72,7 +72,7 @@ impl Header {
 /// Per class, the head of its list of chunks with free slots.
 struct State {
     partial: [*mut Header; CLASSES],
-    /// Chunks currently mapped (for tests and `--stats`-like reports).
+    /// Chunks currently mapped (the tests check what is returned).
     chunks: usize,
 }
 

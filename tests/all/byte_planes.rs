@@ -17,13 +17,12 @@ use cdvol::render::traverse::Method;
 use cdvol::render::{render, Mode};
 
 /// The stored payload of brick `id` decompressed, without joining its
-/// planes (None for a uniform brick).
-fn stored(path: &std::path::Path, vol: &PackedVolume, id: u64) -> Option<Vec<u8>> {
+/// planes (None for a uniform brick); `bytes` is the whole file.
+fn stored(bytes: &[u8], vol: &PackedVolume, id: u64) -> Option<Vec<u8>> {
     let e = vol.index()[id as usize];
     if e.is_uniform() {
         return None;
     }
-    let bytes = std::fs::read(path).unwrap();
     let comp = &bytes[e.offset as usize..e.offset as usize + e.length as usize];
     Some(zstd::decode_all(comp).unwrap())
 }
@@ -53,6 +52,7 @@ fn check(dtype: &str, dims: [usize; 3], values: &[f64], brick: usize, aniso: boo
     assert_eq!(v3.header().byte_planes(), width > 1, "{dtype}");
     assert!(!v2.header().byte_planes());
     assert_eq!(v2.index().len(), v3.index().len());
+    let (f2, f3) = (std::fs::read(&p2).unwrap(), std::fs::read(&p3).unwrap());
     for id in 0..v2.header().brick_count() {
         let (a, b) = (v2.index()[id as usize], v3.index()[id as usize]);
         assert_eq!(
@@ -65,7 +65,7 @@ fn check(dtype: &str, dims: [usize; 3], values: &[f64], brick: usize, aniso: boo
         assert_eq!(r2, r3, "{dtype} brick {id}: payload read back");
         // Stored, version 3 holds the planes of version 2's words, then
         // the same octant and DDA bytes.
-        let (Some(s2), Some(s3)) = (stored(&p2, &v2, id), stored(&p3, &v3, id)) else {
+        let (Some(s2), Some(s3)) = (stored(&f2, &v2, id), stored(&f3, &v3, id)) else {
             continue;
         };
         assert_eq!(Some(&s2), r2.as_ref(), "version 2 is stored as read");
