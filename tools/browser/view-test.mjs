@@ -245,6 +245,54 @@ async function main() {
     else if (c.maxDiff > 2 || c.differing > c.pixels * 0.001) {
       fail(`screenshot differs from cdvol render: ${c.differing} of ${c.pixels} pixels, max ${c.maxDiff}`);
     }
+    // A superseded full frame whose abort lands while its body is still
+    // arriving (a CI run met it with four clients): the page must take it
+    // as superseded, not throw. The first request's body is held open
+    // until its signal aborts, then a second change of the view aborts it.
+    result.abort_mid_body = await page.evaluate(async () => {
+      const real = window.fetch;
+      let headers;
+      const arrived = new Promise((ok) => { headers = ok; });
+      let held = false;
+      window.fetch = async (url, init) => {
+        const r = await real(url, init);
+        if (held || !init?.signal) return r;
+        held = true;
+        r.body?.cancel();
+        const signal = init.signal;
+        const body = new ReadableStream({
+          start(c) {
+            signal.addEventListener("abort", () => c.error(new DOMException("aborted", "AbortError")));
+            headers();
+          },
+        });
+        return new Response(body, { status: r.status, headers: r.headers });
+      };
+      // Every error text the page shows meanwhile (the next frame clears it).
+      const shownErrors = [];
+      const watch = new MutationObserver(() => {
+        const t = document.getElementById("err").textContent;
+        if (t) shownErrors.push(t);
+      });
+      watch.observe(document.getElementById("err"), { childList: true, characterData: true, subtree: true });
+      try {
+        changed(true);
+        await arrived;
+        changed(true);
+        const v = window.__cdvol.version;
+        while (!(window.__cdvol.lastFull && window.__cdvol.lastFull.version >= v)) {
+          await new Promise((ok) => setTimeout(ok, 20));
+        }
+        // Nothing may be shown in between: an aborted frame is no error.
+        return { held, error_shown: shownErrors.join("; "),
+                 shown_version: window.__cdvol.lastFull.version };
+      } finally {
+        watch.disconnect();
+        window.fetch = real;
+      }
+    });
+    if (!result.abort_mid_body.held) fail("the mid-body abort was not exercised");
+    if (result.abort_mid_body.error_shown) fail("the aborted frame showed: " + result.abort_mid_body.error_shown);
     for (const p of pages) if (p.errors.length) fail("page errors: " + p.errors.join("; "));
     const shown = await page.evaluate(() => document.getElementById("err").textContent);
     if (shown) fail("the page shows an error: " + shown);
