@@ -11,6 +11,8 @@
 //! the words, and the octant and DDA planes that follow the words, are
 //! unchanged.
 
+use std::mem::MaybeUninit;
+
 /// Writes the byte planes of `words` (whole words of `width` bytes, in
 /// sample order) to the end of `out`.
 ///
@@ -40,41 +42,58 @@ pub fn split(words: &[u8], width: usize, out: &mut Vec<u8>) {
     }
 }
 
-/// The inverse of [`split`]: fills `words` (whole words of `width` bytes)
-/// from `planes`, the same number of bytes.
+/// The inverse of [`split`]: appends to `out` the words (of `width`
+/// bytes) whose planes are `planes`.
+///
+/// The words are written straight into `out`'s spare capacity: the
+/// reader decompresses the planes into one buffer and joins them into
+/// another, with no copy of the planes aside and no zeroing of the
+/// destination first (docs/BENCHMARKS.md, "The join without a copy").
 ///
 /// # Panics
-/// If the lengths differ or are not whole words (a programming error: the
-/// reader checks the payload's length before it joins).
-pub fn join(planes: &[u8], width: usize, words: &mut [u8]) {
+/// If `width` is 0 or `planes` is not whole words (a programming error:
+/// the reader checks the payload's length before it joins).
+pub fn join_into(planes: &[u8], width: usize, out: &mut Vec<u8>) {
     assert!(
-        width > 0 && planes.len() == words.len() && words.len().is_multiple_of(width),
-        "whole words of equal length"
+        width > 0 && planes.len().is_multiple_of(width),
+        "whole words"
     );
-    let n = words.len() / width;
+    let n = planes.len() / width;
+    let start = out.len();
+    out.reserve(planes.len());
+    let dst = &mut out.spare_capacity_mut()[..planes.len()];
     match width {
-        1 => words.copy_from_slice(planes),
-        2 => join2(&planes[..n], &planes[n..], words),
+        1 => {
+            for (d, &b) in dst.iter_mut().zip(planes) {
+                d.write(b);
+            }
+        }
+        2 => join2(&planes[..n], &planes[n..], dst),
         _ => {
             for (b, plane) in planes.chunks_exact(n.max(1)).enumerate() {
-                for (w, &byte) in words.chunks_exact_mut(width).zip(plane) {
-                    w[b] = byte;
+                for (w, &byte) in dst.chunks_exact_mut(width).zip(plane) {
+                    w[b].write(byte);
                 }
             }
         }
     }
+    // SAFETY: the `planes.len()` bytes after `start` are initialised:
+    // width 1 and 2 write every byte of `dst`; wider words write byte `b`
+    // of each of the `n` words from plane `b`, for every `b < width`.
+    unsafe { out.set_len(start + planes.len()) };
 }
 
 /// 16-bit words from their two planes, 16 words per step (a fixed-size
-/// body the compiler turns into byte interleaves), then the tail.
-fn join2(lo: &[u8], hi: &[u8], words: &mut [u8]) {
+/// body the compiler turns into byte interleaves), then the tail. Writes
+/// every byte of `words`, which holds `2 * lo.len()`.
+fn join2(lo: &[u8], hi: &[u8], words: &mut [MaybeUninit<u8>]) {
     const STEP: usize = 16;
     let mut out = words.chunks_exact_mut(2 * STEP);
     let (mut l, mut h) = (lo.chunks_exact(STEP), hi.chunks_exact(STEP));
     for ((o, l), h) in (&mut out).zip(&mut l).zip(&mut h) {
         for i in 0..STEP {
-            o[2 * i] = l[i];
-            o[2 * i + 1] = h[i];
+            o[2 * i].write(l[i]);
+            o[2 * i + 1].write(h[i]);
         }
     }
     let tail = out.into_remainder();
@@ -83,8 +102,8 @@ fn join2(lo: &[u8], hi: &[u8], words: &mut [u8]) {
         .zip(l.remainder())
         .zip(h.remainder())
     {
-        o[0] = l;
-        o[1] = h;
+        o[0].write(l);
+        o[1].write(h);
     }
 }
 
@@ -116,9 +135,10 @@ mod tests {
                     prop_assert_eq!(planes[b * n + i], words[i * width + b]);
                 }
             }
-            let mut back = vec![0u8; words.len()];
-            join(planes, width, &mut back);
-            prop_assert_eq!(back, words);
+            let mut back = vec![9u8; 2];
+            join_into(planes, width, &mut back);
+            prop_assert_eq!(&back[..2], &[9u8; 2][..], "join appends");
+            prop_assert_eq!(&back[2..], &words[..]);
         }
     }
 
@@ -128,13 +148,15 @@ mod tests {
             let mut planes = Vec::new();
             split(&[], width, &mut planes);
             assert!(planes.is_empty());
-            join(&[], width, &mut []);
+            let mut back = Vec::new();
+            join_into(&[], width, &mut back);
+            assert!(back.is_empty());
         }
     }
 
     #[test]
     #[should_panic(expected = "whole words")]
-    fn join_refuses_unequal_lengths() {
-        join(&[1, 2, 3, 4], 2, &mut [0; 2]);
+    fn join_refuses_partial_words() {
+        join_into(&[1, 2, 3], 2, &mut Vec::new());
     }
 }

@@ -373,12 +373,15 @@ impl PackedVolume {
             ));
         }
         if self.header.byte_planes() {
-            // The stored bytes are no longer needed: they hold the planes
-            // while the words are joined back in place.
+            // The stored bytes are no longer needed: the words are joined
+            // from `raw` into that buffer, the rest of the payload (octant
+            // codes, DDA planes) follows them, and the two trade places.
             let n = self.header.words_len(self.header.brick_coords(id)) as usize;
             comp.clear();
-            comp.extend_from_slice(&raw[..n]);
-            super::planes::join(comp, self.header.storage.size(), &mut raw[..n]);
+            comp.reserve_exact(raw.len());
+            super::planes::join_into(&raw[..n], self.header.storage.size(), comp);
+            comp.extend_from_slice(&raw[n..]);
+            std::mem::swap(comp, raw);
         }
         Ok(true)
     }
