@@ -85,8 +85,27 @@ fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
                 common::same_frame(&fc, &ft),
                 "{mode:?} {method:?}: images differ"
             );
+            // Coverage and the MIP maxima (f32 bits) too.
+            prop_assert_eq!(&fc.alpha, &ft.alpha, "{:?} {:?}", mode, method);
+            let bits = |f: &Frame| {
+                f.values
+                    .as_ref()
+                    .map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+            };
+            prop_assert_eq!(bits(&fc), bits(&ft), "{:?} {:?}", mode, method);
             prop_assert_eq!(sc.hits, st.hits);
             prop_assert_eq!(st.rays_culled, 0);
+            // A traced pixel takes the steps it takes with culling off.
+            for (c, t) in fc.steps.iter().zip(&ft.steps) {
+                prop_assert!(
+                    *c == 0 || c == t,
+                    "{:?} {:?}: {} steps, {} traced",
+                    mode,
+                    method,
+                    c,
+                    t
+                );
+            }
             prop_assert!(sc.steps <= st.steps);
             prop_assert!(sc.bricks_read <= st.bricks_read);
             // The cover depends on the file and camera only.
