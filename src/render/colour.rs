@@ -268,6 +268,10 @@ pub(crate) fn colour_blocks(
     let (mut rgb, mut alpha) = (vec![0u8; 3 * n], vec![0u8; n]);
     let mut linear = vec![0f32; if unrounded { 4 * n } else { 0 }];
     let mut steps = vec![0u32; n];
+    // A missed pixel (every culled one, render/cull.rs) colours as +0.0
+    // in all four channels, 0 in 8 bits, with 0 steps in every colouring
+    // but the cost map's: what the planes already hold.
+    let skip_misses = !matches!(scale, Scale::Cost { .. });
     // Row `y` of the planes (`linear` when kept).
     let row = |y: usize,
                rgb: &mut [u8],
@@ -275,6 +279,9 @@ pub(crate) fn colour_blocks(
                steps: &mut [u32],
                mut linear: Option<&mut [f32]>| {
         rows.each(y as u32, |x, p| {
+            if skip_misses && p.is_miss() {
+                return;
+            }
             let c = colour_px(scale, p);
             if let Some(l) = linear.as_deref_mut() {
                 l[4 * x..4 * x + 4].copy_from_slice(&c);
@@ -602,7 +609,7 @@ mod tests {
     }
 
     fn pixel() -> impl Strategy<Value = Px> {
-        (
+        let any_px = (
             proptest::array::uniform3(float()),
             float(),
             float(),
@@ -615,7 +622,23 @@ mod tests {
                 depth,
                 steps,
                 hit,
-            })
+            });
+        // Culled pixels, and pixels one field away from them (the
+        // colouring skips the first only).
+        let near_miss = (0usize..7).prop_map(|i| {
+            let mut p = Px::MISS;
+            match i {
+                1 => p.alpha = -0.0,
+                2 => p.steps = 1,
+                3 => p.hit = true,
+                4 => p.rgb[1] = -0.0,
+                5 => p.depth = 0.5,
+                6 => p.depth = -f32::NAN,
+                _ => {}
+            }
+            p
+        });
+        prop_oneof![3 => any_px, 1 => near_miss]
     }
 
     proptest! {

@@ -49,6 +49,17 @@ impl Px {
         steps: 0,
         hit: false,
     };
+
+    /// Whether this is [`Px::MISS`] bit for bit (any NaN depth): a pixel
+    /// every colouring but the cost map's draws as zeros.
+    #[inline]
+    pub(crate) fn is_miss(&self) -> bool {
+        self.rgb.map(f32::to_bits) == [0; 3]
+            && self.alpha.to_bits() == 0
+            && self.depth.is_nan()
+            && self.steps == 0
+            && !self.hit
+    }
 }
 
 /// What every integrator reads: the grid in the traversal's arithmetic,
