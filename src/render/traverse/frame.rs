@@ -192,6 +192,14 @@ impl<'g, T: Real> Frame<'g, T> {
     /// bounded by the cube otherwise.
     #[inline(always)]
     pub(super) fn locate(&self, k: usize, t: T, lo: u32, hi: u32) -> u32 {
+        self.locate_next(k, t, lo, hi).0
+    }
+
+    /// [`Frame::locate`], with `plane_t(k, j + 1)` of the `j` it finds when
+    /// its search computed that plane on the way (the same value, so a
+    /// leap need not compute it again for the cell's next crossing).
+    #[inline(always)]
+    pub(super) fn locate_next(&self, k: usize, t: T, lo: u32, hi: u32) -> (u32, Option<T>) {
         if self.uniform[k].is_some() {
             let p = self.o[k] + t * self.d[k];
             // Clamped before truncating: inside (lo, hi) the estimate is
@@ -207,24 +215,43 @@ impl<'g, T: Real> Frame<'g, T> {
             } else {
                 lo
             };
-            while j < hi && self.plane_t(k, j + 1) <= t {
+            // Up while the next plane is at or before t, then down while
+            // the cell's own plane is after it; `after` keeps the last
+            // plane found after t, which is then plane `j + 1`.
+            let mut after = None;
+            while j < hi {
+                let tp = self.plane_t(k, j + 1);
+                if tp > t {
+                    after = Some(tp);
+                    break;
+                }
                 j += 1;
             }
-            while j > lo && self.plane_t(k, j) > t {
+            while j > lo {
+                let tp = self.plane_t(k, j);
+                if tp <= t {
+                    break;
+                }
                 j -= 1;
+                after = Some(tp);
             }
-            j
+            (j, after)
         } else {
             let (mut a, mut b) = (lo, hi);
+            // The last plane found after t: plane `b + 1`, and at the end
+            // `a == b`.
+            let mut after = None;
             while a < b {
                 let m = a + (b - a).div_ceil(2);
-                if self.plane_t(k, m) <= t {
+                let tp = self.plane_t(k, m);
+                if tp <= t {
                     a = m;
                 } else {
                     b = m - 1;
+                    after = Some(tp);
                 }
             }
-            a
+            (a, after)
         }
     }
 
@@ -353,15 +380,16 @@ impl<T: Real> Cursor<T> {
             return false;
         };
         for k in 0..3 {
+            let mut after = None;
             if k == m {
                 self.v[k] = far[k];
             } else if f.d[k] != T::zero() {
-                self.v[k] = f.locate(k, t, self.v[k], far[k]);
+                (self.v[k], after) = f.locate_next(k, t, self.v[k], far[k]);
                 if self.v[k] >= f.n[k] {
                     return false;
                 }
             }
-            self.next[k] = f.plane_t(k, self.v[k] + 1);
+            self.next[k] = after.unwrap_or_else(|| f.plane_t(k, self.v[k] + 1));
         }
         self.t_enter = t;
         true

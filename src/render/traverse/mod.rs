@@ -465,6 +465,53 @@ mod tests {
         }
     }
 
+    proptest! {
+        /// Locate with the plane after the cell it finds: the same cell
+        /// as [`Frame::locate`], and that plane's `t` bit for bit, on
+        /// uniform axes (estimate and correction) and rectilinear ones
+        /// (binary search), both orientations, any `t` in or beyond the
+        /// bounds searched.
+        #[test]
+        fn locate_next_gives_the_plane_after_the_cell(
+            gaps in proptest::collection::vec(0.05f64..3.0, 1..40),
+            uniform in any::<bool>(),
+            o in -5.0f64..80.0,
+            d in prop_oneof![-2.0f64..-0.01, 0.01f64..2.0],
+            t in -50.0f64..150.0,
+            bounds in (0usize..40, 0usize..40),
+            on in (0usize..40, 0usize..4),
+        ) {
+            let axis = if uniform {
+                crate::grid::Axis::uniform(-1.0, gaps[0], gaps.len() + 1).expect("axis")
+            } else {
+                let mut p = vec![-1.0];
+                for g in &gaps {
+                    p.push(p[p.len() - 1] + g);
+                }
+                crate::grid::Axis::from_coords(p).expect("axis")
+            };
+            let cells = axis.cells() as u32;
+            let g = TGrid::<f64>::new(&[axis.clone(), axis.clone(), axis]);
+            let ray = Ray::new([o, o, o], [d, 0.3, -0.2]).expect("finite ray");
+            let f = Frame::new(&g, &ray);
+            let (a, b) = (bounds.0 as u32 % cells, bounds.1 as u32 % cells);
+            let (lo, hi) = (a.min(b), a.max(b));
+            // Also on, just before and just after a plane, where the
+            // uniform estimate can land a cell off and be corrected.
+            let p = f.plane_t(0, on.0 as u32 % (cells + 1));
+            let t = [t, p, p.next_down(), p.next_up()][on.1];
+            // Locate's precondition: the plane of `lo` is at or before t.
+            let t = t.max(f.plane_t(0, lo));
+            let (j, after) = f.locate_next(0, t, lo, hi);
+            prop_assert_eq!(j, f.locate(0, t, lo, hi));
+            prop_assert!(f.plane_t(0, j) <= t);
+            prop_assert!(j == hi || f.plane_t(0, j + 1) > t);
+            if let Some(after) = after {
+                prop_assert_eq!(after.to_bits(), f.plane_t(0, j + 1).to_bits());
+            }
+        }
+    }
+
     fn method() -> impl Strategy<Value = Method> {
         prop_oneof![
             Just(Method::Fvt),
