@@ -385,20 +385,18 @@ fn colour_px(scale: Scale, p: &Px) -> [f32; 4] {
 /// the same result for every `x` (NaN and below 0 give 0, above 1 give
 /// 255), without a call to libm's `roundf` (the default x86-64 target
 /// has no rounding instruction; four calls per pixel were 2 % of a warm
-/// surface frame). In `[0, 256)` the truncation `t` and the fraction
-/// `y - t` are exact, so comparing the fraction with 0.5 rounds half
-/// away from zero as `round` does.
+/// surface frame), and without a branch. `y` is clamped to `[0, 255]`
+/// first (`max` and `min` take the number over a NaN, so NaN gives 0;
+/// from 255 up every rounding is 255). There the truncation `t` and the
+/// fraction `y - t` are exact, so comparing the fraction with 0.5 rounds
+/// half away from zero as `round` does.
 #[inline]
+// `clamp` would keep a NaN; `max` turns it into 0.
+#[allow(clippy::manual_clamp)]
 pub(crate) fn to8(x: f32) -> u8 {
-    let y = x * 255.0;
-    if (0.0..256.0).contains(&y) {
-        let t = y as i32 as f32;
-        (if y - t >= 0.5 { t + 1.0 } else { t }) as u8
-    } else if y >= 256.0 {
-        255
-    } else {
-        0
-    }
+    let y = (x * 255.0).max(0.0).min(255.0);
+    let t = y as i32 as f32;
+    (t + f32::from(u8::from(y - t >= 0.5))) as u8
 }
 
 /// Black -> purple -> orange -> yellow-white heat map.
