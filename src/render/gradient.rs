@@ -31,7 +31,7 @@
 //! carries code 1 when its cell is at chessboard distance 2 from the
 //! object, unless the file was prepared with `--gradient-halo`), or when
 //! the cache holds its brick without values (a brick with no 1-cell is
-//! decoded without values, `render/cache.rs`). Then the derivative along
+//! decoded without values, `render/cache/brick.rs`). Then the derivative along
 //! that axis is the one-sided slope towards the other neighbour. At a
 //! vertex of a 1-cell the inner neighbour along each axis is another
 //! vertex of the same cell, so at least one side always exists.

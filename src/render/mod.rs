@@ -7,7 +7,7 @@
 //! camera.rs      a ray per pixel (orthographic or perspective)
 //! tiles.rs       Morton-ordered tiles, one rayon task each; Shard
 //!   -> cull.rs       pixels no brick with 1-cells projects onto: no ray
-//!   -> cache.rs      decoded bricks under a byte budget, shared
+//!   -> cache/        decoded bricks under a byte budget, shared
 //!   -> traverse/     fvt | cd | cd-aniso | octree | dda: the 1-cells a
 //!                    ray passes (paper section 4.1, Figs. 11-12)
 //!   -> integrate/    surface | depth | mip | composite | cost, per pixel

@@ -23,7 +23,7 @@
 //! edges, xy faces, cells), as the iso path's OR of sample kinds. Files
 //! whose values do not rise with the words (a negative slope), and wider
 //! words, take the reference path. A property test checks this path
-//! against the reference decoder bit for bit (render/cache.rs).
+//! against the reference decoder bit for bit (render/cache/brick.rs).
 //!
 //! [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
 //! [`TransferFunction::nonzero_on`]: crate::classify::TransferFunction::nonzero_on

@@ -949,7 +949,7 @@ fn past_the_limits_is_refused_naming_the_field() {
 /// values: a value at iso that rounds down in f32 (f64 0.7 -> 0.699999988,
 /// u32 16777217 -> 16777216) was a 1-cell whose surface was never found.
 /// Fixed: the renderer compares against the iso value mapped to f32 the
-/// same (monotone) way (src/render/cache.rs, `to_f32`).
+/// same (monotone) way (src/render/cache/mod.rs, `to_f32`).
 #[test]
 fn values_at_iso_beyond_f32_precision_render() {
     // Accepted: f64 data all 0.7, iso 0.7 (0.7 as f32 is below 0.7).
@@ -975,7 +975,7 @@ fn values_at_iso_beyond_f32_precision_render() {
 /// +inf samples reach every finite iso, so their cells are 1-cells
 /// (classify.rs), but the trilinear interpolant gave NaN for inf - inf
 /// and 0 * inf: an all-+inf volume rendered no pixel. Fixed: the renderer
-/// saturates +-inf to +-f32::MAX (src/render/cache.rs, `to_f32`).
+/// saturates +-inf to +-f32::MAX (src/render/cache/mod.rs, `to_f32`).
 #[test]
 fn all_pos_inf_renders() {
     // Accepted: f32 all +inf, iso 0.

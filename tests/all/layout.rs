@@ -120,7 +120,7 @@ const RULES: &[(&str, &[&str])] = &[
     ),
     // The cache serves a plain policy, never the traversal method.
     (
-        "render/cache.rs",
+        "render/cache/",
         &["Method", "RenderOptions", "integrate", "tiles"],
     ),
 ];

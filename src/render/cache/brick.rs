@@ -1,12 +1,8 @@
-//! Brick streaming for the renderer: decoded bricks in one cache shared
-//! by all threads, bounded by a byte budget with LRU eviction, and a
-//! per-tile accessor that keeps the last brick in front of the cache
-//! (OpenVDB's `ValueAccessor`), so most steps never touch a lock.
-//!
-//! A brick is read (positioned read, CRC check, zstd) only when a ray asks
-//! for one of its cells, so a scene loads only the bricks it needs.
+//! A decoded brick as the renderer holds it ([`RBrick`]): the dense code
+//! plane and the values decoded from the payload, and the planes built on
+//! them when the cache asks ([`Planes`](super::Planes)).
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use crate::classify::CellClass;
 use crate::classify::Classification;
@@ -16,26 +12,8 @@ use crate::format::brick::{
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
-use super::held::{self, Held};
-use super::samples::{Samples, WordValues};
-
-/// A sample value as the renderer holds it: rounded to f32 and saturated
-/// to the finite f32 range (+-inf and values beyond it become +-f32::MAX,
-/// so the trilinear interpolant stays finite); NaN stays NaN. Monotone, so
-/// a value `>= iso` stays `>= to_f32(iso)`: the renderer compares against
-/// the iso value mapped the same way, and every 1-cell keeps a vertex at
-/// or above it.
-#[inline]
-pub fn to_f32(v: f64) -> f32 {
-    if v.is_nan() {
-        f32::NAN
-    } else {
-        (v as f32).clamp(-f32::MAX, f32::MAX)
-    }
-}
-
-/// Code of a 1-cell in the decoded code plane (the traversal's constant).
-pub use super::traverse::OBJECT;
+use super::{to_f32, Planes, OBJECT};
+use crate::render::samples::{Samples, WordValues};
 
 /// A brick as the renderer uses it: a dense byte plane of cell codes
 /// (255 = 1-cell) and the rescaled sample values, as f32 or as the stored
@@ -146,11 +124,11 @@ impl RBrick {
     /// The 8 vertices of local cell `l` in the brick's sample planes: its
     /// minimum corner's sample index and the row and slice steps.
     #[inline(always)]
-    fn corner_offsets(&self, l: [u32; 3]) -> super::samples::Corners {
+    fn corner_offsets(&self, l: [u32; 3]) -> crate::render::samples::Corners {
         let sx = (self.cells[0] + 1) as usize;
         let sy = (self.cells[1] + 1) as usize;
         let base = (l[2] as usize * sy + l[1] as usize) * sx + l[0] as usize;
-        super::samples::Corners {
+        crate::render::samples::Corners {
             base,
             sx,
             z: sx * sy,
@@ -162,12 +140,12 @@ impl RBrick {
     /// offsets.
     #[inline(always)]
     pub fn corners<T: Copy>(&self, v: &[T], l: [u32; 3]) -> [T; 8] {
-        super::samples::gather8(v, self.corner_offsets(l), |x| x)
+        crate::render::samples::gather8(v, self.corner_offsets(l), |x| x)
     }
 
     /// A brick without payload: every cell a 0-cell with `code` (a
     /// uniform brick, or one stood in by its index code).
-    pub(super) fn uniform(h: &crate::format::Header, id: u64, code: u32) -> RBrick {
+    pub(in crate::render) fn uniform(h: &crate::format::Header, id: u64, code: u32) -> RBrick {
         let coords = h.brick_coords(id);
         RBrick {
             first: std::array::from_fn(|k| (coords[k] * h.brick_size as u64) as u32),
@@ -234,11 +212,11 @@ impl RBrick {
                 ..planes
             };
             let mut b = RBrick::from_payload(h, id, no_object, &r.raw, first);
-            let edge = super::scene::Edge::of(vol, id, iso);
+            let edge = crate::render::scene::Edge::of(vol, id, iso);
             if scene_free {
-                super::scene::tighten(&mut b, &edge);
+                crate::render::scene::tighten(&mut b, &edge);
             } else {
-                super::scene::narrow(&mut b, iso, h.gradient_halo, &edge);
+                crate::render::scene::narrow(&mut b, iso, h.gradient_halo, &edge);
             }
             let rest = Planes {
                 octants: false,
@@ -283,9 +261,10 @@ impl RBrick {
         let iso = match h.classification {
             Classification::Iso { iso } => iso,
             Classification::TransferFunction { .. } => {
-                return super::tf_cells::decode(h, id, no_object, raw, planes).unwrap_or_else(
-                    || RBrick::from_payload_reference(h, id, no_object, raw, planes),
-                )
+                return crate::render::tf_cells::decode(h, id, no_object, raw, planes)
+                    .unwrap_or_else(|| {
+                        RBrick::from_payload_reference(h, id, no_object, raw, planes)
+                    })
             }
         };
         let mut b = RBrick::uniform(h, id, 0);
@@ -417,7 +396,7 @@ impl RBrick {
 
     /// The planes beside codes and values that `planes` asks for, and the
     /// brick's byte count.
-    pub(super) fn add_planes(
+    pub(in crate::render) fn add_planes(
         &mut self,
         h: &crate::format::Header,
         id: u64,
@@ -445,7 +424,7 @@ impl RBrick {
         if planes.grads && !b.values.is_empty() {
             let axes: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
             let v = b.values.to_f32();
-            b.grads = super::gradient::brick_gradients(&v, b.first, b.cells, axes);
+            b.grads = crate::render::gradient::brick_gradients(&v, b.first, b.cells, axes);
         }
         b.bytes = std::mem::size_of::<RBrick>()
             + b.codes.len()
@@ -585,55 +564,6 @@ pub fn octree_levels(plane: &[u8], cells: [u32; 3], lb: u32) -> Vec<Vec<bool>> {
     }
     levels
 }
-
-/// The octree above the bricks (paper section 5.1, SMART): level `j`
-/// flags which nodes of `2^j` bricks per axis hold no 1-cell, from the
-/// index alone (no brick is read). Only for power-of-two brick sizes,
-/// where bricks are octree nodes.
-#[derive(Debug)]
-struct BrickPyramid {
-    /// `levels[j]`: dims and flags, x fastest.
-    levels: Vec<([u64; 3], Vec<bool>)>,
-}
-
-impl BrickPyramid {
-    fn new(vol: &PackedVolume) -> BrickPyramid {
-        let h = vol.header();
-        let mut dims = h.bricks;
-        let mut cur: Vec<bool> = vol.index().iter().map(|e| e.has_no_object()).collect();
-        let mut levels = vec![(dims, cur.clone())];
-        while dims.iter().any(|&d| d > 1) {
-            let up = dims.map(|d| d.div_ceil(2));
-            let mut next = vec![true; (up[0] * up[1] * up[2]) as usize];
-            for z in 0..dims[2] {
-                for y in 0..dims[1] {
-                    for x in 0..dims[0] {
-                        if !cur[((z * dims[1] + y) * dims[0] + x) as usize] {
-                            next[(((z / 2) * up[1] + y / 2) * up[0] + x / 2) as usize] = false;
-                        }
-                    }
-                }
-            }
-            levels.push((up, next.clone()));
-            cur = next;
-            dims = up;
-        }
-        BrickPyramid { levels }
-    }
-
-    /// Highest level whose node holding brick `b` is empty, top-down.
-    #[inline]
-    fn empty_level(&self, b: [u64; 3]) -> Option<u32> {
-        for (j, (d, f)) in self.levels.iter().enumerate().rev() {
-            let n = b.map(|x| x >> j);
-            if f[((n[2] * d[1] + n[1]) * d[0] + n[0]) as usize] {
-                return Some(j as u32);
-            }
-        }
-        None
-    }
-}
-
 type Scratch = (Vec<f64>, Vec<Option<u32>>);
 
 /// Per-thread buffers of [`RBrick::decode`]'s read.
@@ -662,611 +592,9 @@ thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
-/// Counters of one tile (summed at the end; no atomics in the hot loop).
-#[derive(Debug, Default, Clone, Copy, serde::Serialize)]
-pub struct CacheCounters {
-    pub bricks_read: u64,
-    /// Bricks without 1-cells stood in by their smallest code, unread.
-    pub bricks_skipped: u64,
-    pub cache_hits: u64,
-    pub cache_misses: u64,
-    pub bytes_decompressed: u64,
-    /// Seconds spent in [`RBrick::decode`] (read, zstd, values, codes,
-    /// planes), summed over threads; includes a decode lost to another
-    /// thread's race for the same brick.
-    pub decode_seconds: f64,
-}
-
-impl CacheCounters {
-    pub fn add(&mut self, o: &CacheCounters) {
-        self.bricks_read += o.bricks_read;
-        self.bricks_skipped += o.bricks_skipped;
-        self.cache_hits += o.cache_hits;
-        self.cache_misses += o.cache_misses;
-        self.bytes_decompressed += o.bytes_decompressed;
-        self.decode_seconds += o.decode_seconds;
-    }
-}
-
-/// Least-recently-used map under a byte budget, for keys below a bound
-/// known up front (a brick id times 2, plus 1 for a stand-in): O(1) per
-/// lookup, insertion and eviction, and no hashing. Keys index a table of
-/// slots; the slots form a doubly linked list in recency order. A lookup
-/// runs under the shared cache's lock on every brick an accessor's own
-/// few do not hold (docs/BENCHMARKS.md, "Render-time iso": the
-/// recency-ordered B-tree this replaces took 15 % of a cold frame).
-struct Lru<V> {
-    /// key -> slot in `slots`, or [`NIL`].
-    index: Vec<u32>,
-    slots: Vec<Slot<V>>,
-    /// Slots of evicted entries, for reuse.
-    free: Vec<u32>,
-    /// Most and least recently used slots ([`NIL`] when empty).
-    newest: u32,
-    oldest: u32,
-    bytes: usize,
-    peak: usize,
-    /// Keys ever inserted, one bit each.
-    seen: Vec<u64>,
-}
-
-/// No slot.
-const NIL: u32 = u32::MAX;
-
-struct Slot<V> {
-    key: u64,
-    value: Option<V>,
-    bytes: usize,
-    /// Towards the newest and the oldest entry.
-    newer: u32,
-    older: u32,
-}
-
-impl<V: Clone> Lru<V> {
-    /// An empty map for keys `0..keys`.
-    fn new(keys: u64) -> Lru<V> {
-        Lru {
-            index: vec![NIL; keys as usize],
-            slots: Vec::new(),
-            free: Vec::new(),
-            newest: NIL,
-            oldest: NIL,
-            bytes: 0,
-            peak: 0,
-            seen: vec![0; (keys as usize).div_ceil(64)],
-        }
-    }
-
-    /// Takes slot `i` out of the recency list.
-    fn unlink(&mut self, i: u32) {
-        let (newer, older) = (self.slots[i as usize].newer, self.slots[i as usize].older);
-        match newer {
-            NIL => self.newest = older,
-            n => self.slots[n as usize].older = older,
-        }
-        match older {
-            NIL => self.oldest = newer,
-            o => self.slots[o as usize].newer = newer,
-        }
-    }
-
-    /// Puts slot `i` at the newest end of the recency list.
-    fn push_newest(&mut self, i: u32) {
-        let s = &mut self.slots[i as usize];
-        s.newer = NIL;
-        s.older = self.newest;
-        match self.newest {
-            NIL => self.oldest = i,
-            n => self.slots[n as usize].newer = i,
-        }
-        self.newest = i;
-    }
-
-    /// The value of `key`, now the most recently used.
-    fn get(&mut self, key: u64) -> Option<V> {
-        let i = *self.index.get(key as usize)?;
-        if i == NIL {
-            return None;
-        }
-        if self.newest != i {
-            self.unlink(i);
-            self.push_newest(i);
-        }
-        self.slots[i as usize].value.clone()
-    }
-
-    /// Inserts `key` (absent, below the bound) holding `bytes`, first
-    /// evicting least recently used entries until it fits in `budget`; a
-    /// value larger than the whole budget is not kept.
-    fn insert(&mut self, key: u64, v: V, bytes: usize, budget: usize) {
-        let k = key as usize;
-        if k >= self.index.len() || self.index[k] != NIL {
-            return;
-        }
-        self.seen[k / 64] |= 1 << (k % 64);
-        if bytes > budget {
-            return;
-        }
-        while self.bytes + bytes > budget && self.oldest != NIL {
-            let o = self.oldest;
-            self.unlink(o);
-            let s = &mut self.slots[o as usize];
-            self.index[s.key as usize] = NIL;
-            s.value = None;
-            self.bytes -= s.bytes;
-            self.free.push(o);
-        }
-        let slot = Slot {
-            key,
-            value: Some(v),
-            bytes,
-            newer: NIL,
-            older: NIL,
-        };
-        let i = match self.free.pop() {
-            Some(i) => {
-                self.slots[i as usize] = slot;
-                i
-            }
-            None => {
-                self.slots.push(slot);
-                (self.slots.len() - 1) as u32
-            }
-        };
-        self.push_newest(i);
-        self.index[k] = i;
-        self.bytes += bytes;
-        self.peak = self.peak.max(self.bytes);
-    }
-
-    /// Keys ever inserted that satisfy `f`.
-    fn count_seen(&self, f: impl Fn(u64) -> bool) -> u64 {
-        let mut n = 0;
-        for (w, &bits) in self.seen.iter().enumerate() {
-            let mut b = bits;
-            while b != 0 {
-                let k = w as u64 * 64 + b.trailing_zeros() as u64;
-                n += u64::from(f(k));
-                b &= b - 1;
-            }
-        }
-        n
-    }
-
-    /// The keys held, oldest first.
-    #[cfg(test)]
-    fn by_age(&self) -> Vec<u64> {
-        let mut v = Vec::new();
-        let mut i = self.oldest;
-        while i != NIL {
-            v.push(self.slots[i as usize].key);
-            i = self.slots[i as usize].newer;
-        }
-        v
-    }
-}
-
-/// What one cache entry costs besides its brick: the `Arc` counts (16)
-/// and its slot (48), rounded up generously (the table of slots by key,
-/// 4 bytes a key, is the volume's, not the entries'). Counted against the budget because
-/// uniform and lazily stood-in bricks are tiny and a big volume crosses
-/// hundreds of thousands of them.
-const ENTRY_BYTES: usize = 128;
-
-/// Which planes the cache builds beside each decoded brick's codes and
-/// values. On read, a plane not built answers as if the file had none
-/// (the isotropic code, the chessboard bound, single-cell octree levels),
-/// which is always conservative.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Planes {
-    /// The octant codes of anisotropic files (section 4.2.1).
-    pub octants: bool,
-    /// The city-block and chamfer planes of files prepared with `--dda`.
-    pub dda: bool,
-    /// Octree levels inside each brick and, for power-of-two brick sizes,
-    /// above the bricks from the index (section 5.1).
-    pub octree: bool,
-    /// The largest vertex value per block of [`BLOCK`]^3 cells
-    /// ([`RBrick::block_max`]), for bricks with values.
-    pub block_max: bool,
-    /// Each sample's vertex gradient ([`RBrick::grads`]), for bricks with
-    /// values: the shaded composite with smooth normals.
-    pub grads: bool,
-    /// The scene's iso value when it is narrower than the file's
-    /// classification (`render --iso`): each brick is rewritten for it
-    /// (render/scene.rs) before any other plane is built.
-    pub narrow: Option<f32>,
-}
-
-impl Planes {
-    /// Codes and values only.
-    pub const NONE: Planes = Planes {
-        octants: false,
-        dda: false,
-        octree: false,
-        block_max: false,
-        grads: false,
-        narrow: None,
-    };
-
-    /// Every plane the file has; no octree.
-    pub const FILE: Planes = Planes {
-        octants: true,
-        dda: true,
-        octree: false,
-        block_max: false,
-        grads: false,
-        narrow: None,
-    };
-}
-
-/// What a traversal needs of the bricks, as plain data: the cache never
-/// sees the traversal method (the render maps a method to its policy).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BrickPolicy {
-    pub planes: Planes,
-    /// Whether a brick without 1-cells may stand in unread, as a uniform
-    /// brick of the smallest code in its index entry: `Some(m)` when that
-    /// code is at least `m` (`Some(0)`: always), `None`: read every brick
-    /// the ray enters. See [`BrickCache::get`].
-    pub stand_in_min: Option<u8>,
-}
-
-/// Decoded bricks under a byte budget, shared by all threads.
-pub struct BrickCache<'v> {
-    vol: &'v PackedVolume,
-    budget: usize,
-    lru: Mutex<Lru<Arc<RBrick>>>,
-    planes: Planes,
-    /// The levels above the bricks, when `planes.octree` and the brick
-    /// size is a power of two (bricks are then octree nodes).
-    pyramid: Option<BrickPyramid>,
-    /// Unique in the process: what memos of derived data (render/
-    /// gradient.rs) key on, so no two caches' bricks are ever confused.
-    id: u64,
-}
-
-/// The next [`BrickCache`]'s id.
-static NEXT_CACHE_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
-
-impl<'v> BrickCache<'v> {
-    /// A cache that builds every plane the file has, and no octree.
-    pub fn new(vol: &'v PackedVolume, budget_bytes: usize) -> BrickCache<'v> {
-        BrickCache::with_planes(vol, budget_bytes, Planes::FILE)
-    }
-
-    /// A cache that builds `planes`. With the octree, the levels above the
-    /// bricks are built now from the index (no brick read), those inside
-    /// a brick with each decoded brick (one byte per node, ~1/7 byte per
-    /// cell, counted against the budget).
-    pub fn with_planes(
-        vol: &'v PackedVolume,
-        budget_bytes: usize,
-        planes: Planes,
-    ) -> BrickCache<'v> {
-        let bs = vol.header().brick_size;
-        BrickCache {
-            vol,
-            budget: budget_bytes,
-            lru: Mutex::new(Lru::new(vol.header().brick_count() * 2)),
-            planes,
-            pyramid: (planes.octree && bs.is_power_of_two()).then(|| BrickPyramid::new(vol)),
-            id: NEXT_CACHE_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
-        }
-    }
-
-    /// This cache, also building the octree ([`Planes::octree`]).
-    pub fn with_octree(self) -> BrickCache<'v> {
-        let planes = Planes {
-            octree: true,
-            ..self.planes
-        };
-        BrickCache::with_planes(self.vol, self.budget, planes)
-    }
-
-    pub fn volume(&self) -> &PackedVolume {
-        self.vol
-    }
-
-    /// Distinct bricks whose payload was read.
-    pub fn distinct_read(&self) -> u64 {
-        let l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
-        // Keys are id * 2 + lazy; lazy stand-ins read nothing.
-        l.count_seen(|k| k % 2 == 0)
-    }
-
-    /// Largest number of bytes the cache held at once.
-    pub fn peak_bytes(&self) -> usize {
-        self.lru.lock().map(|l| l.peak).unwrap_or(0)
-    }
-
-    /// The decoded brick `id`, from the cache or read now. Decoding happens
-    /// outside the lock; two threads may decode the same brick at once, and
-    /// the first to insert wins.
-    ///
-    /// With `lazy_min = Some(m)`, a brick that holds no 1-cell and whose
-    /// smallest code is at least `m` is not read at all: it stands in as a
-    /// uniform brick of that smallest code, which is conservative (every
-    /// cell's empty cube is at least that large) and needs no payload.
-    pub fn get(
-        &self,
-        id: u64,
-        lazy_min: Option<u8>,
-        c: &mut CacheCounters,
-    ) -> Result<Arc<RBrick>, FormatError> {
-        let e = self.vol.index()[id as usize];
-        let lazy = !e.is_uniform()
-            && e.has_no_object()
-            && lazy_min.is_some_and(|m| e.uniform_code >= m as u32);
-        let key = id * 2 + lazy as u64;
-        if let Some(b) = self.lru.lock().unwrap_or_else(|e| e.into_inner()).get(key) {
-            c.cache_hits += 1;
-            return Ok(b);
-        }
-        c.cache_misses += 1;
-        // A brick whose largest value lies below the scene's iso value
-        // holds none of the scene's 1-cells: it is read for its codes
-        // only (render/scene.rs, `tighten`). The index gives a maximum
-        // only to bricks with 1-cells, never to those `lazy` stands in.
-        let free = match (self.planes.narrow, e.value_max()) {
-            (Some(iso), Some(m)) => to_f32(m) < iso,
-            _ => false,
-        };
-        let b = if lazy {
-            c.bricks_skipped += 1;
-            RBrick::uniform(self.vol.header(), id, e.uniform_code)
-        } else {
-            let t = std::time::Instant::now();
-            let r = RBrick::decode(self.vol, id, self.planes, free);
-            c.decode_seconds += t.elapsed().as_secs_f64();
-            let (b, raw) = r?;
-            c.bytes_decompressed += raw;
-            b
-        };
-        let b = Arc::new(b);
-        let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(first) = l.get(key) {
-            // Another thread decoded it meanwhile: its copy wins (and its
-            // read is the one counted).
-            return Ok(first);
-        }
-        if !lazy {
-            c.bricks_read += 1;
-        }
-        l.insert(key, b.clone(), b.bytes + ENTRY_BYTES, self.budget);
-        Ok(b)
-    }
-}
-
-/// Per-tile front of the cache: the current brick and the first error.
-pub struct Accessor<'a, 'v> {
-    cache: &'a BrickCache<'v>,
-    brick_size: u32,
-    bricks: [u64; 3],
-    cur_id: u64,
-    /// Slot of `held` holding the current brick ([`held::NONE`]: none,
-    /// after an error). An index, not an `Arc`: switching bricks touches
-    /// no reference count shared with other threads.
-    cur: usize,
-    /// The bricks this accessor used (up to [`held::HELD`]), tried before
-    /// the shared cache, whose every lookup takes its lock: the rays of a
-    /// tile cross the same bricks over and over (render/held.rs).
-    held: Held<RBrick>,
-    /// See [`BrickCache::get`].
-    lazy_min: Option<u8>,
-    pub counters: CacheCounters,
-    pub error: Option<FormatError>,
-    /// Smooth-normal gradients go through the thread's per-cell memo
-    /// (render/gradient.rs).
-    memo_gradients: bool,
-}
-
-/// Bricks an [`Accessor`] keeps besides the shared cache's budget (at
-/// most this many per accessor, i.e. per tile in flight; they are also
-/// counted in the budget while the shared cache holds them).
-pub const HELD: usize = held::HELD;
-
-/// Default smallest code for which CD stands an unread brick in by its
-/// smallest code: below it, reading the brick's own (larger) codes pays
-/// off (docs/BENCHMARKS.md, "Render levers").
-pub const LAZY_MIN_CODE_CD: u8 = 16;
-
-impl<'a, 'v> Accessor<'a, 'v> {
-    /// An accessor that decodes every brick it enters.
-    pub fn new(cache: &'a BrickCache<'v>) -> Accessor<'a, 'v> {
-        Accessor::with_lazy(cache, None)
-    }
-
-    /// An accessor that stands bricks in as `policy` allows (its planes
-    /// are the cache's business).
-    pub fn for_policy(cache: &'a BrickCache<'v>, policy: &BrickPolicy) -> Accessor<'a, 'v> {
-        Accessor::with_lazy(cache, policy.stand_in_min)
-    }
-
-    /// An accessor that stands in a brick without 1-cells by its index
-    /// code when that code is at least `lazy_min` (see [`BrickCache::get`]).
-    pub fn with_lazy(cache: &'a BrickCache<'v>, lazy_min: Option<u8>) -> Accessor<'a, 'v> {
-        let h = cache.volume().header();
-        Accessor {
-            cache,
-            brick_size: h.brick_size,
-            bricks: h.bricks,
-            cur_id: u64::MAX,
-            cur: held::NONE,
-            held: Held::new(),
-            lazy_min,
-            counters: CacheCounters::default(),
-            error: None,
-            memo_gradients: false,
-        }
-    }
-
-    /// Whether smooth-normal gradients read through this accessor are
-    /// remembered per cell in the thread's memo and answered from it
-    /// ([`vertex_gradients`](super::gradient::vertex_gradients); the same
-    /// values either way). Off by default; the renderer turns it on where
-    /// rays are denser than the cells.
-    pub fn remember_gradients(&mut self, on: bool) {
-        self.memo_gradients = on;
-    }
-
-    /// See [`Accessor::remember_gradients`].
-    #[inline]
-    pub(crate) fn remembers_gradients(&self) -> bool {
-        self.memo_gradients
-    }
-
-    /// The process-unique id of the cache behind this accessor.
-    #[inline]
-    pub(crate) fn cache_id(&self) -> u64 {
-        self.cache.id
-    }
-
-    /// The brick holding global cell `c` and the cell's local index. After
-    /// an error (recorded once) every cell reads as an empty 0-cell, so the
-    /// traversal finishes and the caller reports the error instead of an
-    /// image.
-    #[inline]
-    pub fn brick(&mut self, c: [u32; 3]) -> (&RBrick, [u32; 3]) {
-        // Fast path: the cell is in the current brick (no division).
-        if let Some(b) = self.held.get(self.cur) {
-            let l = [
-                c[0].wrapping_sub(b.first[0]),
-                c[1].wrapping_sub(b.first[1]),
-                c[2].wrapping_sub(b.first[2]),
-            ];
-            if l[0] < b.cells[0] && l[1] < b.cells[1] && l[2] < b.cells[2] {
-                return (self.held.get(self.cur).expect("checked"), l);
-            }
-        }
-        self.brick_slow(c)
-    }
-
-    #[cold]
-    fn brick_slow(&mut self, c: [u32; 3]) -> (&RBrick, [u32; 3]) {
-        let bs = self.brick_size;
-        let bc = [c[0] / bs, c[1] / bs, c[2] / bs];
-        let id = (bc[2] as u64 * self.bricks[1] + bc[1] as u64) * self.bricks[0] + bc[0] as u64;
-        if id != self.cur_id {
-            self.cur_id = id;
-            if let Some(i) = self.held.find(id) {
-                self.counters.cache_hits += 1;
-                self.cur = i;
-            } else {
-                self.cur = match self.cache.get(id, self.lazy_min, &mut self.counters) {
-                    Ok(b) => self.held.insert(id, b),
-                    Err(e) => {
-                        if self.error.is_none() {
-                            self.error = Some(e);
-                        }
-                        held::NONE
-                    }
-                };
-            }
-        }
-        let l = [c[0] - bc[0] * bs, c[1] - bc[1] * bs, c[2] - bc[2] * bs];
-        match self.held.get(self.cur) {
-            Some(b) => (b, l),
-            None => (&EMPTY, [0; 3]),
-        }
-    }
-}
-
-impl super::traverse::CodeSource for Accessor<'_, '_> {
-    #[inline(always)]
-    fn code(&mut self, c: [u32; 3], octant: Option<usize>) -> u8 {
-        let (b, l) = self.brick(c);
-        let code = b.code(l);
-        match octant {
-            Some(o) if code != OBJECT => code.max(b.octant_code(l, o)),
-            _ => code,
-        }
-    }
-
-    /// Top-down through the octree: the levels above the bricks from the
-    /// index (no read), then the brick's own levels. Without an octree
-    /// in the cache, the trait's single-cell answer.
-    #[inline]
-    fn empty_level(&mut self, c: [u32; 3]) -> Option<u8> {
-        if !self.cache.planes.octree {
-            return (self.code(c, None) != OBJECT).then_some(0);
-        }
-        let lb = self.brick_size.trailing_zeros();
-        if let Some(p) = &self.cache.pyramid {
-            let bs = self.brick_size;
-            if let Some(j) = p.empty_level([c[0] / bs, c[1] / bs, c[2] / bs].map(u64::from)) {
-                return Some((lb + j) as u8);
-            }
-        }
-        let (b, l) = self.brick(c);
-        if b.code(l) == OBJECT {
-            return None;
-        }
-        if let Codes::Uniform(_) = b.codes {
-            return Some(lb as u8);
-        }
-        for (i, f) in b.levels.iter().enumerate().rev() {
-            let s = i as u32 + 1;
-            let d = b.cells.map(|n| n.div_ceil(1 << s));
-            let n = l.map(|x| x >> s);
-            if f[((n[2] * d[1] + n[1]) * d[0] + n[0]) as usize] {
-                return Some(s as u8);
-            }
-        }
-        Some(0)
-    }
-
-    /// From the brick's DDA planes when it has them, never below the
-    /// chessboard lower bound (so a corrupt plane cannot stall a ray);
-    /// otherwise the chessboard bound itself.
-    #[inline]
-    fn distance(&mut self, c: [u32; 3], kind: super::traverse::DistKind) -> u8 {
-        use super::traverse::DistKind;
-        let (b, l) = self.brick(c);
-        let code = b.code(l);
-        if code == OBJECT {
-            return 0;
-        }
-        let bound = ((code as u32 + 1) * kind.unit()).min(254) as u8;
-        let plane = match kind {
-            DistKind::Chessboard => return bound,
-            DistKind::Cityblock => &b.dda[0],
-            DistKind::Chamfer => &b.dda[1],
-        };
-        if plane.is_empty() {
-            return bound;
-        }
-        let i = ((l[2] * b.cells[1] + l[1]) * b.cells[0] + l[0]) as usize;
-        plane[i].clamp(bound, 254)
-    }
-}
-
-impl Accessor<'_, '_> {
-    /// The 8 vertex values of global cell `c`, x fastest (all finite or
-    /// NaN as stored; exact for a 1-cell).
-    #[inline]
-    pub fn vertices(&mut self, c: [u32; 3]) -> [f32; 8] {
-        let (b, l) = self.brick(c);
-        b.vertices(l)
-    }
-}
-
-static EMPTY: RBrick = RBrick {
-    first: [0; 3],
-    cells: [1; 3],
-    codes: Codes::Uniform(0),
-    values: Samples::Empty,
-    octants: Vec::new(),
-    levels: Vec::new(),
-    bytes: 0,
-    dda: [Vec::new(), Vec::new()],
-    block_max: Vec::new(),
-    grads: Vec::new(),
-};
-
 #[cfg(test)]
 mod tests {
-    use super::{Codes, Lru, Planes, RBrick, Samples, OBJECT};
+    use super::{Codes, Planes, RBrick, Samples, OBJECT};
     use crate::classify::{Classification, TfPoint, TransferFunction};
     use crate::format::word::Word;
     use crate::format::{CodeEncoding, Header};
@@ -1493,7 +821,7 @@ mod tests {
         for (words, class) in [([5u8, 10], OBJECT), ([5, 6], 0), ([8, 9], OBJECT)] {
             let raw: Vec<u8> = words.iter().copied().cycle().take(8).collect();
             let fast =
-                super::super::tf_cells::decode(&h, 0, false, &raw, Planes::NONE).expect("fast");
+                crate::render::tf_cells::decode(&h, 0, false, &raw, Planes::NONE).expect("fast");
             let slow = RBrick::from_payload_reference(&h, 0, false, &raw, Planes::NONE);
             for b in [&fast, &slow] {
                 assert!(
@@ -1565,7 +893,7 @@ mod tests {
             prop_assert_eq!(plane_of(&fast), plane_of(&slow));
             prop_assert_eq!(value_bits(&fast), value_bits(&slow));
             prop_assert_eq!(fast.bytes, slow.bytes);
-            let ran = super::super::tf_cells::decode(&h, 0, no_object, raw, Planes::NONE).is_some();
+            let ran = crate::render::tf_cells::decode(&h, 0, no_object, raw, Planes::NONE).is_some();
             if storage.size() <= 2 && slope >= 0.0 {
                 prop_assert!(ran);
             }
@@ -1604,43 +932,6 @@ mod tests {
                 }
             }
             prop_assert_eq!(got, want);
-        }
-
-        /// Against a model that keeps (key, bytes) in recency order and
-        /// evicts from the front: same contents after every operation,
-        /// never above the budget.
-        #[test]
-        fn lru_matches_a_recency_list(
-            budget in 1usize..64,
-            ops in proptest::collection::vec((any::<bool>(), 0u64..12, 1usize..20), 1..200),
-        ) {
-            let mut lru: Lru<u64> = Lru::new(12);
-            let mut model: Vec<(u64, usize)> = Vec::new();
-            for (is_get, key, bytes) in ops {
-                let pos = model.iter().position(|e| e.0 == key);
-                if is_get || pos.is_some() {
-                    let got = lru.get(key);
-                    prop_assert_eq!(got, pos.map(|_| key * 10));
-                    if let Some(p) = pos {
-                        let e = model.remove(p);
-                        model.push(e);
-                    }
-                } else {
-                    lru.insert(key, key * 10, bytes, budget);
-                    if bytes <= budget {
-                        while model.iter().map(|e| e.1).sum::<usize>() + bytes > budget {
-                            model.remove(0);
-                        }
-                        model.push((key, bytes));
-                    }
-                }
-                let model_age: Vec<u64> = model.iter().map(|e| e.0).collect();
-                prop_assert_eq!(lru.by_age(), model_age);
-                let held = (0..12).filter(|&k| lru.index[k as usize] != super::NIL).count();
-                prop_assert_eq!(held, model.len());
-                prop_assert_eq!(lru.bytes, model.iter().map(|e| e.1).sum::<usize>());
-                prop_assert!(lru.bytes <= budget && lru.peak <= budget);
-            }
         }
     }
 }
