@@ -26,15 +26,13 @@
 //! axis it is the usual `(f+ - f-) / 2h`.
 //!
 //! **Missing samples: the one-sided rule.** A neighbour is missing when it
-//! lies outside the volume, when its word carries a distance code (the
+//! lies outside the volume or when its word carries a distance code (the
 //! docs/DESIGN.md "Embedding" invariant: a sample one step outside a 1-cell
 //! carries code 1 when its cell is at chessboard distance 2 from the
-//! object, unless the file was prepared with `--gradient-halo`), or when
-//! the cache holds its brick without values (a brick with no 1-cell is
-//! decoded without values, `render/cache/brick.rs`). Then the derivative along
-//! that axis is the one-sided slope towards the other neighbour. At a
-//! vertex of a 1-cell the inner neighbour along each axis is another
-//! vertex of the same cell, so at least one side always exists.
+//! object, unless the file was prepared with `--gradient-halo`). Then the
+//! derivative along that axis is the one-sided slope towards the other
+//! neighbour. At a vertex of a 1-cell the inner neighbour along each axis
+//! is another vertex of the same cell, so at least one side always exists.
 //!
 //! **Which brick a sample is read from.** A sample inside the hit cell's
 //! brick (its `cells + 1` samples per axis, apron included) is read from
@@ -42,7 +40,16 @@
 //! (the brick holding the cell that `s` is the minimum corner of, or the
 //! last cell on the axis). That cell is always within chessboard distance
 //! 1 of the hit cell, so it has code 0 or is a 1-cell, and its brick is
-//! never uniform; it holds values unless it holds no 1-cell.
+//! never uniform. A sample stored in two bricks has the same word in
+//! both, but a brick with no 1-cell is decoded for its codes only
+//! (`render/cache/brick.rs`); such a brick is read again with its values
+//! ([`Accessor::brick_with_values`]). So a sample reads as its value
+//! wherever its word is one, and the gradients do not depend on where the
+//! bricks are cut (tests/all/normals.rs, brick sizes 4, 8 and 16 give the
+//! same bytes; docs/TRADEOFFS.md, "Normals at brick faces"). In a scene
+//! narrower than the file (`render --iso`) the values read so are the
+//! file's, and the samples the scene's file would hold as codes are
+//! then made missing, as for every other brick ([`smooth_gradient_in`]).
 
 use glam::{DVec3, Vec3};
 
@@ -179,8 +186,8 @@ pub fn vertex_gradients(
 /// When `acc` remembers gradients ([`Accessor::remember_gradients`]) and
 /// outside narrowed scenes, the gradients come from this thread's [`Memo`]
 /// when it holds the cell (a vertex's gradient is a function of the
-/// vertex and the brick of the cell that asks, module docs, "Which brick a
-/// sample is read from", so the cell's 8 are a function of the cell),
+/// vertex, module docs, "Which brick a sample is read from", so the
+/// cell's 8 are a function of the cell),
 /// else they are computed and remembered. Rays denser than the cells meet
 /// the same cells: at 1024^2 on the head CT a cell is some 4 x 4 pixels
 /// wide.
@@ -331,9 +338,10 @@ fn compute_vertex_gradients(
         todo &= todo - 1;
         let o = [i & 3, i >> 2 & 3, i >> 4];
         let s: [usize; 3] = std::array::from_fn(|k| c[k] + o[k] - 1);
-        // The brick of cell min(s, n - 2): see the module docs.
+        // The brick of cell min(s, n - 2), with its values: see the
+        // module docs.
         let at: [u32; 3] = std::array::from_fn(|k| s[k].min(n[k] - 2) as u32);
-        let (b, l) = acc.brick(at);
+        let (b, l) = acc.brick_with_values(at);
         if b.values.is_empty() {
             continue;
         }

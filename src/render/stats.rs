@@ -30,6 +30,13 @@ pub struct Stats {
     pub bricks_distinct: u64,
     /// Bricks without 1-cells the traversal crossed without reading them.
     pub bricks_skipped: u64,
+    /// Bricks without 1-cells read again, with their values, for the
+    /// smooth normals of hits next to them (render/gradient.rs, "Which
+    /// brick a sample is read from"); not in `bricks_read` or
+    /// `bricks_distinct`, but their bytes and seconds are in
+    /// `bytes_decompressed` and `seconds_decode`.
+    #[serde(default)]
+    pub bricks_read_values: u64,
     pub cache_hits: u64,
     pub cache_misses: u64,
     pub bytes_decompressed: u64,
@@ -89,6 +96,7 @@ impl Stats {
             bricks_read: cc.bricks_read,
             bricks_distinct: cache.distinct_read(),
             bricks_skipped: cc.bricks_skipped,
+            bricks_read_values: cc.bricks_read_values,
             cache_hits: cc.cache_hits,
             cache_misses: cc.cache_misses,
             bytes_decompressed: cc.bytes_decompressed,
@@ -118,6 +126,7 @@ impl Stats {
         self.bricks_read += o.bricks_read;
         self.bricks_distinct += o.bricks_distinct;
         self.bricks_skipped += o.bricks_skipped;
+        self.bricks_read_values += o.bricks_read_values;
         self.cache_hits += o.cache_hits;
         self.cache_misses += o.cache_misses;
         self.bytes_decompressed += o.bytes_decompressed;

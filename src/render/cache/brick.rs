@@ -177,6 +177,27 @@ impl RBrick {
         planes: Planes,
         scene_free: bool,
     ) -> Result<(RBrick, u64), FormatError> {
+        RBrick::decode_as(vol, id, planes, scene_free, false)
+    }
+
+    /// Brick `id` with its codes and values, for the file's own
+    /// classification, even when the index says it holds no 1-cell (which
+    /// [`RBrick::decode`] reads for its codes only): smooth normals read
+    /// the samples of such a brick next to the object
+    /// (render/gradient.rs, "Which brick a sample is read from").
+    pub fn decode_values(vol: &PackedVolume, id: u64) -> Result<(RBrick, u64), FormatError> {
+        RBrick::decode_as(vol, id, Planes::NONE, false, true)
+    }
+
+    /// [`RBrick::decode`], with the values whatever the index says when
+    /// `values`.
+    fn decode_as(
+        vol: &PackedVolume,
+        id: u64,
+        planes: Planes,
+        scene_free: bool,
+        values: bool,
+    ) -> Result<(RBrick, u64), FormatError> {
         let h = vol.header();
         let e = vol.index()[id as usize];
         let read = READ.with_borrow_mut(|r| {
@@ -197,7 +218,7 @@ impl RBrick {
         Ok(READ.with_borrow(|r| {
             let len = r.raw.len() as u64;
             // A brick free of the scene needs its codes only.
-            let no_object = e.has_no_object() || scene_free;
+            let no_object = (e.has_no_object() || scene_free) && !values;
             let Some(iso) = planes.narrow else {
                 return (RBrick::from_payload(h, id, no_object, &r.raw, planes), len);
             };

@@ -99,6 +99,9 @@ pub struct CacheCounters {
     pub bricks_read: u64,
     /// Bricks without 1-cells stood in by their smallest code, unread.
     pub bricks_skipped: u64,
+    /// Bricks read again with their values ([`BrickCache::get_values`]);
+    /// not in `bricks_read`.
+    pub bricks_read_values: u64,
     pub cache_hits: u64,
     pub cache_misses: u64,
     pub bytes_decompressed: u64,
@@ -112,12 +115,18 @@ impl CacheCounters {
     pub fn add(&mut self, o: &CacheCounters) {
         self.bricks_read += o.bricks_read;
         self.bricks_skipped += o.bricks_skipped;
+        self.bricks_read_values += o.bricks_read_values;
         self.cache_hits += o.cache_hits;
         self.cache_misses += o.cache_misses;
         self.bytes_decompressed += o.bytes_decompressed;
         self.decode_seconds += o.decode_seconds;
     }
 }
+
+/// Cache keys per brick: `id * KEYS_PER_BRICK` + 0 for the brick as
+/// decoded, 1 for its stand-in ([`BrickCache::get`]), 2 for the brick
+/// with its values ([`BrickCache::get_values`]).
+const KEYS_PER_BRICK: u64 = 3;
 
 /// What one cache entry costs besides its brick: the `Arc` counts (16)
 /// and its slot (48), rounded up generously (the table of slots by key,
@@ -221,7 +230,7 @@ impl<'v> BrickCache<'v> {
         BrickCache {
             vol,
             budget: budget_bytes,
-            lru: Mutex::new(Lru::new(vol.header().brick_count() * 2)),
+            lru: Mutex::new(Lru::new(vol.header().brick_count() * KEYS_PER_BRICK)),
             planes,
             pyramid: (planes.octree && bs.is_power_of_two()).then(|| BrickPyramid::new(vol)),
             id: NEXT_CACHE_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
@@ -244,8 +253,9 @@ impl<'v> BrickCache<'v> {
     /// Distinct bricks whose payload was read.
     pub fn distinct_read(&self) -> u64 {
         let l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
-        // Keys are id * 2 + lazy; lazy stand-ins read nothing.
-        l.count_seen(|k| k % 2 == 0)
+        // Keys: see `KEYS_PER_BRICK`. Stand-ins read nothing; reads for
+        // the values alone are not counted.
+        l.count_seen(|k| k % KEYS_PER_BRICK == 0)
     }
 
     /// Largest number of bytes the cache held at once.
@@ -271,7 +281,7 @@ impl<'v> BrickCache<'v> {
         let lazy = !e.is_uniform()
             && e.has_no_object()
             && lazy_min.is_some_and(|m| e.uniform_code >= m as u32);
-        let key = id * 2 + lazy as u64;
+        let key = id * KEYS_PER_BRICK + lazy as u64;
         if let Some(b) = self.lru.lock().unwrap_or_else(|e| e.into_inner()).get(key) {
             c.cache_hits += 1;
             return Ok(b);
@@ -309,6 +319,32 @@ impl<'v> BrickCache<'v> {
         l.insert(key, b.clone(), b.bytes + ENTRY_BYTES, self.budget);
         Ok(b)
     }
+
+    /// Brick `id` decoded with its values even if the index says it holds
+    /// no 1-cell ([`RBrick::decode_values`]), from the cache or read now;
+    /// counted as [`BrickCache::get`] counts, but in
+    /// [`CacheCounters::bricks_read_values`] instead of `bricks_read`.
+    pub fn get_values(&self, id: u64, c: &mut CacheCounters) -> Result<Arc<RBrick>, FormatError> {
+        let key = id * KEYS_PER_BRICK + 2;
+        if let Some(b) = self.lru.lock().unwrap_or_else(|e| e.into_inner()).get(key) {
+            c.cache_hits += 1;
+            return Ok(b);
+        }
+        c.cache_misses += 1;
+        let t = std::time::Instant::now();
+        let r = RBrick::decode_values(self.vol, id);
+        c.decode_seconds += t.elapsed().as_secs_f64();
+        let (b, raw) = r?;
+        c.bytes_decompressed += raw;
+        let b = Arc::new(b);
+        let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(first) = l.get(key) {
+            return Ok(first);
+        }
+        c.bricks_read_values += 1;
+        l.insert(key, b.clone(), b.bytes + ENTRY_BYTES, self.budget);
+        Ok(b)
+    }
 }
 
 /// Per-tile front of the cache: the current brick and the first error.
@@ -332,6 +368,9 @@ pub struct Accessor<'a, 'v> {
     /// Smooth-normal gradients go through the thread's per-cell memo
     /// (render/gradient.rs).
     memo_gradients: bool,
+    /// The last brick [`Accessor::brick_with_values`] had to read for
+    /// its values, and its id.
+    values: Option<(u64, Arc<RBrick>)>,
 }
 
 /// Bricks an [`Accessor`] keeps besides the shared cache's budget (at
@@ -371,6 +410,7 @@ impl<'a, 'v> Accessor<'a, 'v> {
             counters: CacheCounters::default(),
             error: None,
             memo_gradients: false,
+            values: None,
         }
     }
 
@@ -440,6 +480,43 @@ impl<'a, 'v> Accessor<'a, 'v> {
         let l = [c[0] - bc[0] * bs, c[1] - bc[1] * bs, c[2] - bc[2] * bs];
         match self.held.get(self.cur) {
             Some(b) => (b, l),
+            None => (&EMPTY, [0; 3]),
+        }
+    }
+}
+
+impl Accessor<'_, '_> {
+    /// [`Accessor::brick`], but a brick without values that has a
+    /// payload (one the index marks as holding no 1-cell, decoded for its
+    /// codes only, or stood in) comes decoded with its values
+    /// ([`BrickCache::get_values`]), so that every sample whose word is a
+    /// value reads as that value whichever brick it is read from. For the
+    /// smooth normals' neighbour samples (render/gradient.rs); the
+    /// traversal keeps reading the brick as decoded.
+    pub fn brick_with_values(&mut self, c: [u32; 3]) -> (&RBrick, [u32; 3]) {
+        let (has, l) = {
+            let (b, l) = self.brick(c);
+            (!b.values.is_empty(), l)
+        };
+        let id = self.cur_id;
+        let payload =
+            self.held.get(self.cur).is_some() && !self.cache.vol.index()[id as usize].is_uniform();
+        if has || !payload {
+            return self.brick(c);
+        }
+        if self.values.as_ref().is_none_or(|(i, _)| *i != id) {
+            match self.cache.get_values(id, &mut self.counters) {
+                Ok(b) => self.values = Some((id, b)),
+                Err(e) => {
+                    if self.error.is_none() {
+                        self.error = Some(e);
+                    }
+                    return (&EMPTY, [0; 3]);
+                }
+            }
+        }
+        match &self.values {
+            Some((_, b)) => (b, l),
             None => (&EMPTY, [0; 3]),
         }
     }
