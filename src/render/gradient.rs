@@ -49,7 +49,7 @@
 //! same bytes; docs/TRADEOFFS.md, "Normals at brick faces"). In a scene
 //! narrower than the file (`render --iso`) the values read so are the
 //! file's, and the samples the scene's file would hold as codes are
-//! then made missing, as for every other brick ([`smooth_gradient_in`]).
+//! then made missing, as for every other brick (`smooth_gradient_in`).
 
 use glam::{DVec3, Vec3};
 

@@ -1,6 +1,6 @@
 //! Test scenes, generated slice by slice: a raw stack plus a JSON sidecar in
-//! the input schema ([`SidecarOut`], docs/FORMAT.md), never the whole volume
-//! in memory.
+//! the input schema ([`SidecarOut`](crate::input::sidecar::SidecarOut),
+//! docs/FORMAT.md), never the whole volume in memory.
 //!
 //! - [`spheres`]: the phantom scenes of the paper's section 5.1 ("Comparison
 //!   of Hierarchical and Distance Acceleration Techniques"). The volume's box
