@@ -40,6 +40,24 @@ fn positions(gaps: &[f64], n: usize) -> Vec<f64> {
     x
 }
 
+/// `values` (u8, x fastest) on axes with gaps `gaps` written as a stack
+/// in `dir`: the sidecar and the sample positions.
+fn rectilinear_stack(
+    dir: &std::path::Path,
+    dims: [usize; 3],
+    values: &[f64],
+    gaps: &[Vec<f64>; 3],
+) -> (std::path::PathBuf, [Vec<f64>; 3]) {
+    let xs: [Vec<f64>; 3] = std::array::from_fn(|k| positions(&gaps[k], dims[k]));
+    let axis = |k: usize| {
+        let p: Vec<String> = xs[k].iter().map(|v| format!("{v:?}")).collect();
+        format!(r#"{{"positions": [{}]}}"#, p.join(", "))
+    };
+    let (ax, ay, az) = (axis(0), axis(1), axis(2));
+    let side = common::write_stack(dir, "v", dims, "u8", values, [&ax, &ay, &az], "");
+    (side, xs)
+}
+
 /// The brute-force gradients at the 8 vertices of `cell`, from the raw
 /// samples; `avail(s)` says whether the renderer may read sample `s`.
 fn brute_force(
@@ -217,13 +235,7 @@ proptest! {
         gaps in prop::array::uniform3(proptest::collection::vec(0.3f64..2.5, 10)),
     ) {
         let dir = tempfile::tempdir().unwrap();
-        let xs: [Vec<f64>; 3] = std::array::from_fn(|k| positions(&gaps[k], dims[k]));
-        let axis = |k: usize| {
-            let p: Vec<String> = xs[k].iter().map(|v| format!("{v:?}")).collect();
-            format!(r#"{{"positions": [{}]}}"#, p.join(", "))
-        };
-        let (ax, ay, az) = (axis(0), axis(1), axis(2));
-        let side = common::write_stack(dir.path(), "v", dims, "u8", &values, [&ax, &ay, &az], "");
+        let (side, xs) = rectilinear_stack(dir.path(), dims, &values, &gaps);
         for halo in [false, true] {
             let out = dir.path().join(format!("v{halo}.cdv"));
             let vol = common::packed_with(&side, &out, ISO, |o| {
@@ -253,13 +265,7 @@ proptest! {
         view in (-180.0f64..180.0, -80.0f64..80.0),
     ) {
         let dir = tempfile::tempdir().unwrap();
-        let xs: [Vec<f64>; 3] = std::array::from_fn(|k| positions(&gaps[k], dims[k]));
-        let axis = |k: usize| {
-            let p: Vec<String> = xs[k].iter().map(|v| format!("{v:?}")).collect();
-            format!(r#"{{"positions": [{}]}}"#, p.join(", "))
-        };
-        let (ax, ay, az) = (axis(0), axis(1), axis(2));
-        let side = common::write_stack(dir.path(), "v", dims, "u8", &values, [&ax, &ay, &az], "");
+        let (side, _) = rectilinear_stack(dir.path(), dims, &values, &gaps);
         let tf = common::white_tf(&[(100.0, 0.0), (140.0, 0.3), (220.0, 0.9)]);
         for halo in [false, true] {
             let mut first: Option<Vec<cdvol::render::Frame>> = None;

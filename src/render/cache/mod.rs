@@ -282,41 +282,24 @@ impl<'v> BrickCache<'v> {
             && e.has_no_object()
             && lazy_min.is_some_and(|m| e.uniform_code >= m as u32);
         let key = id * KEYS_PER_BRICK + lazy as u64;
-        if let Some(b) = self.lru.lock().unwrap_or_else(|e| e.into_inner()).get(key) {
-            c.cache_hits += 1;
-            return Ok(b);
-        }
-        c.cache_misses += 1;
-        // A brick whose largest value lies below the scene's iso value
-        // holds none of the scene's 1-cells: it is read for its codes
-        // only (render/scene.rs, `tighten`). The index gives a maximum
-        // only to bricks with 1-cells, never to those `lazy` stands in.
-        let free = match (self.planes.narrow, e.value_max()) {
-            (Some(iso), Some(m)) => to_f32(m) < iso,
-            _ => false,
-        };
-        let b = if lazy {
-            c.bricks_skipped += 1;
-            RBrick::uniform(self.vol.header(), id, e.uniform_code)
-        } else {
-            let t = std::time::Instant::now();
-            let r = RBrick::decode(self.vol, id, self.planes, free);
-            c.decode_seconds += t.elapsed().as_secs_f64();
-            let (b, raw) = r?;
-            c.bytes_decompressed += raw;
-            b
-        };
-        let b = Arc::new(b);
-        let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(first) = l.get(key) {
-            // Another thread decoded it meanwhile: its copy wins (and its
-            // read is the one counted).
-            return Ok(first);
-        }
-        if !lazy {
+        let (b, inserted) = self.cached(key, c, |c| {
+            if lazy {
+                c.bricks_skipped += 1;
+                return Ok(RBrick::uniform(self.vol.header(), id, e.uniform_code));
+            }
+            // A brick whose largest value lies below the scene's iso value
+            // holds none of the scene's 1-cells: it is read for its codes
+            // only (render/scene.rs, `tighten`). The index gives a maximum
+            // only to bricks with 1-cells, never to those `lazy` stands in.
+            let free = match (self.planes.narrow, e.value_max()) {
+                (Some(iso), Some(m)) => to_f32(m) < iso,
+                _ => false,
+            };
+            decoded(c, || RBrick::decode(self.vol, id, self.planes, free))
+        })?;
+        if inserted && !lazy {
             c.bricks_read += 1;
         }
-        l.insert(key, b.clone(), b.bytes + ENTRY_BYTES, self.budget);
         Ok(b)
     }
 
@@ -326,25 +309,52 @@ impl<'v> BrickCache<'v> {
     /// [`CacheCounters::bricks_read_values`] instead of `bricks_read`.
     pub fn get_values(&self, id: u64, c: &mut CacheCounters) -> Result<Arc<RBrick>, FormatError> {
         let key = id * KEYS_PER_BRICK + 2;
-        if let Some(b) = self.lru.lock().unwrap_or_else(|e| e.into_inner()).get(key) {
-            c.cache_hits += 1;
-            return Ok(b);
+        let (b, inserted) = self.cached(key, c, |c| {
+            decoded(c, || RBrick::decode_values(self.vol, id))
+        })?;
+        if inserted {
+            c.bricks_read_values += 1;
         }
-        c.cache_misses += 1;
-        let t = std::time::Instant::now();
-        let r = RBrick::decode_values(self.vol, id);
-        c.decode_seconds += t.elapsed().as_secs_f64();
-        let (b, raw) = r?;
-        c.bytes_decompressed += raw;
-        let b = Arc::new(b);
-        let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(first) = l.get(key) {
-            return Ok(first);
-        }
-        c.bricks_read_values += 1;
-        l.insert(key, b.clone(), b.bytes + ENTRY_BYTES, self.budget);
         Ok(b)
     }
+
+    /// Entry `key` from the cache (a hit), or made by `make` outside the
+    /// lock (a miss) and inserted; `true` when this call inserted it.
+    /// Two threads may make the same entry at once: the first to insert
+    /// wins, and only its read is counted by the caller.
+    fn cached(
+        &self,
+        key: u64,
+        c: &mut CacheCounters,
+        make: impl FnOnce(&mut CacheCounters) -> Result<RBrick, FormatError>,
+    ) -> Result<(Arc<RBrick>, bool), FormatError> {
+        if let Some(b) = self.lru.lock().unwrap_or_else(|e| e.into_inner()).get(key) {
+            c.cache_hits += 1;
+            return Ok((b, false));
+        }
+        c.cache_misses += 1;
+        let b = Arc::new(make(c)?);
+        let mut l = self.lru.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(first) = l.get(key) {
+            return Ok((first, false));
+        }
+        l.insert(key, b.clone(), b.bytes + ENTRY_BYTES, self.budget);
+        Ok((b, true))
+    }
+}
+
+/// A brick decoded by `decode`, its seconds and decompressed bytes
+/// counted in `c`.
+fn decoded(
+    c: &mut CacheCounters,
+    decode: impl FnOnce() -> Result<(RBrick, u64), FormatError>,
+) -> Result<RBrick, FormatError> {
+    let t = std::time::Instant::now();
+    let r = decode();
+    c.decode_seconds += t.elapsed().as_secs_f64();
+    let (b, raw) = r?;
+    c.bytes_decompressed += raw;
+    Ok(b)
 }
 
 /// Per-tile front of the cache: the current brick and the first error.
