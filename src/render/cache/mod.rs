@@ -509,24 +509,27 @@ impl Accessor<'_, '_> {
             (!b.values.is_empty(), l)
         };
         let id = self.cur_id;
-        let payload =
-            self.held.get(self.cur).is_some() && !self.cache.vol.index()[id as usize].is_uniform();
-        if has || !payload {
-            return self.brick(c);
-        }
-        if self.values.as_ref().is_none_or(|(i, _)| *i != id) {
-            match self.cache.get_values(id, &mut self.counters) {
-                Ok(b) => self.values = Some((id, b)),
-                Err(e) => {
-                    if self.error.is_none() {
-                        self.error = Some(e);
+        let held = self.held.get(self.cur).is_some();
+        if !has && held && !self.cache.vol.index()[id as usize].is_uniform() {
+            if self.values.as_ref().is_none_or(|(i, _)| *i != id) {
+                match self.cache.get_values(id, &mut self.counters) {
+                    Ok(b) => self.values = Some((id, b)),
+                    Err(e) => {
+                        if self.error.is_none() {
+                            self.error = Some(e);
+                        }
+                        return (&EMPTY, [0; 3]);
                     }
-                    return (&EMPTY, [0; 3]);
                 }
             }
+            if let Some((_, b)) = &self.values {
+                return (b, l);
+            }
         }
-        match &self.values {
-            Some((_, b)) => (b, l),
+        // The brick as `brick` found it (no second lookup), or after an
+        // error the empty one.
+        match self.held.get(self.cur) {
+            Some(b) => (b, l),
             None => (&EMPTY, [0; 3]),
         }
     }
