@@ -54,6 +54,7 @@
 use glam::{DVec3, Vec3};
 
 use super::cache::Accessor;
+use super::traverse::OBJECT;
 
 /// How surface normals are estimated (`cdvol render --normals`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -434,10 +435,10 @@ fn compute_vertex_gradients(
 /// [`vertex_gradients`] reads them from whichever of their cells asks, and
 /// the gaps and weights along each axis are the sample's own, so the
 /// gradient is a function of the sample alone. A sample on the outer
-/// layer is not: a face sample two bricks share can be a code (NaN) in one
-/// and a value in the other, so its gradient depends on the brick of the
-/// cell that asks (taking it by sample alone changed the head CT's shaded
-/// composite). Cells with a vertex there take [`vertex_gradients`].
+/// layer has neighbours in other bricks; the plane ([`GradPlane`]) takes
+/// its gradient when a 1-cell first computes it ([`cell_gradients`]).
+///
+/// [`GradPlane`]: super::cache::GradPlane
 pub(crate) fn brick_gradients(
     values: &[f32],
     first: [u32; 3],
@@ -488,17 +489,33 @@ pub(crate) fn brick_gradients(
 
 /// The 8 vertex gradients of 1-cell `cell` (x fastest), as
 /// [`vertex_gradients`] gives them, in f32: from its brick's gradient
-/// plane ([`brick_gradients`]) when the cell's vertices are all strictly
-/// inside the brick's samples and the cache built the plane, else
-/// computed.
+/// plane ([`brick_gradients`]) when the cache built one and the cell is
+/// set in it (from the decode on for a cell strictly inside the brick),
+/// else computed; a 1-cell's computed gradients then go into the plane
+/// for the next ray ([`GradPlane`]).
+///
+/// [`GradPlane`]: super::cache::GradPlane
 #[inline]
 pub(crate) fn cell_gradients(acc: &mut Accessor, coords: [&[f64]; 3], cell: [u32; 3]) -> [Vec3; 8] {
     let (b, l) = acc.brick(cell);
-    let lc = l.map(|x| x as usize);
-    if !b.grads.is_empty() && (0..3).all(|k| lc[k] >= 1 && lc[k] + 2 <= b.cells[k] as usize) {
-        return b.corners(&b.grads, l);
+    if b.grads.cell_set(b.cell_index(l)) {
+        return b.grad_corners(l);
     }
-    vertex_gradients(acc, coords, cell).g.map(|g| g.as_vec3())
+    outer_cell_gradients(acc, coords, cell)
+}
+
+/// [`cell_gradients`] of a cell it could not read from a plane: computed,
+/// and kept in the plane when the cell is a 1-cell of a brick with one
+/// (after a read error nothing is kept).
+#[cold]
+fn outer_cell_gradients(acc: &mut Accessor, coords: [&[f64]; 3], cell: [u32; 3]) -> [Vec3; 8] {
+    let g = vertex_gradients(acc, coords, cell).g.map(|g| g.as_vec3());
+    let ok = acc.error.is_none();
+    let (b, l) = acc.brick(cell);
+    if ok && !b.grads.is_empty() && b.code(l) == OBJECT {
+        b.grads.fill(b.cell_index(l), b.corner_indices(l), g);
+    }
+    g
 }
 
 /// The derivative at a sample `f0` from its neighbours `fm` before and

@@ -285,6 +285,13 @@ impl Corners {
 /// Panics if a vertex lies beyond `v`.
 #[inline(always)]
 pub fn gather8<T: Copy, U, F: Fn(T) -> U>(v: &[T], c: Corners, f: F) -> [U; 8] {
+    gather8_ref(v, c, |x| f(*x))
+}
+
+/// [`gather8`] with `f` reading each entry through a reference (for
+/// entries that are not `Copy`, such as atomics).
+#[inline(always)]
+pub fn gather8_ref<T, U, F: Fn(&T) -> U>(v: &[T], c: Corners, f: F) -> [U; 8] {
     // The largest index, saturating: a sum that would wrap fails the check.
     let last = c
         .base
@@ -295,7 +302,7 @@ pub fn gather8<T: Copy, U, F: Fn(T) -> U>(v: &[T], c: Corners, f: F) -> [U; 8] {
     // SAFETY: every index below is at most `base + z + sx + 1 = last`,
     // computed without wrapping (it did not saturate, as `last < len`),
     // and `last < v.len()`.
-    let at = |i: usize| f(unsafe { *v.get_unchecked(i) });
+    let at = |i: usize| f(unsafe { v.get_unchecked(i) });
     let [i0, i1, i2, i3, i4, i5, i6, i7] = c.indices();
     [
         at(i0),

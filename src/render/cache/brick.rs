@@ -12,7 +12,7 @@ use crate::format::brick::{
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
-use super::{to_f32, Planes, OBJECT};
+use super::{to_f32, GradPlane, Planes, OBJECT};
 use crate::render::samples::{Samples, WordValues};
 
 /// A brick as the renderer uses it: a dense byte plane of cell codes
@@ -49,10 +49,11 @@ pub struct RBrick {
     /// [`Planes::block_max`] and only for bricks with values; empty
     /// otherwise.
     pub block_max: Vec<f32>,
-    /// Per sample, its vertex gradient ([`Planes::grads`],
-    /// `gradient::brick_gradients`): for the
-    /// shaded composite, bricks with values only; empty otherwise.
-    pub grads: Vec<glam::Vec3>,
+    /// Per sample, its vertex gradient ([`Planes::grads`]): for the
+    /// shaded composite, bricks with values only; empty otherwise. The
+    /// inner samples are set at decode (`gradient::brick_gradients`), the
+    /// outer layer on first use ([`GradPlane`]).
+    pub grads: GradPlane,
 }
 
 /// Cells per edge of a [`RBrick::block_max`] block.
@@ -71,8 +72,14 @@ impl RBrick {
     pub fn code(&self, l: [u32; 3]) -> u8 {
         match &self.codes {
             Codes::Uniform(c) => *c,
-            Codes::Plane(p) => p[((l[2] * self.cells[1] + l[1]) * self.cells[0] + l[0]) as usize],
+            Codes::Plane(p) => p[self.cell_index(l)],
         }
+    }
+
+    /// Index of local cell `l` in the brick's per-cell planes (x fastest).
+    #[inline(always)]
+    pub fn cell_index(&self, l: [u32; 3]) -> usize {
+        ((l[2] * self.cells[1] + l[1]) * self.cells[0] + l[0]) as usize
     }
 
     /// Octant code of local cell `l` (its block's), or the isotropic code
@@ -135,12 +142,17 @@ impl RBrick {
         }
     }
 
-    /// The 8 entries of per-sample plane `v` (the values, or the gradient
-    /// plane) at the vertices of local cell `l`, x fastest: loads at fixed
-    /// offsets.
+    /// The gradient plane's entries ([`RBrick::grads`], set or not) at
+    /// the vertices of local cell `l`, x fastest: loads at fixed offsets.
     #[inline(always)]
-    pub fn corners<T: Copy>(&self, v: &[T], l: [u32; 3]) -> [T; 8] {
-        crate::render::samples::gather8(v, self.corner_offsets(l), |x| x)
+    pub fn grad_corners(&self, l: [u32; 3]) -> [glam::Vec3; 8] {
+        self.grads.corners(self.corner_offsets(l))
+    }
+
+    /// The sample indices of the vertices of local cell `l`, x fastest.
+    #[inline]
+    pub fn corner_indices(&self, l: [u32; 3]) -> [usize; 8] {
+        self.corner_offsets(l).indices()
     }
 
     /// A brick without payload: every cell a 0-cell with `code` (a
@@ -157,7 +169,7 @@ impl RBrick {
             bytes: std::mem::size_of::<RBrick>(),
             dda: [Vec::new(), Vec::new()],
             block_max: Vec::new(),
-            grads: Vec::new(),
+            grads: GradPlane::EMPTY,
         }
     }
 
@@ -445,7 +457,8 @@ impl RBrick {
         if planes.grads && !b.values.is_empty() {
             let axes: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
             let v = b.values.to_f32();
-            b.grads = crate::render::gradient::brick_gradients(&v, b.first, b.cells, axes);
+            let g = crate::render::gradient::brick_gradients(&v, b.first, b.cells, axes);
+            b.grads = GradPlane::inner(&g, b.cells.map(|c| c as usize));
         }
         b.bytes = std::mem::size_of::<RBrick>()
             + b.codes.len()
@@ -455,7 +468,7 @@ impl RBrick {
             + b.dda[1].len()
             + b.levels.iter().map(Vec::len).sum::<usize>()
             + b.block_max.len() * 4
-            + b.grads.len() * std::mem::size_of::<glam::Vec3>();
+            + b.grads.bytes();
     }
 
     /// The code plane and f32 values of brick `id` from its decoded words:

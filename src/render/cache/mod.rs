@@ -8,6 +8,8 @@
 //!
 //! ```text
 //! brick.rs  a decoded brick (RBrick): codes, values, the planes built on them
+//! grads.rs  the shaded composite's gradient plane, its outer layer filled
+//!           on first use
 //! lru.rs    the shared cache's recency order under the byte budget
 //! here      the cache (BrickCache), the policy it serves, and the
 //!           per-tile front (Accessor)
@@ -22,9 +24,11 @@ use super::held::{self, Held};
 use super::samples::Samples;
 
 mod brick;
+mod grads;
 mod lru;
 
 pub use brick::{block_maxima, octree_levels, Codes, RBrick, BLOCK};
+pub use grads::GradPlane;
 use lru::Lru;
 
 /// A sample value as the renderer holds it: rounded to f32 and saturated
@@ -624,5 +628,5 @@ static EMPTY: RBrick = RBrick {
     bytes: 0,
     dda: [Vec::new(), Vec::new()],
     block_max: Vec::new(),
-    grads: Vec::new(),
+    grads: GradPlane::EMPTY,
 };
