@@ -81,7 +81,8 @@ impl GradPlane {
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        self.g.len() * 12 + self.set.len() * 8
+        self.g.len() * std::mem::size_of::<[AtomicU32; 3]>()
+            + self.set.len() * std::mem::size_of::<AtomicU64>()
     }
 
     /// Whether the plane holds the gradients of cell `cell`'s vertices

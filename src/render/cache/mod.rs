@@ -8,6 +8,7 @@
 //!
 //! ```text
 //! brick.rs  a decoded brick (RBrick): codes, values, the planes built on them
+//!           (its tests in brick_tests.rs)
 //! grads.rs  the shaded composite's gradient plane, its outer layer filled
 //!           on first use
 //! lru.rs    the shared cache's recency order under the byte budget
