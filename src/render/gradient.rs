@@ -51,7 +51,7 @@
 //! file's, and the samples the scene's file would hold as codes are
 //! then made missing, as for every other brick (`smooth_gradient_in`).
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec3A};
 
 use super::cache::Accessor;
 use super::traverse::OBJECT;
@@ -436,7 +436,7 @@ fn compute_vertex_gradients(
 /// the gaps and weights along each axis are the sample's own, so the
 /// gradient is a function of the sample alone. A sample on the outer
 /// layer has neighbours in other bricks; the plane ([`GradPlane`]) takes
-/// its gradient when a 1-cell first computes it ([`cell_gradients`]).
+/// its gradient when a 1-cell first computes it ([`outer_cell_gradients`]).
 ///
 /// [`GradPlane`]: super::cache::GradPlane
 pub(crate) fn brick_gradients(
@@ -495,27 +495,42 @@ pub(crate) fn brick_gradients(
 /// for the next ray ([`GradPlane`]).
 ///
 /// [`GradPlane`]: super::cache::GradPlane
-#[inline]
-pub(crate) fn cell_gradients(acc: &mut Accessor, coords: [&[f64]; 3], cell: [u32; 3]) -> [Vec3; 8] {
+///
+/// The composite sampler reads the plane in the lookup that gives it the
+/// cell's values and calls [`outer_cell_gradients`] for the rest; this is
+/// the same per cell on its own, for tests.
+#[cfg(test)]
+pub(crate) fn cell_gradients(
+    acc: &mut Accessor,
+    coords: [&[f64]; 3],
+    cell: [u32; 3],
+) -> [Vec3A; 8] {
     let (b, l) = acc.brick(cell);
-    if b.grads.cell_set(b.cell_index(l)) {
-        return b.grad_corners(l);
+    match b.grad_cell(l) {
+        Some(g) => g,
+        None => outer_cell_gradients(acc, coords, cell),
     }
-    outer_cell_gradients(acc, coords, cell)
 }
 
-/// [`cell_gradients`] of a cell it could not read from a plane: computed,
-/// and kept in the plane when the cell is a 1-cell of a brick with one
-/// (after a read error nothing is kept).
+/// The 8 vertex gradients of 1-cell `cell` when its brick's plane does
+/// not hold them ([`RBrick::grad_cell`]): computed by
+/// [`vertex_gradients`], and kept in the plane when the cell is a 1-cell
+/// of a brick with one (after a read error nothing is kept).
+///
+/// [`RBrick::grad_cell`]: super::cache::RBrick::grad_cell
 #[cold]
-fn outer_cell_gradients(acc: &mut Accessor, coords: [&[f64]; 3], cell: [u32; 3]) -> [Vec3; 8] {
+pub(crate) fn outer_cell_gradients(
+    acc: &mut Accessor,
+    coords: [&[f64]; 3],
+    cell: [u32; 3],
+) -> [Vec3A; 8] {
     let g = vertex_gradients(acc, coords, cell).g.map(|g| g.as_vec3());
     let ok = acc.error.is_none();
     let (b, l) = acc.brick(cell);
     if ok && !b.grads.is_empty() && b.code(l) == OBJECT {
         b.grads.fill(b.cell_index(l), b.corner_indices(l), g);
     }
-    g
+    g.map(Vec3A::from)
 }
 
 /// The derivative at a sample `f0` from its neighbours `fm` before and

@@ -142,11 +142,12 @@ impl RBrick {
         }
     }
 
-    /// The gradient plane's entries ([`RBrick::grads`], set or not) at
-    /// the vertices of local cell `l`, x fastest: loads at fixed offsets.
+    /// The gradients at the vertices of local cell `l` from the gradient
+    /// plane ([`RBrick::grads`]), x fastest, when the plane holds them:
+    /// loads at fixed offsets.
     #[inline(always)]
-    pub fn grad_corners(&self, l: [u32; 3]) -> [glam::Vec3; 8] {
-        self.grads.corners(self.corner_offsets(l))
+    pub fn grad_cell(&self, l: [u32; 3]) -> Option<[glam::Vec3A; 8]> {
+        self.grads.cell(self.cell_index(l), self.corner_offsets(l))
     }
 
     /// The sample indices of the vertices of local cell `l`, x fastest.

@@ -15,7 +15,7 @@ use glam::{Vec3, Vec3A, Vec4};
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
-use crate::render::gradient::{cell_gradients, vertex_gradients, Normals, VertexGradients};
+use crate::render::gradient::{outer_cell_gradients, vertex_gradients, Normals, VertexGradients};
 use crate::render::lut::TfLut;
 use crate::render::options::CompositeLook;
 use crate::render::shade::{at, AlongRay, CellEval};
@@ -91,10 +91,21 @@ pub(super) fn composite32<T: Real>(
 
 /// What the composite samplers do along a run of 1-cells.
 trait Sampler {
+    /// Whether [`Sampler::enter`] wants the cell's vertex gradients from
+    /// its brick's gradient plane.
+    fn plane_gradients(&self) -> bool;
     /// The samples move into 1-cell `cell` with vertex values `f` (x
-    /// fastest; for shading, gradients come from `acc`); the next sample
-    /// is at `t`.
-    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], f: [f32; 8], t: f64);
+    /// fastest) and, when [`Sampler::plane_gradients`] and the plane holds
+    /// them, vertex gradients `g` (else read or computed through `acc`);
+    /// the next sample is at `t`.
+    fn enter(
+        &mut self,
+        acc: &mut Accessor,
+        cell: [u32; 3],
+        f: [f32; 8],
+        g: Option<[Vec3A; 8]>,
+        t: f64,
+    );
     /// The sample at `t` (in the cell last entered); `Stop` once opaque.
     fn sample(&mut self, t: f64) -> Flow;
 }
@@ -188,8 +199,8 @@ fn march<T: Real, P: Sampler>(
                 }
                 k += 1.0;
                 if !entered {
-                    // The code and, for a 1-cell, its vertices: one
-                    // brick lookup.
+                    // The code and, for a 1-cell, its vertices and
+                    // gradients: one brick lookup.
                     let (b, l) = acc.brick(cell);
                     let code = b.code(l);
                     if code != OBJECT {
@@ -199,7 +210,12 @@ fn march<T: Real, P: Sampler>(
                         continue;
                     }
                     let f = b.vertices(l);
-                    s.enter(acc, cell, f, t);
+                    let g = if s.plane_gradients() {
+                        b.grad_cell(l)
+                    } else {
+                        None
+                    };
+                    s.enter(acc, cell, f, g, t);
                     entered = true;
                 }
                 if s.sample(t) == Flow::Stop {
@@ -231,8 +247,19 @@ struct Sampler64<'a> {
 }
 
 impl Sampler for Sampler64<'_> {
+    fn plane_gradients(&self) -> bool {
+        false
+    }
+
     #[inline]
-    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], f: [f32; 8], _t: f64) {
+    fn enter(
+        &mut self,
+        acc: &mut Accessor,
+        cell: [u32; 3],
+        f: [f32; 8],
+        _g: Option<[Vec3A; 8]>,
+        _t: f64,
+    ) {
         self.c = Some(AlongRay::new(self.coords, cell, f, self.ray));
         self.ce = self.look.on.then(|| CellEval::new(self.coords, cell, f));
         self.vg =
@@ -257,7 +284,8 @@ impl Sampler for Sampler64<'_> {
                     None => ce.gradient(p),
                 }
                 .as_vec3();
-                self.look.apply(s.map(|x| x as f32), grad).map(|x| x as f64)
+                let s = Vec4::from_array(s.map(|x| x as f32));
+                self.look.apply(s, grad.into()).to_array().map(|x| x as f64)
             }
             None => s,
         };
@@ -301,11 +329,27 @@ struct Sampler32<'a> {
 
 impl Sampler for Sampler32<'_> {
     #[inline(always)]
-    fn enter(&mut self, acc: &mut Accessor, cell: [u32; 3], f: [f32; 8], t: f64) {
-        if self.look.on && self.look.smooth {
-            // From the brick's gradient plane where it can: the same
-            // values as `vertex_gradients` (render/gradient.rs).
-            self.grads = cell_gradients(acc, self.coords, cell).map(Vec3A::from);
+    fn plane_gradients(&self) -> bool {
+        self.look.on && self.look.smooth
+    }
+
+    #[inline(always)]
+    fn enter(
+        &mut self,
+        acc: &mut Accessor,
+        cell: [u32; 3],
+        f: [f32; 8],
+        g: Option<[Vec3A; 8]>,
+        t: f64,
+    ) {
+        if self.plane_gradients() {
+            // From the brick's gradient plane where it holds them, else
+            // computed (and kept there): the same values as
+            // `vertex_gradients` (render/gradient.rs).
+            self.grads = match g {
+                Some(g) => g,
+                None => outer_cell_gradients(acc, self.coords, cell),
+            };
         }
         let ray = self.ray;
         for (a, &i) in cell.iter().enumerate() {
@@ -328,11 +372,11 @@ impl Sampler for Sampler32<'_> {
         }
         if self.look.on {
             let g = if self.look.smooth {
-                Vec3::from(trilinear_vec(&self.grads, uc.into()))
+                trilinear_vec(&self.grads, uc.into())
             } else {
-                self.c.gradient(uc) * self.inv
+                Vec3A::from(self.c.gradient(uc) * self.inv)
             };
-            s = Vec4::from_array(self.look.apply(s.to_array(), g));
+            s = self.look.apply(s, g);
         }
         // Front to back: colour and opacity both gain (1 - a) s.
         self.acc += (1.0 - self.acc.w) * s;
@@ -431,7 +475,7 @@ struct Look<'a> {
     on: bool,
     /// Gradients from the smooth normals (else the cell interpolant's).
     smooth: bool,
-    to_eye: Vec3,
+    to_eye: Vec3A,
 }
 
 impl<'a> Look<'a> {
@@ -440,7 +484,7 @@ impl<'a> Look<'a> {
             look,
             on: look.shade || !look.gradient_opacity.is_empty(),
             smooth: normals == Normals::Smooth,
-            to_eye: (-ray.dir).as_vec3(),
+            to_eye: Vec3A::from((-ray.dir).as_vec3()),
         }
     }
 
@@ -448,14 +492,15 @@ impl<'a> Look<'a> {
     /// mm): opacity and colour scaled by the gradient opacity, the colour
     /// lit by the surface mode's headlight model
     /// ([`shade`](crate::render::shade::shade): ambient 0.12, diffuse
-    /// 0.75, white specular 0.25 with exponent 32, two-sided).
+    /// 0.75, white specular 0.25 with exponent 32, two-sided). Lane by
+    /// lane, as four scalar expressions would round.
     #[inline]
-    fn apply(&self, s: [f32; 4], g: Vec3) -> [f32; 4] {
+    fn apply(&self, s: Vec4, g: Vec3A) -> Vec4 {
         let len = g.length();
         let mut s = s;
         if !self.look.gradient_opacity.is_empty() {
             let k = self.look.gradient_factor(len as f64) as f32;
-            s = s.map(|x| x * k);
+            s *= k;
         }
         if !self.look.shade {
             return s;
@@ -472,8 +517,8 @@ impl<'a> Look<'a> {
             (0.5, 0.0)
         };
         let k = AMBIENT + 0.75 * diffuse;
-        let sp = 0.25 * spec * s[3];
-        [s[0] * k + sp, s[1] * k + sp, s[2] * k + sp, s[3]]
+        let sp = 0.25 * spec * s.w;
+        (s * k + Vec4::splat(sp)).with_w(s.w)
     }
 }
 
