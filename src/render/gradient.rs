@@ -53,7 +53,7 @@
 
 use glam::{DVec3, Vec3, Vec3A};
 
-use super::cache::Accessor;
+use super::cache::{Accessor, RBrick};
 use super::traverse::OBJECT;
 
 /// How surface normals are estimated (`cdvol render --normals`).
@@ -513,9 +513,12 @@ pub(crate) fn cell_gradients(
 }
 
 /// The 8 vertex gradients of 1-cell `cell` when its brick's plane does
-/// not hold them ([`RBrick::grad_cell`]): computed by
-/// [`vertex_gradients`], and kept in the plane when the cell is a 1-cell
-/// of a brick with one (after a read error nothing is kept).
+/// not hold them all ([`RBrick::grad_cell`]), as [`vertex_gradients`]
+/// gives them. In a brick with a plane, a vertex the plane holds is read
+/// from it; each other one is computed on its own ([`sample_gradient`])
+/// and kept there for the next cell that shares it, and the cell is set
+/// once all 8 are kept. Without a plane, or after a read error (nothing
+/// is kept then), all 8 are computed.
 ///
 /// [`RBrick::grad_cell`]: super::cache::RBrick::grad_cell
 #[cold]
@@ -524,13 +527,84 @@ pub(crate) fn outer_cell_gradients(
     coords: [&[f64]; 3],
     cell: [u32; 3],
 ) -> [Vec3A; 8] {
-    let g = vertex_gradients(acc, coords, cell).g.map(|g| g.as_vec3());
-    let ok = acc.error.is_none();
-    let (b, l) = acc.brick(cell);
-    if ok && !b.grads.is_empty() && b.code(l) == OBJECT {
-        b.grads.fill(b.cell_index(l), b.corner_indices(l), g);
+    let home = acc
+        .brick_arc(cell)
+        .filter(|(b, l)| acc.error.is_none() && !b.grads.is_empty() && b.code(*l) == OBJECT);
+    let Some((home, l)) = home else {
+        return vertex_gradients(acc, coords, cell)
+            .g
+            .map(|g| Vec3A::from(g.as_vec3()));
+    };
+    let idx = home.corner_indices(l);
+    let mut all = true;
+    let g = std::array::from_fn(|v| {
+        if let Some(g) = home.grads.sample(idx[v]) {
+            return g;
+        }
+        let s = std::array::from_fn(|k| cell[k] as usize + (v >> k & 1));
+        let g = sample_gradient(acc, coords, &home, s);
+        // After a read error the neighbours read as missing: keep nothing.
+        all &= acc.error.is_none() && home.grads.fill_sample(idx[v], g);
+        Vec3A::from(g)
+    });
+    if all {
+        home.grads.set_cell(home.cell_index(l));
     }
-    g.map(Vec3A::from)
+    g
+}
+
+/// The gradient at global sample `s`, a vertex of a 1-cell of `home`,
+/// exactly as [`vertex_gradients`] computes it at that vertex: the same
+/// samples (read by [`sample_value`]), gaps, weights and rule
+/// ([`three_point`]), in the same order of operations.
+fn sample_gradient(acc: &mut Accessor, coords: [&[f64]; 3], home: &RBrick, s: [usize; 3]) -> Vec3 {
+    let n: [usize; 3] = std::array::from_fn(|k| coords[k].len());
+    let f0 = sample_value(acc, home, n, s) as f64;
+    DVec3::from_array(std::array::from_fn(|k| {
+        let x = coords[k];
+        let (before, after) = (s[k] >= 1, s[k] + 1 < n[k]);
+        let mut at = s;
+        let (hm, fm) = if before {
+            at[k] = s[k] - 1;
+            (x[s[k]] - x[s[k] - 1], sample_value(acc, home, n, at) as f64)
+        } else {
+            (f64::NAN, f64::NAN)
+        };
+        let (hp, fp) = if after {
+            at[k] = s[k] + 1;
+            (x[s[k] + 1] - x[s[k]], sample_value(acc, home, n, at) as f64)
+        } else {
+            (f64::NAN, f64::NAN)
+        };
+        three_point(f0, fm, fp, [1.0 / hm, 1.0 / hp], hm / (hm + hp)).0
+    }))
+    .as_vec3()
+}
+
+/// Global sample `p` (inside the volume of `n` samples per axis) as
+/// [`vertex_gradients`] reads it for a cell of `home` (module docs, "Which
+/// brick a sample is read from"): from `home` when it holds the sample,
+/// else from the brick of cell `min(p, n - 2)` with its values; NaN where
+/// the word is a code or the brick has no values.
+fn sample_value(acc: &mut Accessor, home: &RBrick, n: [usize; 3], p: [usize; 3]) -> f32 {
+    let index = |b: &RBrick, ls: [usize; 3]| {
+        let (sx, sy) = (b.cells[0] as usize + 1, b.cells[1] as usize + 1);
+        (ls[2] * sy + ls[1]) * sx + ls[0]
+    };
+    let lh: [usize; 3] = std::array::from_fn(|k| p[k].wrapping_sub(home.first[k] as usize));
+    if (0..3).all(|k| lh[k] <= home.cells[k] as usize) {
+        if home.values.is_empty() {
+            return f32::NAN;
+        }
+        return home.values.get(index(home, lh));
+    }
+    let at: [u32; 3] = std::array::from_fn(|k| p[k].min(n[k] - 2) as u32);
+    let (b, l) = acc.brick_with_values(at);
+    let ls: [usize; 3] = std::array::from_fn(|k| l[k] as usize + p[k] - at[k] as usize);
+    if b.values.is_empty() || (0..3).any(|k| ls[k] > b.cells[k] as usize) {
+        return f32::NAN;
+    }
+    b.values.get(index(b, ls))
 }
 
 /// The derivative at a sample `f0` from its neighbours `fm` before and

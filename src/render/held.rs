@@ -93,6 +93,11 @@ impl<T> Held<T> {
         self.items.get(slot)?.as_deref()
     }
 
+    /// [`Held::get`] as the shared handle.
+    pub fn get_arc(&self, slot: usize) -> Option<&Arc<T>> {
+        self.items.get(slot)?.as_ref()
+    }
+
     /// How many items are held.
     #[cfg(test)]
     fn len(&self) -> usize {

@@ -167,30 +167,58 @@ impl GradPlane {
         }))
     }
 
+    /// The gradient of sample `i` if it is ready (written); `None`
+    /// otherwise.
+    ///
+    /// Panics if `i` lies beyond the plane.
+    #[inline]
+    pub fn sample(&self, i: usize) -> Option<Vec3A> {
+        let (w, m) = bit(i);
+        if self.ready[w].load(Ordering::Acquire) & m == 0 {
+            return None;
+        }
+        // SAFETY: the entry's ready bit was seen with acquire, and it was
+        // released after the entry's one write (module docs).
+        Some(Vec3A::from(unsafe { *self.g[i].get() }))
+    }
+
+    /// Stores `g` at sample `i` unless the sample is claimed already;
+    /// whether it is ready now (false when another thread claimed it and
+    /// has not finished writing).
+    pub fn fill_sample(&self, i: usize, g: Vec3) -> bool {
+        let (w, m) = bit(i);
+        if self.ready[w].load(Ordering::Acquire) & m != 0 {
+            return true;
+        }
+        if self.claimed[w].fetch_or(m, Ordering::Relaxed) & m != 0 {
+            return false;
+        }
+        // SAFETY: this thread alone claimed entry i, and nobody reads it
+        // before it is marked ready below (module docs).
+        unsafe { *self.g[i].get() = g.to_array() };
+        self.ready[w].fetch_or(m, Ordering::Release);
+        true
+    }
+
+    /// Sets cell `cell`, whose 8 vertices this thread has seen ready
+    /// ([`GradPlane::sample`]) or filled ([`GradPlane::fill_sample`]
+    /// returned true): readers may then read them all.
+    pub fn set_cell(&self, cell: usize) {
+        let (w, m) = bit(cell);
+        self.set[w].fetch_or(m, Ordering::Release);
+    }
+
     /// Stores `g` at the samples `idx`, the vertices of cell `cell` (the
     /// same order), each unless it is claimed already, and sets the cell
-    /// when all 8 are ready.
+    /// when all 8 are ready. A contended vertex leaves the cell unset:
+    /// another fill sets it later.
     pub fn fill(&self, cell: usize, idx: [usize; 8], g: [Vec3; 8]) {
         let mut all = true;
         for (&i, v) in idx.iter().zip(g) {
-            let (w, m) = bit(i);
-            if self.ready[w].load(Ordering::Acquire) & m != 0 {
-                continue;
-            }
-            if self.claimed[w].fetch_or(m, Ordering::Relaxed) & m != 0 {
-                // Another thread is writing it: that fill, or a later
-                // one of this cell, sets the cell.
-                all = false;
-                continue;
-            }
-            // SAFETY: this thread alone claimed entry i, and nobody reads
-            // it before it is marked ready below (module docs).
-            unsafe { *self.g[i].get() = v.to_array() };
-            self.ready[w].fetch_or(m, Ordering::Release);
+            all &= self.fill_sample(i, v);
         }
         if all {
-            let (w, m) = bit(cell);
-            self.set[w].fetch_or(m, Ordering::Release);
+            self.set_cell(cell);
         }
     }
 }

@@ -501,6 +501,14 @@ impl<'a, 'v> Accessor<'a, 'v> {
 }
 
 impl Accessor<'_, '_> {
+    /// [`Accessor::brick`] as a shared handle, which the caller may keep
+    /// while it reads other bricks through the accessor; `None` after a
+    /// read error.
+    pub fn brick_arc(&mut self, c: [u32; 3]) -> Option<(Arc<RBrick>, [u32; 3])> {
+        let (_, l) = self.brick(c);
+        self.held.get_arc(self.cur).map(|b| (Arc::clone(b), l))
+    }
+
     /// [`Accessor::brick`], but a brick without values that has a
     /// payload (one the index marks as holding no 1-cell, decoded for its
     /// codes only, or stood in) comes decoded with its values
