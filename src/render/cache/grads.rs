@@ -6,8 +6,8 @@
 //! decoded (`gradient::brick_gradients`): their 6 neighbours are in the
 //! brick. A sample on the outer layer has neighbours in other bricks, so
 //! it is filled the first time a 1-cell with that vertex is sampled
-//! (`gradient::outer_cell_gradients`, from the cell's computed gradients)
-//! and read from the plane from then on, by every thread and every later
+//! (`gradient::outer_cell_gradients` computes the vertices the plane
+//! lacks, one at a time) and read from the plane from then on, by every thread and every later
 //! frame while the brick stays cached. Reading the neighbours when the
 //! brick is decoded instead would read the bricks around every face,
 //! whether any ray samples there or not: with a cache budget below the
@@ -28,8 +28,10 @@
 //!   ray into the cell sets it);
 //! - a cell is set (release) only after each of its 8 samples was seen
 //!   ready (acquire) or written by the setter;
-//! - a reader reads a cell's samples only after seeing its bit (acquire):
-//!   [`GradPlane::cell`] is the only read.
+//! - a reader reads a cell's samples only after seeing the cell's bit
+//!   ([`GradPlane::cell`]), or one sample only after seeing its ready bit
+//!   ([`GradPlane::sample`]), both with acquire: these are the only
+//!   reads.
 //!
 //! So every write happens before every read of the same entry, and no
 //! entry is written twice. A vertex's gradient is a function of the
@@ -60,9 +62,10 @@ pub struct GradPlane {
 
 // SAFETY: the entries of `g` are only written by the one thread that
 // claimed them, before they are marked ready, and only read through
-// `cell`, after an acquire of a cell bit that was released after each of
-// the cell's entries was ready (module docs): no entry is written while
-// another thread reads or writes it.
+// `cell` or `sample`, after an acquire of a cell bit released after each
+// of the cell's entries was ready, or of the entry's own ready bit
+// (module docs): no entry is written while another thread reads or
+// writes it.
 unsafe impl Sync for GradPlane {}
 
 /// `n` bits, all clear.
