@@ -491,14 +491,14 @@ pub(crate) fn brick_gradients(
 /// [`vertex_gradients`] gives them, in f32: from its brick's gradient
 /// plane ([`brick_gradients`]) when the cache built one and the cell is
 /// set in it (from the decode on for a cell strictly inside the brick),
-/// else computed; a 1-cell's computed gradients then go into the plane
-/// for the next ray ([`GradPlane`]).
-///
-/// [`GradPlane`]: super::cache::GradPlane
+/// else computed, one vertex at a time, and kept in the plane for the
+/// next ray ([`GradPlane`], [`outer_cell_gradients`]).
 ///
 /// The composite sampler reads the plane in the lookup that gives it the
 /// cell's values and calls [`outer_cell_gradients`] for the rest; this is
 /// the same per cell on its own, for tests.
+///
+/// [`GradPlane`]: super::cache::GradPlane
 #[cfg(test)]
 pub(crate) fn cell_gradients(
     acc: &mut Accessor,
@@ -536,7 +536,6 @@ pub(crate) fn outer_cell_gradients(
             .map(|g| Vec3A::from(g.as_vec3()));
     };
     let idx = home.corner_indices(l);
-    let mut all = true;
     let g = std::array::from_fn(|v| {
         if let Some(g) = home.grads.sample(idx[v]) {
             return g;
@@ -544,12 +543,13 @@ pub(crate) fn outer_cell_gradients(
         let s = std::array::from_fn(|k| cell[k] as usize + (v >> k & 1));
         let g = sample_gradient(acc, coords, &home, s);
         // After a read error the neighbours read as missing: keep nothing.
-        all &= acc.error.is_none() && home.grads.fill_sample(idx[v], g);
+        if acc.error.is_none() {
+            home.grads.fill_sample(idx[v], g);
+        }
         Vec3A::from(g)
     });
-    if all {
-        home.grads.set_cell(home.cell_index(l));
-    }
+    // Unless another thread is still writing one of the vertices.
+    home.grads.set_cell_if_ready(l);
     g
 }
 

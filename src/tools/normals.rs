@@ -248,70 +248,88 @@ mod tests {
             spacing: phantom::parse_spacing3("1,0.6:1.7,0.5:2").unwrap(),
         };
         let info = phantom::spheres(&side, &so, &NoProgress).unwrap();
-        let packed = dir.path().join("s.cdv");
-        let mut po = PrepOptions::new(crate::classify::Classification::Iso { iso: info.iso });
-        po.brick_size = 8;
-        prep(&RawSource::open(&side).unwrap(), &packed, &po, &NoProgress).unwrap();
-        let vol = PackedVolume::open(&packed).unwrap();
-        let h = vol.header();
-        let coords: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
-        let n: [u32; 3] = std::array::from_fn(|k| coords[k].len() as u32 - 1);
-        let plain = BrickCache::new(&vol, 64 << 20);
-        let with_plane = BrickCache::with_planes(
-            &vol,
-            64 << 20,
-            Planes {
-                grads: true,
-                ..Planes::FILE
-            },
-        );
-        let mut acc = Accessor::new(&plain);
-        let mut pacc = Accessor::new(&with_plane);
-        let (mut checked, mut from_plane, mut at_faces) = ([0; 2], [0; 2], [0; 2]);
-        for pass in 0..2 {
-            for z in 0..n[2] {
-                for y in 0..n[1] {
-                    for x in 0..n[0] {
-                        let c = [x, y, z];
-                        let (b, l) = pacc.brick(c);
-                        if !matches!(b.code(l), 0 | crate::render::traverse::OBJECT) {
-                            continue;
+        // The spheres' iso, then 0: every u16 sample is >= 0, so every cell,
+        // those at the volume's border included, is a 1-cell, and the
+        // one-sided rule at the border is compared too.
+        for (scene, iso) in [info.iso, 0.0].into_iter().enumerate() {
+            let packed = dir.path().join(format!("s{scene}.cdv"));
+            let mut po = PrepOptions::new(crate::classify::Classification::Iso { iso });
+            po.brick_size = 8;
+            prep(&RawSource::open(&side).unwrap(), &packed, &po, &NoProgress).unwrap();
+            let vol = PackedVolume::open(&packed).unwrap();
+            let h = vol.header();
+            let coords: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
+            let n: [u32; 3] = std::array::from_fn(|k| coords[k].len() as u32 - 1);
+            let plain = BrickCache::new(&vol, 64 << 20);
+            let with_plane = BrickCache::with_planes(
+                &vol,
+                64 << 20,
+                Planes {
+                    grads: true,
+                    ..Planes::FILE
+                },
+            );
+            let mut acc = Accessor::new(&plain);
+            let mut pacc = Accessor::new(&with_plane);
+            let (mut checked, mut from_plane, mut at_faces) = ([0; 2], [0; 2], [0; 2]);
+            let mut at_border = 0;
+            for pass in 0..2 {
+                for z in 0..n[2] {
+                    for y in 0..n[1] {
+                        for x in 0..n[0] {
+                            let c = [x, y, z];
+                            let (b, l) = pacc.brick(c);
+                            if !matches!(b.code(l), 0 | crate::render::traverse::OBJECT) {
+                                continue;
+                            }
+                            let inner = (0..3).all(|k| l[k] >= 1 && l[k] + 2 <= b.cells[k]);
+                            assert_eq!(b.grads.is_empty(), b.values.is_empty(), "brick of {c:?}");
+                            let set = b.grads.cell_set(b.cell_index(l));
+                            let object = b.code(l) == crate::render::traverse::OBJECT;
+                            if pass == 1 && object {
+                                assert_eq!(set, !b.grads.is_empty(), "cell {c:?} not filled");
+                            }
+                            let border = (0..3).any(|k| c[k] == 0 || c[k] + 1 == n[k]);
+                            at_border += usize::from(object && border && pass == 1);
+                            from_plane[pass] += usize::from(set);
+                            at_faces[pass] += usize::from(set && !inner);
+                            let want = vertex_gradients(&mut acc, coords, c).g.map(|g| g.as_vec3());
+                            let got = cell_gradients(&mut pacc, coords, c);
+                            for v in 0..8 {
+                                let same = want[v]
+                                    .to_array()
+                                    .iter()
+                                    .zip(got[v].to_array())
+                                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                                assert!(
+                                    same,
+                                    "cell {c:?} vertex {v}: {:?} vs {:?}",
+                                    want[v], got[v]
+                                );
+                            }
+                            checked[pass] += 1;
                         }
-                        let inner = (0..3).all(|k| l[k] >= 1 && l[k] + 2 <= b.cells[k]);
-                        assert_eq!(b.grads.is_empty(), b.values.is_empty(), "brick of {c:?}");
-                        let set = b.grads.cell_set(b.cell_index(l));
-                        let object = b.code(l) == crate::render::traverse::OBJECT;
-                        if pass == 1 && object {
-                            assert_eq!(set, !b.grads.is_empty(), "cell {c:?} not filled");
-                        }
-                        from_plane[pass] += usize::from(set);
-                        at_faces[pass] += usize::from(set && !inner);
-                        let want = vertex_gradients(&mut acc, coords, c).g.map(|g| g.as_vec3());
-                        let got = cell_gradients(&mut pacc, coords, c);
-                        for v in 0..8 {
-                            let same = want[v]
-                                .to_array()
-                                .iter()
-                                .zip(got[v].to_array())
-                                .all(|(a, b)| a.to_bits() == b.to_bits());
-                            assert!(same, "cell {c:?} vertex {v}: {:?} vs {:?}", want[v], got[v]);
-                        }
-                        checked[pass] += 1;
                     }
                 }
             }
+            // Both paths were taken, many times: in the second pass the outer
+            // layer filled in the first answers many more cells.
+            assert!(checked[0] > 1000, "{checked:?} cells");
+            assert!(
+                from_plane[0] > 100 && from_plane[0] < checked[0],
+                "{from_plane:?} of {checked:?} from the plane"
+            );
+            assert!(
+                at_faces[1] > at_faces[0] + 1000,
+                "{at_faces:?} at faces from the plane"
+            );
+            // The second scene's 1-cells reach the volume's border.
+            assert_eq!(
+                at_border > 0,
+                scene == 1,
+                "{at_border} 1-cells at the border"
+            );
+            assert!(pacc.error.is_none());
         }
-        // Both paths were taken, many times: in the second pass the outer
-        // layer filled in the first answers many more cells.
-        assert!(checked[0] > 1000, "{checked:?} cells");
-        assert!(
-            from_plane[0] > 100 && from_plane[0] < checked[0],
-            "{from_plane:?} of {checked:?} from the plane"
-        );
-        assert!(
-            at_faces[1] > at_faces[0] + 1000,
-            "{at_faces:?} at faces from the plane"
-        );
-        assert!(pacc.error.is_none());
     }
 }

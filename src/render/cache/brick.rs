@@ -51,8 +51,8 @@ pub struct RBrick {
     pub block_max: Vec<f32>,
     /// Per sample, its vertex gradient ([`Planes::grads`]): for the
     /// shaded composite, bricks with values only; empty otherwise. The
-    /// inner samples are set at decode (`gradient::brick_gradients`), the
-    /// outer layer on first use ([`GradPlane`]).
+    /// inner samples are ready at decode (`gradient::brick_gradients`),
+    /// the outer layer's on first use ([`GradPlane`]).
     pub grads: GradPlane,
 }
 
@@ -147,7 +147,7 @@ impl RBrick {
     /// loads at fixed offsets.
     #[inline(always)]
     pub fn grad_cell(&self, l: [u32; 3]) -> Option<[glam::Vec3A; 8]> {
-        self.grads.cell(self.cell_index(l), self.corner_offsets(l))
+        self.grads.cell(l)
     }
 
     /// The sample indices of the vertices of local cell `l`, x fastest.

@@ -2,13 +2,13 @@
 //! vertex gradient in f32, as `gradient::vertex_gradients` computes it
 //! (docs/TRADEOFFS.md, "Gradient plane").
 //!
-//! The samples strictly inside the brick are set when the brick is
+//! The samples strictly inside the brick are ready when the brick is
 //! decoded (`gradient::brick_gradients`): their 6 neighbours are in the
 //! brick. A sample on the outer layer has neighbours in other bricks, so
 //! it is filled the first time a 1-cell with that vertex is sampled
 //! (`gradient::outer_cell_gradients` computes the vertices the plane
-//! lacks, one at a time) and read from the plane from then on, by every thread and every later
-//! frame while the brick stays cached. Reading the neighbours when the
+//! lacks, one at a time) and read from the plane from then on, by every
+//! thread and every later frame while the brick stays cached. Reading the neighbours when the
 //! brick is decoded instead would read the bricks around every face,
 //! whether any ray samples there or not: with a cache budget below the
 //! working set that read evicted and decoded again, and the shaded
@@ -27,11 +27,14 @@
 //!   to that thread, and the cell is then not set by this fill (the next
 //!   ray into the cell sets it);
 //! - a cell is set (release) only after each of its 8 samples was seen
-//!   ready (acquire) or written by the setter;
+//!   ready (acquire): [`GradPlane::set_cell_if_ready`] checks them;
 //! - a reader reads a cell's samples only after seeing the cell's bit
-//!   ([`GradPlane::cell`]), or one sample only after seeing its ready bit
-//!   ([`GradPlane::sample`]), both with acquire: these are the only
-//!   reads.
+//!   ([`GradPlane::cell`], which derives the cell's vertices itself), or
+//!   one sample only after seeing its ready bit ([`GradPlane::sample`]),
+//!   both with acquire: these are the only reads.
+//!
+//! Every public function keeps these rules whatever its arguments, so no
+//! caller can make a read race with a write.
 //!
 //! So every write happens before every read of the same entry, and no
 //! entry is written twice. A vertex's gradient is a function of the
@@ -49,6 +52,8 @@ use crate::render::samples::{gather8_ref, Corners};
 /// whether its 8 vertices hold theirs. Empty for bricks without one.
 #[derive(Debug, Default)]
 pub struct GradPlane {
+    /// Cells per axis (`cells + 1` samples).
+    cells: [usize; 3],
     /// Per sample (x fastest) the gradient, written at most once (module
     /// docs).
     g: Vec<UnsafeCell<[f32; 3]>>,
@@ -62,10 +67,10 @@ pub struct GradPlane {
 
 // SAFETY: the entries of `g` are only written by the one thread that
 // claimed them, before they are marked ready, and only read through
-// `cell` or `sample`, after an acquire of a cell bit released after each
-// of the cell's entries was ready, or of the entry's own ready bit
-// (module docs): no entry is written while another thread reads or
-// writes it.
+// `cell` (the cell's own vertices, after an acquire of its bit, released
+// only once all 8 were seen ready) or `sample` (after an acquire of the
+// entry's own ready bit; module docs): no entry is written while another
+// thread reads or writes it.
 unsafe impl Sync for GradPlane {}
 
 /// `n` bits, all clear.
@@ -82,6 +87,7 @@ fn bit(i: usize) -> (usize, u64) {
 impl GradPlane {
     /// An empty plane (no brick's).
     pub const EMPTY: GradPlane = GradPlane {
+        cells: [0; 3],
         g: Vec::new(),
         claimed: Vec::new(),
         ready: Vec::new(),
@@ -124,6 +130,7 @@ impl GradPlane {
             .map(|w| AtomicU64::new(*w.get_mut()))
             .collect();
         GradPlane {
+            cells: c,
             g: g.iter().map(|v| UnsafeCell::new(v.to_array())).collect(),
             claimed,
             ready,
@@ -152,19 +159,36 @@ impl GradPlane {
             .is_some_and(|x| x.load(Ordering::Acquire) & m != 0)
     }
 
-    /// The gradients at the vertices `c` (x fastest) of cell `cell`, if
-    /// the cell is set; `None` otherwise.
-    ///
-    /// Panics if the cell is set and a vertex lies beyond the plane.
+    /// Index of local cell `l` and its vertices, if `l` is one of the
+    /// plane's cells.
     #[inline(always)]
-    pub fn cell(&self, cell: usize, c: Corners) -> Option<[Vec3A; 8]> {
-        if !self.cell_set(cell) {
+    fn locate(&self, l: [u32; 3]) -> Option<(usize, Corners)> {
+        let [x, y, z] = l.map(|v| v as usize);
+        let c = self.cells;
+        if x >= c[0] || y >= c[1] || z >= c[2] {
+            return None;
+        }
+        let (sx, sy) = (c[0] + 1, c[1] + 1);
+        let corners = Corners {
+            base: (z * sy + y) * sx + x,
+            sx,
+            z: sx * sy,
+        };
+        Some(((z * c[1] + y) * c[0] + x, corners))
+    }
+
+    /// The gradients at the 8 vertices of local cell `l` (x fastest), if
+    /// the cell is set; `None` otherwise.
+    #[inline(always)]
+    pub fn cell(&self, l: [u32; 3]) -> Option<[Vec3A; 8]> {
+        let (i, c) = self.locate(l)?;
+        if !self.cell_set(i) {
             return None;
         }
         // SAFETY: the cell's bit was seen with acquire, and it was
-        // released after each of its 8 entries was written; no entry is
-        // written again (module docs). `c` must be the cell's vertices:
-        // reading another cell's entries could race with their writer.
+        // released after each of its 8 entries, the vertices `c` of that
+        // same cell, was seen ready; no entry is written again (module
+        // docs).
         Some(gather8_ref(&self.g, c, |v| {
             Vec3A::from(unsafe { *v.get() })
         }))
@@ -203,26 +227,34 @@ impl GradPlane {
         true
     }
 
-    /// Sets cell `cell`, whose 8 vertices this thread has seen ready
-    /// ([`GradPlane::sample`]) or filled ([`GradPlane::fill_sample`]
-    /// returned true): readers may then read them all.
-    pub fn set_cell(&self, cell: usize) {
-        let (w, m) = bit(cell);
-        self.set[w].fetch_or(m, Ordering::Release);
+    /// Sets local cell `l` if all 8 of its vertices are ready, so that
+    /// readers may read them; whether it is set now.
+    pub fn set_cell_if_ready(&self, l: [u32; 3]) -> bool {
+        let Some((i, c)) = self.locate(l) else {
+            return false;
+        };
+        let ready = c.indices().iter().all(|&v| {
+            let (w, m) = bit(v);
+            self.ready[w].load(Ordering::Acquire) & m != 0
+        });
+        if ready {
+            let (w, m) = bit(i);
+            self.set[w].fetch_or(m, Ordering::Release);
+        }
+        ready
     }
 
-    /// Stores `g` at the samples `idx`, the vertices of cell `cell` (the
-    /// same order), each unless it is claimed already, and sets the cell
-    /// when all 8 are ready. A contended vertex leaves the cell unset:
-    /// another fill sets it later.
-    pub fn fill(&self, cell: usize, idx: [usize; 8], g: [Vec3; 8]) {
-        let mut all = true;
-        for (&i, v) in idx.iter().zip(g) {
-            all &= self.fill_sample(i, v);
+    /// Stores `g` at the vertices of local cell `l` (x fastest), each
+    /// unless it is claimed already, and sets the cell when all 8 are
+    /// ready. A contended vertex leaves the cell unset: another fill sets
+    /// it later.
+    #[cfg(test)]
+    pub fn fill(&self, l: [u32; 3], g: [Vec3; 8]) {
+        let (_, c) = self.locate(l).expect("a cell of the plane");
+        for (i, v) in c.indices().into_iter().zip(g) {
+            self.fill_sample(i, v);
         }
-        if all {
-            self.set_cell(cell);
-        }
+        self.set_cell_if_ready(l);
     }
 }
 
@@ -273,22 +305,23 @@ mod tests {
         assert!(!p2.cell_set(c2[0] * c2[1] * c2[2] + 64), "beyond the plane");
         // A set cell reads its vertices' gradients; an unset one nothing.
         let k = corners(s2, 2, 1, 1);
-        let read = p2.cell(cell2(2, 1, 1), k).expect("inner cell");
+        let read = p2.cell([2, 1, 1]).expect("inner cell");
         assert_eq!(read, k.indices().map(|i| Vec3A::from(grad(i))));
-        assert_eq!(p2.cell(cell2(0, 1, 1), corners(s2, 0, 1, 1)), None);
+        assert_eq!(p2.cell([0, 1, 1]), None);
+        assert_eq!(p2.cell([4, 1, 1]), None, "beyond the plane");
         // Filling cell (0, 1, 1) writes its outer vertices and keeps the
         // inner ones (x = 1) as they were.
         let k = corners(s2, 0, 1, 1);
         let fill: [Vec3; 8] = std::array::from_fn(|v| Vec3::splat(-(v as f32) - 1.0));
-        p2.fill(cell2(0, 1, 1), k.indices(), fill);
-        let read = p2.cell(cell2(0, 1, 1), k).expect("filled");
+        p2.fill([0, 1, 1], fill);
+        let read = p2.cell([0, 1, 1]).expect("filled");
         for (v, i) in k.indices().into_iter().enumerate() {
             let want = if v % 2 == 1 { grad(i) } else { fill[v] };
             assert_eq!(read[v], Vec3A::from(want), "vertex {v}");
         }
         assert!(!p2.cell_set(cell2(0, 0, 1)));
         assert!(GradPlane::EMPTY.is_empty() && !GradPlane::EMPTY.cell_set(0));
-        assert_eq!(GradPlane::EMPTY.cell(0, corners(s, 0, 0, 0)), None);
+        assert_eq!(GradPlane::EMPTY.cell([0, 0, 0]), None);
     }
 
     #[test]
@@ -304,13 +337,19 @@ mod tests {
         let (w, m) = bit(idx[0]);
         p.claimed[w].fetch_or(m, Ordering::Relaxed);
         let g: [Vec3; 8] = idx.map(grad);
-        p.fill(0, idx, g);
+        p.fill([0, 0, 0], g);
         assert!(!p.cell_set(0), "set before vertex 0 is ready");
         // That filler finishes; the next fill of the cell sets it.
+        // SAFETY: this test plays the claiming thread; nothing reads the
+        // entry before its ready bit below.
         unsafe { *p.g[idx[0]].get() = grad(idx[0]).to_array() };
         p.ready[w].fetch_or(m, Ordering::Release);
-        p.fill(0, idx, [Vec3::splat(f32::NAN); 8]);
-        assert_eq!(p.cell(0, k), Some(g.map(Vec3A::from)), "written once each");
+        p.fill([0, 0, 0], [Vec3::splat(f32::NAN); 8]);
+        assert_eq!(
+            p.cell([0, 0, 0]),
+            Some(g.map(Vec3A::from)),
+            "written once each"
+        );
     }
 
     #[test]
@@ -332,11 +371,10 @@ mod tests {
                         // Each thread walks the cells from its own start.
                         for j in 0..cells.len() {
                             let [x, y, z] = cells[(j * 7 + t * 11 + round) % cells.len()];
-                            let cell = (z * c[1] + y) * c[0] + x;
                             let k = corners(s, x, y, z);
-                            match p.cell(cell, k) {
+                            match p.cell([x, y, z].map(|v| v as u32)) {
                                 Some(got) => assert_eq!(got, k.indices().map(|i| grad(i).into())),
-                                None => p.fill(cell, k.indices(), k.indices().map(grad)),
+                                None => p.fill([x, y, z].map(|v| v as u32), k.indices().map(grad)),
                             }
                         }
                     });
@@ -346,9 +384,9 @@ mod tests {
             for (cell, &[x, y, z]) in cells.iter().enumerate() {
                 let k = corners(s, x, y, z);
                 if !p.cell_set(cell) {
-                    p.fill(cell, k.indices(), k.indices().map(grad));
+                    p.fill([x, y, z].map(|v| v as u32), k.indices().map(grad));
                 }
-                let got = p.cell(cell, k).expect("set");
+                let got = p.cell([x, y, z].map(|v| v as u32)).expect("set");
                 assert_eq!(
                     got,
                     k.indices().map(|i| Vec3A::from(grad(i))),

@@ -503,7 +503,9 @@ impl<'a, 'v> Accessor<'a, 'v> {
 impl Accessor<'_, '_> {
     /// [`Accessor::brick`] as a shared handle, which the caller may keep
     /// while it reads other bricks through the accessor; `None` after a
-    /// read error.
+    /// read error. It clones the `Arc` (an atomic count other threads
+    /// share), so it is for cold paths only: the gradients of a cell the
+    /// plane does not hold yet (render/gradient.rs).
     pub fn brick_arc(&mut self, c: [u32; 3]) -> Option<(Arc<RBrick>, [u32; 3])> {
         let (_, l) = self.brick(c);
         self.held.get_arc(self.cur).map(|b| (Arc::clone(b), l))
