@@ -8,11 +8,11 @@
 //! it is filled the first time a 1-cell with that vertex is sampled
 //! (`gradient::outer_cell_gradients` computes the vertices the plane
 //! lacks, one at a time) and read from the plane from then on, by every
-//! thread and every later frame while the brick stays cached. Reading the neighbours when the
-//! brick is decoded instead would read the bricks around every face,
-//! whether any ray samples there or not: with a cache budget below the
-//! working set that read evicted and decoded again, and the shaded
-//! composite took 75 % longer (docs/BENCHMARKS.md).
+//! thread and every later frame while the brick stays cached. Reading
+//! the neighbours when the brick is decoded instead would read the bricks
+//! around every face, whether any ray samples there or not: with a cache
+//! budget below the working set that read evicted and decoded again, and
+//! the shaded composite took 75 % longer (docs/BENCHMARKS.md).
 //!
 //! Which cells can be read is kept per cell, one bit each: a cell is set
 //! when all 8 of its vertices hold their gradients, which costs the
@@ -33,13 +33,12 @@
 //!   one sample only after seeing its ready bit ([`GradPlane::sample`]),
 //!   both with acquire: these are the only reads.
 //!
-//! Every public function keeps these rules whatever its arguments, so no
-//! caller can make a read race with a write.
-//!
 //! So every write happens before every read of the same entry, and no
-//! entry is written twice. A vertex's gradient is a function of the
-//! vertex (module `render::gradient`, "Which brick a sample is read
-//! from"), so which thread wins a claim does not change any bit.
+//! entry is written twice. Every public function keeps these rules
+//! whatever its arguments, so no caller can make a read race with a
+//! write. A vertex's gradient is a function of the vertex (module
+//! `render::gradient`, "Which brick a sample is read from"), so which
+//! thread wins a claim does not change any bit.
 
 use std::cell::UnsafeCell;
 use std::sync::atomic::{AtomicU64, Ordering};
