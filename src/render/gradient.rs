@@ -325,7 +325,7 @@ fn compute_vertex_gradients(
                 let ls: [usize; 3] = std::array::from_fn(|k| (lc[k] + o[k]).wrapping_sub(1));
                 if (0..3).all(|k| ls[k] <= b.cells[k] as usize) {
                     if has {
-                        f[i] = b.values.get((ls[2] * sy + ls[1]) * sx + ls[0]);
+                        f[i] = b.values.get(b.sample_index(ls));
                     }
                 } else {
                     todo |= 1 << i;
@@ -350,9 +350,7 @@ fn compute_vertex_gradients(
         if (0..3).any(|k| ls[k] > b.cells[k] as usize) {
             continue;
         }
-        let sx = b.cells[0] as usize + 1;
-        let sy = b.cells[1] as usize + 1;
-        f[i] = b.values.get((ls[2] * sy + ls[1]) * sx + ls[0]);
+        f[i] = b.values.get(b.sample_index(ls));
     }
     if narrow.is_some() {
         // Only a sample two past the cell can be a code in a file
@@ -587,16 +585,12 @@ fn sample_gradient(acc: &mut Accessor, coords: [&[f64]; 3], home: &RBrick, s: [u
 /// else from the brick of cell `min(p, n - 2)` with its values; NaN where
 /// the word is a code or the brick has no values.
 fn sample_value(acc: &mut Accessor, home: &RBrick, n: [usize; 3], p: [usize; 3]) -> f32 {
-    let index = |b: &RBrick, ls: [usize; 3]| {
-        let (sx, sy) = (b.cells[0] as usize + 1, b.cells[1] as usize + 1);
-        (ls[2] * sy + ls[1]) * sx + ls[0]
-    };
     let lh: [usize; 3] = std::array::from_fn(|k| p[k].wrapping_sub(home.first[k] as usize));
     if (0..3).all(|k| lh[k] <= home.cells[k] as usize) {
         if home.values.is_empty() {
             return f32::NAN;
         }
-        return home.values.get(index(home, lh));
+        return home.values.get(home.sample_index(lh));
     }
     let at: [u32; 3] = std::array::from_fn(|k| p[k].min(n[k] - 2) as u32);
     let (b, l) = acc.brick_with_values(at);
@@ -604,7 +598,7 @@ fn sample_value(acc: &mut Accessor, home: &RBrick, n: [usize; 3], p: [usize; 3])
     if b.values.is_empty() || (0..3).any(|k| ls[k] > b.cells[k] as usize) {
         return f32::NAN;
     }
-    b.values.get(index(b, ls))
+    b.values.get(b.sample_index(ls))
 }
 
 /// The derivative at a sample `f0` from its neighbours `fm` before and

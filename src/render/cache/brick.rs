@@ -150,6 +150,14 @@ impl RBrick {
         self.grads.cell(l)
     }
 
+    /// Index of local sample `ls` (0 to `cells` per axis) in the brick's
+    /// sample planes (x fastest).
+    #[inline(always)]
+    pub fn sample_index(&self, ls: [usize; 3]) -> usize {
+        let (sx, sy) = (self.cells[0] as usize + 1, self.cells[1] as usize + 1);
+        (ls[2] * sy + ls[1]) * sx + ls[0]
+    }
+
     /// The sample indices of the vertices of local cell `l`, x fastest.
     #[inline]
     pub fn corner_indices(&self, l: [u32; 3]) -> [usize; 8] {
