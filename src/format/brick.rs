@@ -228,17 +228,16 @@ impl SampleTable {
         let len = 1usize << (8 * size);
         let (mut kinds, mut codes) = (vec![0u8; len], vec![0u8; len]);
         let mut values = Vec::new();
-        // Every word, in index order: index i's native-endian bytes.
-        let bytes: Vec<u8> = (0..len)
-            .flat_map(|i| {
-                let b = (i as u16).to_ne_bytes();
-                if size == 1 {
-                    vec![b[0]]
-                } else {
-                    b.to_vec()
-                }
-            })
-            .collect();
+        // Every word, in index order: index i's native-endian bytes (one
+        // buffer; a Vec per word cost more than the decode).
+        let mut bytes = Vec::with_capacity(len * size);
+        for i in 0..len {
+            if size == 1 {
+                bytes.push(i as u8);
+            } else {
+                bytes.extend_from_slice(&(i as u16).to_ne_bytes());
+            }
+        }
         decode_samples(
             h,
             &bytes,

@@ -22,8 +22,22 @@ use std::time::Instant;
 
 use super::cache::Accessor;
 
-/// One ray in this many is timed.
-pub const TIMED_EVERY: u32 = 8;
+/// One ray in this many is timed. Each reading of the tick counter costs
+/// some 30 ns on the virtual machines the benchmarks run on, and a timed
+/// ray reads it twice per cell it samples: at one ray in 8 the readings
+/// took 5-7 % of a warm surface or MIP frame (docs/BENCHMARKS.md, "The
+/// clock's readings"). One in 64 still times some 16,000 rays of a 1024^2
+/// frame and 60 of a 64^2 one.
+pub const TIMED_EVERY: u32 = 64;
+
+/// Whether ray `i` of a tile is timed: one in [`TIMED_EVERY`], spread over
+/// the tile (the golden-ratio sequence `i * 0.618...` modulo 1 falls in
+/// its lowest `1 / TIMED_EVERY` once in every run of about that many
+/// rays), not every ray at the same column.
+#[inline(always)]
+pub(crate) fn is_timed(i: u32) -> bool {
+    i.wrapping_mul(0x9E37_79B9) < u32::MAX / TIMED_EVERY
+}
 
 /// The tick counter: the time-stamp counter on x86_64, nanoseconds since
 /// the first call elsewhere. Only ratios of ticks within one tile are used,
@@ -91,11 +105,10 @@ impl Clock {
         }
     }
 
-    /// Ray `i` of the tile begins; it is timed when `i` is a multiple of
-    /// [`TIMED_EVERY`].
+    /// Ray `i` of the tile begins; it is timed when [`is_timed`].
     #[inline]
     pub(crate) fn begin_ray(&mut self, i: u32, acc: &Accessor) {
-        self.timed = i.is_multiple_of(TIMED_EVERY);
+        self.timed = is_timed(i);
         if self.timed {
             self.sections = 0;
             self.ray_decode = acc.counters.decode_seconds;
@@ -192,4 +205,35 @@ pub(crate) fn split(times: &[TileTime], decode: f64) -> (f64, f64, f64) {
         0.0
     };
     (tiles, rest * (1.0 - share), rest * share)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// About one ray in `TIMED_EVERY` is timed in every stretch of a tile,
+    /// the first included, with no two timed rays adjacent.
+    #[test]
+    fn timed_rays_are_one_in_timed_every_and_spread() {
+        let timed: Vec<u32> = (0..1 << 16).filter(|&i| is_timed(i)).collect();
+        let n = (1u32 << 16) / TIMED_EVERY;
+        assert!(
+            timed.len().abs_diff(n as usize) <= 2,
+            "{} timed of 65536",
+            timed.len()
+        );
+        assert_eq!(timed[0], 0);
+        let gaps: Vec<u32> = timed.windows(2).map(|w| w[1] - w[0]).collect();
+        assert!(
+            gaps.iter()
+                .all(|&g| g >= TIMED_EVERY / 2 && g <= 2 * TIMED_EVERY),
+            "{gaps:?}"
+        );
+        // A 64^2 tile: timed rays in every quarter of its rows.
+        for q in 0..4u32 {
+            let r = q * 1024..(q + 1) * 1024;
+            let k = timed.iter().filter(|i| r.contains(i)).count();
+            assert!((12..=20).contains(&k), "quarter {q}: {k}");
+        }
+    }
 }
