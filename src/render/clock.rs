@@ -226,7 +226,7 @@ mod tests {
         let gaps: Vec<u32> = timed.windows(2).map(|w| w[1] - w[0]).collect();
         assert!(
             gaps.iter()
-                .all(|&g| g >= TIMED_EVERY / 2 && g <= 2 * TIMED_EVERY),
+                .all(|&g| (TIMED_EVERY / 2..=2 * TIMED_EVERY).contains(&g)),
             "{gaps:?}"
         );
         // A 64^2 tile: timed rays in every quarter of its rows.
