@@ -53,7 +53,7 @@ pub struct Stats {
     #[serde(default)]
     pub seconds_tiles: f64,
     /// The traversal's share of `seconds_tiles` without decode, summed over
-    /// threads: cells found, leaps taken. Estimated from one ray in 8
+    /// threads: cells found, leaps taken. Estimated from one ray in 64
     /// (render/clock.rs); 0 for the template renderer.
     #[serde(default)]
     pub seconds_traverse: f64,
