@@ -26,10 +26,9 @@ use super::cache::Accessor;
 /// about 26 ns on the virtual machines the benchmarks run on
 /// (tools/rdtsc-cost.rs), and a timed ray reads it twice per cell it
 /// samples: at one ray in 8, `perf` put 5-7 % of a warm surface or MIP
-/// frame on the readings (docs/BENCHMARKS.md, "Fixed costs and the clock's
-/// readings").
-/// One in 64 still times some 16,000 rays of a 1024^2 frame and 60 of a
-/// 64^2 one.
+/// frame on the readings (docs/BENCHMARKS.md, "Fixed costs and the
+/// clock's readings"). One in 64 still times some 16,000 rays of a 1024^2
+/// frame and 60 of a 64^2 one.
 pub const TIMED_EVERY: u32 = 64;
 
 /// Whether ray `i` of a tile is timed: one in [`TIMED_EVERY`], spread over
