@@ -339,18 +339,7 @@ fn compute_vertex_gradients(
         todo &= todo - 1;
         let o = [i & 3, i >> 2 & 3, i >> 4];
         let s: [usize; 3] = std::array::from_fn(|k| c[k] + o[k] - 1);
-        // The brick of cell min(s, n - 2), with its values: see the
-        // module docs.
-        let at: [u32; 3] = std::array::from_fn(|k| s[k].min(n[k] - 2) as u32);
-        let (b, l) = acc.brick_with_values(at);
-        if b.values.is_empty() {
-            continue;
-        }
-        let ls: [usize; 3] = std::array::from_fn(|k| l[k] as usize + s[k] - at[k] as usize);
-        if (0..3).any(|k| ls[k] > b.cells[k] as usize) {
-            continue;
-        }
-        f[i] = b.values.get(b.sample_index(ls));
+        f[i] = value_elsewhere(acc, n, s);
     }
     if narrow.is_some() {
         // Only a sample two past the cell can be a code in a file
@@ -592,6 +581,14 @@ fn sample_value(acc: &mut Accessor, home: &RBrick, n: [usize; 3], p: [usize; 3])
         }
         return home.values.get(home.sample_index(lh));
     }
+    value_elsewhere(acc, n, p)
+}
+
+/// Global sample `p` (inside the volume of `n` samples per axis) read
+/// outside the asking cell's brick: from the brick of cell
+/// `min(p, n - 2)` with its values (module docs, "Which brick a sample is
+/// read from"); NaN where the word is a code or the brick has no values.
+fn value_elsewhere(acc: &mut Accessor, n: [usize; 3], p: [usize; 3]) -> f32 {
     let at: [u32; 3] = std::array::from_fn(|k| p[k].min(n[k] - 2) as u32);
     let (b, l) = acc.brick_with_values(at);
     let ls: [usize; 3] = std::array::from_fn(|k| l[k] as usize + p[k] - at[k] as usize);

@@ -208,29 +208,27 @@ impl GradPlane {
         Some(Vec3A::from(unsafe { *self.g[i].get() }))
     }
 
-    /// Stores `g` at sample `i` unless the sample is claimed already;
-    /// whether it is ready now (false when another thread claimed it and
-    /// has not finished writing).
-    pub fn fill_sample(&self, i: usize, g: Vec3) -> bool {
+    /// Stores `g` at sample `i` unless the sample is claimed already (by
+    /// this or another thread, which then writes it).
+    pub fn fill_sample(&self, i: usize, g: Vec3) {
         let (w, m) = bit(i);
         if self.ready[w].load(Ordering::Acquire) & m != 0 {
-            return true;
+            return;
         }
         if self.claimed[w].fetch_or(m, Ordering::Relaxed) & m != 0 {
-            return false;
+            return;
         }
         // SAFETY: this thread alone claimed entry i, and nobody reads it
         // before it is marked ready below (module docs).
         unsafe { *self.g[i].get() = g.to_array() };
         self.ready[w].fetch_or(m, Ordering::Release);
-        true
     }
 
     /// Sets local cell `l` if all 8 of its vertices are ready, so that
-    /// readers may read them; whether it is set now.
-    pub fn set_cell_if_ready(&self, l: [u32; 3]) -> bool {
+    /// readers may read them.
+    pub fn set_cell_if_ready(&self, l: [u32; 3]) {
         let Some((i, c)) = self.locate(l) else {
-            return false;
+            return;
         };
         let ready = c.indices().iter().all(|&v| {
             let (w, m) = bit(v);
@@ -240,7 +238,6 @@ impl GradPlane {
             let (w, m) = bit(i);
             self.set[w].fetch_or(m, Ordering::Release);
         }
-        ready
     }
 
     /// Stores `g` at the vertices of local cell `l` (x fastest), each
