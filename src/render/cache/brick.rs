@@ -43,12 +43,15 @@ pub struct RBrick {
     /// fastest (files prepared with `--dda`); empty for uniform bricks and
     /// files without them.
     pub dda: [Vec<u8>; 2],
-    /// Per block of [`BLOCK`]^3 cells (x fastest, `cells.div_ceil(BLOCK)`
-    /// blocks per axis), the largest vertex value of the block's cells,
-    /// NaN ignored (`f32::NEG_INFINITY` if all are NaN). Built only with
+    /// A max pyramid: `block_max[i]` holds, per node of `BLOCK << i`
+    /// cells per axis (x fastest, `cells.div_ceil(BLOCK << i)` nodes per
+    /// axis), the largest vertex value of the node's cells, NaN ignored
+    /// (`f32::NEG_INFINITY` if all are NaN); from [`BLOCK`]^3 blocks up to
+    /// the largest power of two that divides the brick size, so that every
+    /// node is one of the grid's aligned octree nodes. Built only with
     /// [`Planes::block_max`] and only for bricks with values; empty
     /// otherwise.
-    pub block_max: Vec<f32>,
+    pub block_max: Vec<Vec<f32>>,
     /// Per sample, its vertex gradient ([`Planes::grads`]): for the
     /// shaded composite, bricks with values only; empty otherwise. The
     /// inner samples are ready at decode (`gradient::brick_gradients`),
@@ -106,12 +109,37 @@ impl RBrick {
     /// (not built, or a brick without values).
     #[inline]
     pub fn block_max(&self, l: [u32; 3]) -> f32 {
-        if self.block_max.is_empty() {
+        self.node_max(l, 0)
+    }
+
+    /// The largest vertex value of the node of level `i` of
+    /// [`RBrick::block_max`] (`BLOCK << i` cells per axis) holding local
+    /// cell `l`; `f32::INFINITY` (no bound) when that level is not built.
+    #[inline(always)]
+    pub fn node_max(&self, l: [u32; 3], i: usize) -> f32 {
+        let Some(plane) = self.block_max.get(i) else {
             return f32::INFINITY;
+        };
+        let s = BLOCK.trailing_zeros() + i as u32;
+        let n = self.cells.map(|c| c.div_ceil(1 << s));
+        plane[(((l[2] >> s) * n[1] + (l[1] >> s)) * n[0] + (l[0] >> s)) as usize]
+    }
+
+    /// The largest level `L` (in cells per axis, `2^L`) of the pyramid
+    /// [`RBrick::block_max`] whose node holding local cell `l` has no
+    /// vertex value above `best`; `None` when even its [`BLOCK`]^3 block
+    /// has one (or the pyramid is not built). The nodes nest, so the
+    /// levels are tried upwards until one fails.
+    #[inline]
+    pub fn node_below(&self, l: [u32; 3], best: f64) -> Option<u8> {
+        let mut found = None;
+        for i in 0..self.block_max.len() {
+            if self.node_max(l, i) as f64 > best {
+                break;
+            }
+            found = Some((BLOCK.trailing_zeros() + i as u32) as u8);
         }
-        let nb = self.cells.map(|c| c.div_ceil(BLOCK));
-        let b = ((l[2] / BLOCK * nb[1] + l[1] / BLOCK) * nb[0] + l[0] / BLOCK) as usize;
-        self.block_max[b]
+        found
     }
 
     /// The 8 vertex values of local cell `l`, x fastest.
@@ -342,7 +370,7 @@ impl RBrick {
                 return;
             }
             // Planes derived from the values want them in f32.
-            let keep_words = !planes.block_max && !planes.grads;
+            let keep_words = !planes.grads;
             b.values = match (table, words) {
                 (Some(t), Some(WordValues::W8(v, order))) if keep_words => {
                     let mut w = Vec::new();
@@ -461,7 +489,8 @@ impl RBrick {
             b.levels = octree_levels(p, b.cells, h.brick_size.trailing_zeros());
         }
         if planes.block_max && !b.values.is_empty() {
-            b.block_max = block_maxima(&b.values.to_f32(), b.cells);
+            let base = block_maxima(&b.values.to_f32(), b.cells);
+            b.block_max = max_pyramid(base, b.cells, h.brick_size);
         }
         if planes.grads && !b.values.is_empty() {
             let axes: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
@@ -476,7 +505,7 @@ impl RBrick {
             + b.dda[0].len()
             + b.dda[1].len()
             + b.levels.iter().map(Vec::len).sum::<usize>()
-            + b.block_max.len() * 4
+            + b.block_max.iter().map(|p| p.len() * 4).sum::<usize>()
             + b.grads.bytes();
     }
 
@@ -580,6 +609,39 @@ pub fn block_maxima(values: &[f32], cells: [u32; 3]) -> Vec<f32> {
         }
     }
     out
+}
+
+/// The [`RBrick::block_max`] pyramid of a brick with `cells` per axis
+/// from its [`BLOCK`]^3 maxima `base`: each level the maxima of the level
+/// below's 2x2x2 children inside the brick, up to nodes of the largest
+/// power of two dividing `brick_size` (bricks start at multiples of it).
+pub fn max_pyramid(base: Vec<f32>, cells: [u32; 3], brick_size: u32) -> Vec<Vec<f32>> {
+    let b0 = BLOCK.trailing_zeros();
+    let top = brick_size.trailing_zeros();
+    if top < b0 {
+        return Vec::new();
+    }
+    let mut levels = vec![base];
+    for s in b0 + 1..=top {
+        let below = &levels[levels.len() - 1];
+        let d = cells.map(|c| c.div_ceil(1 << (s - 1)) as usize);
+        let up = cells.map(|c| c.div_ceil(1 << s) as usize);
+        let mut out = vec![f32::NEG_INFINITY; up[0] * up[1] * up[2]];
+        for z in 0..d[2] {
+            for y in 0..d[1] {
+                for x in 0..d[0] {
+                    let v = below[(z * d[1] + y) * d[0] + x];
+                    let o = &mut out[((z / 2) * up[1] + y / 2) * up[0] + x / 2];
+                    // NaN never stored (block_maxima ignores it).
+                    if v > *o {
+                        *o = v;
+                    }
+                }
+            }
+        }
+        levels.push(out);
+    }
+    levels
 }
 
 /// Octree levels `1..=lb` of a brick's code plane (`cells` per axis):

@@ -194,7 +194,7 @@ proptest! {
         let words = matches!(fast.values, Samples::Words8(..) | Samples::Words16(..));
         prop_assert_eq!(
             words,
-            storage.size() <= 2 && !block_max && !fast.values.is_empty()
+            storage.size() <= 2 && !fast.values.is_empty()
         );
         // The same planes but for the width of the values.
         let f32_bytes = |b: &RBrick| b.bytes - b.values.bytes() + 4 * b.values.len();
@@ -338,5 +338,51 @@ proptest! {
             }
         }
         prop_assert_eq!(got, want);
+    }
+}
+
+proptest! {
+    /// Every node of the max pyramid against the definition: the largest
+    /// vertex value (NaN ignored) over the cells of the aligned node of
+    /// `BLOCK << i` cells per axis, clipped to the brick; one level per
+    /// power of two from `BLOCK` up to the largest dividing the brick size.
+    #[test]
+    fn max_pyramid_nodes_bound_their_cells_vertices(
+        brick_size in prop_oneof![Just(2u32), Just(4), Just(8), Just(12), Just(16), Just(32)],
+        cells_seed in proptest::array::uniform3(1u32..33),
+        seed in proptest::collection::vec(prop_oneof![
+            6 => -1e3f32..1e3,
+            1 => Just(f32::NAN),
+            1 => Just(f32::INFINITY),
+            1 => Just(f32::NEG_INFINITY),
+        ], 1..2000),
+    ) {
+        // A brick holds at most `brick_size` cells per axis.
+        let cells = cells_seed.map(|c| c.min(brick_size));
+        let [sx, sy, sz] = cells.map(|c| c as usize + 1);
+        let values: Vec<f32> = (0..sx * sy * sz).map(|i| seed[(i * 7919) % seed.len()]).collect();
+        let got = super::max_pyramid(super::block_maxima(&values, cells), cells, brick_size);
+        let b0 = super::BLOCK.trailing_zeros();
+        let top = brick_size.trailing_zeros();
+        prop_assert_eq!(got.len(), (top + 1).saturating_sub(b0) as usize);
+        for (i, plane) in got.iter().enumerate() {
+            let s = b0 + i as u32;
+            let n = cells.map(|c| c.div_ceil(1 << s) as usize);
+            let mut want = vec![f32::NEG_INFINITY; n[0] * n[1] * n[2]];
+            for z in 0..sz - 1 {
+                for y in 0..sy - 1 {
+                    for x in 0..sx - 1 {
+                        let b = ((z >> s) * n[1] + (y >> s)) * n[0] + (x >> s);
+                        for d in 0..8 {
+                            let v = values[((z + d / 4) * sy + y + d / 2 % 2) * sx + x + d % 2];
+                            if v > want[b] {
+                                want[b] = v;
+                            }
+                        }
+                    }
+                }
+            }
+            prop_assert_eq!(plane, &want, "level {}", s);
+        }
     }
 }

@@ -28,7 +28,7 @@ mod brick;
 mod grads;
 mod lru;
 
-pub use brick::{block_maxima, octree_levels, Codes, RBrick, BLOCK};
+pub use brick::{block_maxima, max_pyramid, octree_levels, Codes, RBrick, BLOCK};
 pub use grads::GradPlane;
 use lru::Lru;
 
@@ -442,6 +442,12 @@ impl<'a, 'v> Accessor<'a, 'v> {
     #[inline]
     pub(crate) fn remembers_gradients(&self) -> bool {
         self.memo_gradients
+    }
+
+    /// Cells per edge of the file's bricks.
+    #[inline]
+    pub fn brick_size(&self) -> u32 {
+        self.brick_size
     }
 
     /// The process-unique id of the cache behind this accessor.

@@ -10,10 +10,10 @@
 //! faces and draws the same image.
 
 use super::{Ctx, Px};
-use crate::render::cache::Accessor;
+use crate::render::cache::{Accessor, BLOCK};
 use crate::render::clock::Clock;
 use crate::render::shade::{at, CellEval};
-use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, Visit};
+use crate::render::traverse::{trace, Flow, Method, Ray, Real, StepCounts, Visit};
 
 /// Writes the largest value along `ray` into `px.rgb` (uncoloured).
 pub(super) fn mip<T: Real>(
@@ -25,17 +25,31 @@ pub(super) fn mip<T: Real>(
 ) -> StepCounts {
     let coords = ctx.coords;
     let mut m = Max::default();
+    let leaps = block_leaps(ctx.opts.method, acc.brick_size());
     let counts = trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |v, acc| {
         clock.enter(acc);
-        m.raise(coords, ray, v, acc);
+        let flow = m.raise(coords, ray, v, acc, leaps);
         clock.leave(acc);
-        Flow::Continue
+        flow
     });
     if m.best > f64::NEG_INFINITY {
         px.hit = true;
         px.rgb = [m.best as f32; 3];
     }
     counts
+}
+
+/// Whether a MIP with `method` on bricks of `brick_size` cells leaps out of
+/// blocks whose maximum cannot raise the ray's: the cell-stepping leaps of
+/// CD and the octree (FVT stays the single-cell walk it is measured as),
+/// and only where the bricks' blocks are the grid's aligned nodes of
+/// [`BLOCK`] cells (bricks start at multiples of their size).
+fn block_leaps(method: Method, brick_size: u32) -> bool {
+    let walks_cells = matches!(
+        method,
+        Method::Cd { .. } | Method::CdAniso { .. } | Method::Octree
+    );
+    walks_cells && brick_size.is_multiple_of(BLOCK)
 }
 
 /// The ray's maximum so far and the face the last visit left by.
@@ -60,17 +74,39 @@ impl Max {
     /// Raises `best` to the largest value of the interpolant of `v`'s cell
     /// where the ray enters and leaves it; the entry is skipped when it is
     /// the face the last visit left by and that face is covered.
+    ///
+    /// With `leaps`, a cell whose block's largest vertex value
+    /// ([`RBrick::block_max`](crate::render::cache::RBrick::block_max)) is
+    /// at most `best` says leap out of the block: no value the interpolant
+    /// takes in the block's cells can raise `best`, so the maximum is the
+    /// same with or without the block's cells.
     #[inline]
-    fn raise(&mut self, coords: [&[f64]; 3], ray: &Ray, v: &Visit, acc: &mut Accessor) {
+    fn raise(
+        &mut self,
+        coords: [&[f64]; 3],
+        ray: &Ray,
+        v: &Visit,
+        acc: &mut Accessor,
+        leaps: bool,
+    ) -> Flow {
         let shared = v.t_enter == self.covered_exit;
         let (b, l) = acc.brick(v.cell);
+
         // The interpolant never exceeds the largest vertex value (NaN
         // vertices give NaN, which max ignores): a cell whose vertices are
         // all <= best cannot raise it. For 8- and 16-bit words, one lookup
         // (render/samples.rs); NaN, no bound, never skips.
         if b.vertex_top(l) as f64 <= self.best {
+            if leaps {
+                if let Some(level) = b.node_below(l, self.best) {
+                    // Where the leap lands is not known here: no face is
+                    // covered.
+                    self.covered_exit = f64::NAN;
+                    return Flow::LeapNode(level);
+                }
+            }
             self.covered_exit = v.t_exit;
-            return;
+            return Flow::Continue;
         }
         let c = CellEval::new(coords, v.cell, b.vertices(l));
         if !shared {
@@ -79,5 +115,6 @@ impl Max {
         let exit = c.value(at(ray, v.t_exit));
         self.best = self.best.max(exit);
         self.covered_exit = if exit.is_nan() { f64::NAN } else { v.t_exit };
+        Flow::Continue
     }
 }

@@ -112,14 +112,24 @@ impl<T: Real, R> CellWalker<'_, '_, T, R> {
             counts.steps += 1;
             moved = match self.rule.at(f, c.v, real, src) {
                 Action::Visit => {
-                    if let Some(vis) = c.visit(f, real) {
-                        if on_visit(&vis, src) == Flow::Stop {
+                    let flow = match c.visit(f, real) {
+                        Some(vis) => on_visit(&vis, src),
+                        None => Flow::Continue,
+                    };
+                    match flow {
+                        Flow::Continue => {
+                            counts.cell_steps += 1;
+                            c.step(f)
+                        }
+                        Flow::Stop => {
                             stopped = true;
                             break;
                         }
+                        Flow::LeapNode(l) => {
+                            counts.macro_steps += 1;
+                            c.leap(f, f.node_far(real, l))
+                        }
                     }
-                    counts.cell_steps += 1;
-                    c.step(f)
                 }
                 Action::Step => {
                     counts.cell_steps += 1;
