@@ -138,7 +138,7 @@ fn mip_leaps_out_of_nodes_below_the_rays_maximum_and_keeps_fvts_maxima() {
             state ^= state << 13;
             state ^= state >> 7;
             state ^= state << 17;
-            if state % 1499 == 0 {
+            if state.is_multiple_of(1499) {
                 60.0 + (state >> 20) as f64 % 40.0
             } else {
                 60.0
