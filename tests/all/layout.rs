@@ -127,7 +127,7 @@ const RULES: &[(&str, &[&str])] = &[
 
 /// Files of the library proper (not tools/, not the binary).
 fn is_library(rel: &str) -> bool {
-    !(rel.starts_with("tools/") || matches!(rel, "main.rs" | "cli.rs" | "demo.rs"))
+    !(rel.starts_with("tools/") || rel.starts_with("cli/") || matches!(rel, "main.rs" | "demo.rs"))
 }
 
 #[test]

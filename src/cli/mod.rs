@@ -1,0 +1,68 @@
+//! Command-line arguments (clap derive) and their conversion into the
+//! library's checked options. Binary only: the library knows no clap.
+//!
+//! Split by command group: [`render`] (render and assemble), [`prep`]
+//! (prep and prep-batch) and [`tools`] (the other commands).
+
+use clap::{Parser, Subcommand};
+
+mod prep;
+mod render;
+mod tools;
+
+pub use prep::{input_error, prep_error, PrepArgs, PrepBatchArgs};
+pub use render::{render_error, AssembleArgs, RenderArgs};
+pub use tools::{
+    phantom_error, DemoArgs, ExperimentCmd, ExportArgs, HistogramArgs, InfoArgs, PhantomCmd,
+    PresetsArgs, ServeArgs,
+};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "cdvol",
+    version,
+    about = "Streaming out-of-core volume preparation for chessboard-distance ray casting"
+)]
+pub struct Cli {
+    /// No progress bars (they are also hidden when stderr is not a terminal).
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Classify cells, compute distance codes and write a packed file.
+    Prep(PrepArgs),
+    /// Prepare every volume under a directory (DICOM series, NRRD, NIfTI,
+    /// raw sidecars) into OUT_DIR, resuming where a previous run stopped.
+    PrepBatch(PrepBatchArgs),
+    /// Describe a packed file.
+    Info(InfoArgs),
+    /// Plot a packed file's value histogram (PNG or SVG, by the
+    /// extension of -o) with the presets' value ranges and the file's
+    /// classification marked.
+    Histogram(HistogramArgs),
+    /// List the named transfer-function presets (`prep --preset NAME`).
+    Presets(PresetsArgs),
+    /// Write values, codes or classes of a packed file as raw + sidecar.
+    Export(ExportArgs),
+    /// Generate test volumes.
+    #[command(subcommand)]
+    Phantom(PhantomCmd),
+    /// Ray-cast a packed file into a PNG.
+    Render(Box<RenderArgs>),
+    /// Generate the CT-like phantom and a sphere scene, prepare and render
+    /// them, and report what was written.
+    Demo(DemoArgs),
+    /// Join the part files of a sharded render (`render --shard K/N`) into
+    /// the image one process would have written.
+    Assemble(AssembleArgs),
+    /// Reproducible measurements, written as reports under docs/.
+    #[command(subcommand)]
+    Experiment(ExperimentCmd),
+    /// Serve a browser viewer of packed files: orbit, zoom, presets, live
+    /// renders through one shared brick cache (docs/SERVE.md).
+    Serve(ServeArgs),
+}

@@ -1,0 +1,229 @@
+//! `cdvol prep` and `cdvol prep-batch`: their arguments, the checked
+//! prep options, and prep and input errors with their flags.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+#[derive(Args, Debug)]
+pub struct PrepArgs {
+    /// The volume: a directory holding a DICOM series, a raw-stack sidecar
+    /// (.json), NRRD (.nrrd, .nhdr) or NIfTI-1 (.nii, .nii.gz).
+    pub input: PathBuf,
+    /// Packed output file.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// The DICOM series to prepare when the directory holds several
+    /// (SeriesInstanceUID).
+    #[arg(long, value_name = "UID")]
+    pub series: Option<String>,
+    #[command(flatten)]
+    pub settings: PrepSettings,
+}
+
+/// How prep classifies and packs (shared by prep and prep-batch).
+#[derive(Args, Debug)]
+pub struct PrepSettings {
+    /// Iso value (rescaled units, e.g. HU): a cell is a 1-cell when its
+    /// largest vertex value is >= T.
+    #[arg(
+        long,
+        value_name = "T",
+        conflicts_with_all = ["classify_tf", "preset", "envelope"],
+        allow_negative_numbers = true
+    )]
+    pub iso: Option<f64>,
+    /// One file for a whole exploration: the iso classification that
+    /// holds every item, so `render --iso`/`--tf`/`--preset` cover them all
+    /// without another prep. Items: iso values, presets, or a modality
+    /// (`ct`, `mr`: all its presets), comma-separated; e.g. `--envelope ct`
+    /// or `--envelope ct-bone,ct-muscle,500`. `auto`: the envelope of the
+    /// input's modality, CT or MR, guessed from its middle slice (values
+    /// below -500 mean CT) — per input in prep-batch.
+    #[arg(
+        long,
+        value_name = "ITEMS",
+        value_delimiter = ',',
+        conflicts_with_all = ["classify_tf", "preset"],
+        allow_negative_numbers = true
+    )]
+    pub envelope: Vec<String>,
+    /// Transfer function (JSON): a cell is a 1-cell when its opacity is
+    /// non-zero anywhere between the min and max of its vertex values.
+    #[arg(long, value_name = "FILE", conflicts_with = "preset")]
+    pub classify_tf: Option<PathBuf>,
+    /// A named preset's transfer function (`cdvol presets` lists them),
+    /// as --classify-tf with that function.
+    #[arg(long, value_name = "NAME")]
+    pub preset: Option<String>,
+    /// Cells per brick edge (multiple of 4).
+    #[arg(long, default_value_t = 32)]
+    pub brick: usize,
+    /// zstd compression level of brick payloads.
+    #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
+    pub zstd_level: i32,
+    /// Format version to write: 3 (the default) stores sample words as
+    /// byte planes, smaller and faster to decode; 2 is the layout cdvol
+    /// builds before byte planes read (docs/FORMAT.md).
+    #[arg(long, value_name = "N", default_value_t = cdvol::format::FORMAT_VERSION)]
+    pub format_version: u32,
+    /// Also compute anisotropic (octant) codes, paper section 4.2.1.
+    #[arg(long)]
+    pub aniso: bool,
+    /// Also store extra city-block and chamfer distance planes for the DDA
+    /// traversals (paper section 3), 2 bytes per cell.
+    #[arg(long)]
+    pub dda: bool,
+    /// Embed only codes >= 2, so every sample within one cell of a 1-cell
+    /// keeps its value: smooth normals read true central differences
+    /// everywhere (docs/TRADEOFFS.md, "Normals").
+    #[arg(long)]
+    pub gradient_halo: bool,
+    /// Directory for the temporary spill (default: beside the output).
+    #[arg(long)]
+    pub temp_dir: Option<PathBuf>,
+    /// Memory prep may plan to use, in MiB (default: 3/4 of RAM); a prep
+    /// whose planned peak (docs/RELIABILITY.md, "Memory") is above it is
+    /// refused before it allocates.
+    #[arg(long, value_name = "MIB")]
+    pub mem_limit: Option<u64>,
+}
+
+impl PrepSettings {
+    /// The checked prep options; errors name the flags.
+    pub fn to_options(&self) -> anyhow::Result<cdvol::prep::PrepOptions> {
+        use cdvol::classify::{Classification, TransferFunction};
+        if self.envelope.len() == 1 && self.envelope[0].eq_ignore_ascii_case("auto") {
+            let mut o = self.with(Classification::Iso { iso: 0.0 })?;
+            o.auto_envelope = true;
+            return Ok(o);
+        }
+        if !self.envelope.is_empty() {
+            let (iso, _) = cdvol::presets::envelope(&self.envelope)
+                .map_err(|e| anyhow::anyhow!("option --envelope: {e}"))?;
+            return self.with(Classification::Iso { iso });
+        }
+        let classification = match (self.iso, &self.classify_tf, &self.preset) {
+            (Some(iso), None, None) => {
+                if !iso.is_finite() {
+                    anyhow::bail!("option --iso: {iso}, expected a finite number");
+                }
+                Classification::Iso { iso }
+            }
+            (None, Some(tf), None) => Classification::TransferFunction {
+                tf: TransferFunction::load(tf)?,
+            },
+            (None, None, Some(name)) => cdvol::presets::get(name)
+                .map_err(|e| anyhow::anyhow!("option --preset: {e}"))?
+                .classification(),
+            (None, None, None) => anyhow::bail!(
+                "prep needs --iso T, --classify-tf FILE, --preset NAME or --envelope ITEMS to \
+                 decide which cells are objects"
+            ),
+            _ => anyhow::bail!(
+                "--iso, --classify-tf and --preset each choose the classification: give one"
+            ),
+        };
+        self.with(classification)
+    }
+
+    /// The checked prep options with `classification`.
+    fn with(
+        &self,
+        classification: cdvol::classify::Classification,
+    ) -> anyhow::Result<cdvol::prep::PrepOptions> {
+        let opts = cdvol::prep::PrepOptions {
+            classification,
+            brick_size: self.brick,
+            zstd_level: self.zstd_level,
+            aniso: self.aniso,
+            dda: self.dda,
+            gradient_halo: self.gradient_halo,
+            temp_dir: self.temp_dir.clone(),
+            stamp: None,
+            auto_envelope: false,
+            mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
+            format_version: self.format_version,
+        };
+        opts.check().map_err(prep_error)?;
+        Ok(opts)
+    }
+}
+
+/// A prep error as the user of the command line needs it: the library
+/// names the `PrepOptions` field, this adds the flag that sets it.
+pub fn prep_error(e: cdvol::prep::PrepError) -> anyhow::Error {
+    use cdvol::prep::PrepError;
+    if let PrepError::Option { field, .. } = &e {
+        let flag = match *field {
+            "brick_size" => "--brick",
+            "zstd_level" => "--zstd-level",
+            "format_version" => "--format-version",
+            other => other,
+        };
+        return anyhow::anyhow!("option {flag}: {e}");
+    }
+    match e {
+        PrepError::Input(i) => input_error(i),
+        e => e.into(),
+    }
+}
+
+/// An input error, with the flag that picks a DICOM series where the
+/// choice is the problem.
+pub fn input_error(e: cdvol::input::InputError) -> anyhow::Error {
+    use cdvol::input::InputError;
+    match &e {
+        InputError::SeveralSeries { .. } => anyhow::anyhow!("{e}: pick one with --series UID"),
+        InputError::NoSuchSeries { uid, .. } => {
+            anyhow::anyhow!("option --series {uid}: {e}")
+        }
+        _ => e.into(),
+    }
+}
+
+/// Most inputs `prep-batch --jobs` prepares at once.
+pub const MAX_JOBS: usize = 256;
+
+#[derive(Args, Debug)]
+pub struct PrepBatchArgs {
+    /// Directory searched (recursively) for inputs.
+    pub input: PathBuf,
+    /// Directory for the packed files and the summary (batch.json).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Inputs prepared at once (memory grows with it: one prep each).
+    #[arg(long, default_value_t = 1)]
+    pub jobs: usize,
+    /// Process input i (sorted by path) when i % N == K.
+    #[arg(long, value_parser = cdvol::render::Shard::parse)]
+    pub shard: Option<cdvol::render::Shard>,
+    #[command(flatten)]
+    pub settings: PrepSettings,
+}
+
+impl PrepBatchArgs {
+    /// Checks `--jobs` (each job is one prep's memory).
+    pub fn check(&self) -> anyhow::Result<()> {
+        if !(1..=MAX_JOBS).contains(&self.jobs) {
+            anyhow::bail!(
+                "option --jobs: {}, expected 1..={MAX_JOBS} (each job holds one prep's memory)",
+                self.jobs
+            );
+        }
+        Ok(())
+    }
+
+    /// `(K, N)` of `--shard K/N`; `(0, 1)` without it.
+    pub fn shard(&self) -> (u32, u32) {
+        self.shard.map(|s| (s.k, s.n)).unwrap_or((0, 1))
+    }
+
+    /// The summary JSON: `batch.json`, or `batch.KofN.json` for a shard.
+    pub fn summary_path(&self) -> PathBuf {
+        self.output.join(match self.shard {
+            Some(s) => format!("batch.{}of{}.json", s.k, s.n),
+            None => "batch.json".into(),
+        })
+    }
+}
