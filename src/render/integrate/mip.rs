@@ -8,6 +8,12 @@
 //! the exit is evaluated. Every exact traversal yields the same visits
 //! with the same `t` (module traverse), so every traversal shares the same
 //! faces and draws the same image.
+//!
+//! A cell that cannot raise the ray's maximum also tells CD and the octree
+//! to leap out of the largest node around it, up to the brick, whose
+//! vertices cannot either (`Flow::LeapNode`, the bricks' max pyramid): the
+//! cells skipped could not have changed the maximum, so the image is the
+//! one FVT, which steps through them, draws.
 
 use super::{Ctx, Px};
 use crate::render::cache::{Accessor, BLOCK};
@@ -40,7 +46,7 @@ pub(super) fn mip<T: Real>(
 }
 
 /// Whether a MIP with `method` on bricks of `brick_size` cells leaps out of
-/// blocks whose maximum cannot raise the ray's: the cell-stepping leaps of
+/// nodes whose maximum cannot raise the ray's: the cell-stepping leaps of
 /// CD and the octree (FVT stays the single-cell walk it is measured as),
 /// and only where the bricks' blocks are the grid's aligned nodes of
 /// [`BLOCK`] cells (bricks start at multiples of their size).
@@ -75,11 +81,12 @@ impl Max {
     /// where the ray enters and leaves it; the entry is skipped when it is
     /// the face the last visit left by and that face is covered.
     ///
-    /// With `leaps`, a cell whose block's largest vertex value
-    /// ([`RBrick::block_max`](crate::render::cache::RBrick::block_max)) is
-    /// at most `best` says leap out of the block: no value the interpolant
-    /// takes in the block's cells can raise `best`, so the maximum is the
-    /// same with or without the block's cells.
+    /// With `leaps`, at a cell that cannot raise `best`, the walk is told
+    /// to leap out of the largest node of the brick's max pyramid
+    /// ([`RBrick::node_below`](crate::render::cache::RBrick::node_below))
+    /// whose largest vertex value is at most `best`: no value the
+    /// interpolant takes in the node's cells can raise `best`, so the
+    /// maximum is the same with or without them.
     #[inline]
     fn raise(
         &mut self,
@@ -91,7 +98,6 @@ impl Max {
     ) -> Flow {
         let shared = v.t_enter == self.covered_exit;
         let (b, l) = acc.brick(v.cell);
-
         // The interpolant never exceeds the largest vertex value (NaN
         // vertices give NaN, which max ignores): a cell whose vertices are
         // all <= best cannot raise it. For 8- and 16-bit words, one lookup
