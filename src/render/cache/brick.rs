@@ -489,7 +489,7 @@ impl RBrick {
             b.levels = octree_levels(p, b.cells, h.brick_size.trailing_zeros());
         }
         if planes.block_max && !b.values.is_empty() {
-            let base = block_maxima(&b.values.to_f32(), b.cells);
+            let base = block_maxima_of(&b.values, b.cells);
             b.block_max = max_pyramid(base, b.cells, h.brick_size);
         }
         if planes.grads && !b.values.is_empty() {
@@ -580,6 +580,24 @@ impl Codes {
 /// its sample `values` (`cells + 1` per axis, x fastest): per block of
 /// [`BLOCK`]^3 cells, the largest of its vertices' values, NaN ignored.
 pub fn block_maxima(values: &[f32], cells: [u32; 3]) -> Vec<f32> {
+    block_maxima_by(values, cells, |&v| v)
+}
+
+/// [`block_maxima`] of a brick's samples as it holds them: f32, or the
+/// stored words looked up in their table (no f32 copy of the plane).
+pub fn block_maxima_of(samples: &Samples, cells: [u32; 3]) -> Vec<f32> {
+    match samples {
+        Samples::Empty => Vec::new(),
+        Samples::F32(v) => block_maxima(v, cells),
+        Samples::Words8(w, t, _) => block_maxima_by(w, cells, |&x| t[x as usize]),
+        Samples::Words16(w, t, _) => block_maxima_by(w, cells, |&x| t[x as usize]),
+    }
+}
+
+/// [`block_maxima`] of a plane of entries `plane` whose values `value`
+/// gives.
+#[inline(always)]
+fn block_maxima_by<W>(plane: &[W], cells: [u32; 3], value: impl Fn(&W) -> f32) -> Vec<f32> {
     let [sx, sy, _] = cells.map(|c| c as usize + 1);
     let nb = cells.map(|c| c.div_ceil(BLOCK) as usize);
     let bs = BLOCK as usize;
@@ -594,9 +612,9 @@ pub fn block_maxima(values: &[f32], cells: [u32; 3]) -> Vec<f32> {
                 for z in span(bz, 2) {
                     for y in span(by, 1) {
                         let row = (z * sy + y) * sx;
-                        for &v in
-                            &values[row + bx * bs..=row + (bx * bs + bs).min(cells[0] as usize)]
+                        for w in &plane[row + bx * bs..=row + (bx * bs + bs).min(cells[0] as usize)]
                         {
+                            let v = value(w);
                             // NaN compares false: ignored.
                             if v > m {
                                 m = v;
