@@ -58,9 +58,10 @@ pub fn cache_for<'v>(vol: &'v PackedVolume, opts: &RenderOptions) -> BrickCache<
     let mut planes = brick_policy(opts.method, opts.cd_lazy_min).planes;
     planes.narrow = super::options::narrowing(vol.header(), opts);
     planes.grads = gradient_plane(opts) && planes.narrow.is_none();
-    // MIP leaps out of blocks that cannot raise a ray's maximum
-    // (integrate/mip.rs).
-    planes.block_max = matches!(opts.mode, super::options::Mode::Mip);
+    // MIP leaps out of nodes that cannot raise a ray's maximum, with the
+    // traversals that leap (integrate/mip.rs).
+    planes.block_max = matches!(opts.mode, super::options::Mode::Mip)
+        && super::integrate::mip_leaps_with(opts.method);
     BrickCache::with_planes(vol, opts.cache_bytes, planes)
 }
 

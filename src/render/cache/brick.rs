@@ -101,20 +101,12 @@ impl RBrick {
         }
     }
 
-    /// The largest vertex value (NaN ignored) of the [`BLOCK`]^3 block
-    /// holding local cell `l`: an upper bound of every value the
-    /// trilinear interpolant takes in the block's cells.
-    /// `f32::NEG_INFINITY` when the block's vertices are all NaN;
-    /// `f32::INFINITY` (no bound known) for a brick without the plane
-    /// (not built, or a brick without values).
-    #[inline]
-    pub fn block_max(&self, l: [u32; 3]) -> f32 {
-        self.node_max(l, 0)
-    }
-
     /// The largest vertex value of the node of level `i` of
     /// [`RBrick::block_max`] (`BLOCK << i` cells per axis) holding local
-    /// cell `l`; `f32::INFINITY` (no bound) when that level is not built.
+    /// cell `l`: an upper bound of every value the trilinear interpolant
+    /// takes in the node's cells (`f32::NEG_INFINITY` when all their
+    /// vertices are NaN); `f32::INFINITY` (no bound) when that level is not
+    /// built.
     #[inline(always)]
     pub fn node_max(&self, l: [u32; 3], i: usize) -> f32 {
         let Some(plane) = self.block_max.get(i) else {

@@ -153,8 +153,8 @@ pub struct Planes {
     /// Octree levels inside each brick and, for power-of-two brick sizes,
     /// above the bricks from the index (section 5.1).
     pub octree: bool,
-    /// The largest vertex value per block of [`BLOCK`]^3 cells
-    /// ([`RBrick::block_max`]), for bricks with values.
+    /// The max pyramid ([`RBrick::block_max`]: the largest vertex value
+    /// per node of [`BLOCK`]^3 cells and up), for bricks with values.
     pub block_max: bool,
     /// Each sample's vertex gradient ([`RBrick::grads`]), for bricks with
     /// values: the shaded composite with smooth normals.

@@ -51,11 +51,17 @@ pub(super) fn mip<T: Real>(
 /// and only where the bricks' blocks are the grid's aligned nodes of
 /// [`BLOCK`] cells (bricks start at multiples of their size).
 fn block_leaps(method: Method, brick_size: u32) -> bool {
-    let walks_cells = matches!(
+    leaps_with(method) && brick_size.is_multiple_of(BLOCK)
+}
+
+/// Whether a MIP with `method` leaps out of nodes of the bricks' max
+/// pyramid: CD and the octree, whose walkers leap; so the cache builds
+/// the pyramid for those only (render/policy.rs).
+pub(crate) fn leaps_with(method: Method) -> bool {
+    matches!(
         method,
         Method::Cd { .. } | Method::CdAniso { .. } | Method::Octree
-    );
-    walks_cells && brick_size.is_multiple_of(BLOCK)
+    )
 }
 
 /// The ray's maximum so far and the face the last visit left by.

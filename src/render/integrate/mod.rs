@@ -16,6 +16,8 @@ mod depth;
 mod mip;
 mod surface;
 
+pub(crate) use mip::leaps_with as mip_leaps_with;
+
 use super::cache::Accessor;
 use super::camera::Camera;
 use super::clock::Clock;
