@@ -11,7 +11,7 @@
 //!   -> traverse/     fvt | cd | cd-aniso | octree | dda: the 1-cells a
 //!                    ray passes (paper section 4.1, Figs. 11-12)
 //!   -> integrate/    surface | depth | mip | composite | cost, per pixel
-//!                    (sampling, hits, shading in shade.rs; lut.rs;
+//!                    (sampling, shading in shade.rs; hits in hit.rs; lut.rs;
 //!                    smooth normals in gradient.rs)
 //! output.rs      pixels -> coloured Frame -> PNG
 //! stats.rs       counters of a render (`--stats`)
@@ -20,8 +20,9 @@
 //!                turntables, numbered frames, part files
 //! template.rs    template-based CD (section 4.2.2), its own renderer
 //! ```
-//! Sampling, hit and shading code (shade.rs) is shared by all traversals,
-//! so their images can differ only if their cell sequences differ.
+//! Sampling, hit and shading code (shade.rs, hit.rs) is shared by all
+//! traversals, so their images can differ only if their cell sequences
+//! differ.
 //! Output is the same whatever the thread count, tile size or cache budget:
 //! every pixel is computed on its own, from the same values.
 
@@ -33,6 +34,7 @@ mod cull;
 mod error;
 pub mod gradient;
 mod held;
+pub mod hit;
 mod integrate;
 pub mod job;
 pub mod lut;

@@ -2,7 +2,7 @@
 //! reports, one file per [`Mode`]. Each is a closure over
 //! [`trace`](super::traverse::trace)'s visits (paper section 4: the
 //! traversal only decides which cells; sampling, hits and shading are
-//! shared in shade.rs, so every traversal integrates the same cells the
+//! shared in shade.rs and hit.rs, so every traversal integrates the same cells the
 //! same way).
 //!
 //! ```text
