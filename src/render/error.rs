@@ -25,7 +25,7 @@ pub enum RenderError {
         value: String,
         expected: String,
     },
-    /// Inputs the template traversal (template.rs) cannot render.
+    /// Inputs the template traversal (render/template/) cannot render.
     #[error("template traversal: {0}")]
     Template(String),
 }

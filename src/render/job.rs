@@ -140,7 +140,7 @@ impl CameraSpec {
 pub struct RenderJob {
     pub camera: CameraSpec,
     pub options: RenderOptions,
-    /// Template-based CD (paper section 4.2.2, template.rs) instead of the
+    /// Template-based CD (paper section 4.2.2, render/template/) instead of the
     /// tile renderer; leaps like `options.method`.
     pub template: bool,
     /// The PNG (or, with `shard` and one frame, the part file `*.cdvpart`);

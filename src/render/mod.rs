@@ -18,7 +18,8 @@
 //! shard.rs       parts of a sharded render: write, read, assemble
 //! job.rs         a whole `cdvol render` job: camera framing,
 //!                turntables, numbered frames, part files
-//! template.rs    template-based CD (section 4.2.2), its own renderer
+//! template/      template-based CD (section 4.2.2), its own renderer:
+//!                the template and its walk; image.rs the warp
 //! ```
 //! Sampling, hit and shading code (shade.rs, hit.rs) is shared by all
 //! traversals, so their images can differ only if their cell sequences

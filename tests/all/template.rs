@@ -1,4 +1,4 @@
-//! Template-based CD traversal (src/render/template.rs): the template's
+//! Template-based CD traversal (src/render/template/): the template's
 //! shape, the exactness of the CD leap, the images against the FVT/CD
 //! ray caster, the 26-connected template's skipped cells, and refusals.
 
