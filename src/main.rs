@@ -208,7 +208,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             }
             println!(
                 "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read ({} reads), {:.2} s \
-                 (thread seconds: decode {:.2}, traverse {:.2}, sample {:.2})",
+                 (thread seconds: decode {:.2}, traverse {:.2}, sample {:.2}; kernel {:.2} s, {} page faults)",
                 stats.rays,
                 stats.steps,
                 stats.steps as f64 / stats.rays.max(1) as f64,
@@ -222,6 +222,8 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 stats.seconds_decode,
                 stats.seconds_traverse,
                 stats.seconds_sample,
+                stats.seconds_system,
+                stats.page_faults,
             );
         }
         Command::Demo(a) => demo::run(&a.dir, progress)?,

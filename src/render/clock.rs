@@ -208,6 +208,49 @@ pub(crate) fn split(times: &[TileTime], decode: f64) -> (f64, f64, f64) {
     (tiles, rest * (1.0 - share), rest * share)
 }
 
+/// The kernel's share of a render, from the process's resource usage
+/// (`getrusage`, all threads): system CPU seconds and page faults. Most of
+/// a first frame's system time is the kernel clearing fresh pages for the
+/// bricks it decodes, which on a virtual machine can take longer than the
+/// decoding itself (docs/BENCHMARKS.md, "The first frame's kernel time").
+/// Process-wide, so other threads' work in the same process (a `serve`
+/// reading a request) counts too. Zero where the platform gives no
+/// figures (only Linux with glibc is asked).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct KernelUse {
+    pub(crate) seconds_system: f64,
+    pub(crate) page_faults: u64,
+}
+
+impl KernelUse {
+    /// The process's kernel use so far.
+    pub(crate) fn now() -> KernelUse {
+        #[cfg(all(target_os = "linux", target_env = "gnu"))]
+        {
+            // SAFETY: `getrusage` writes one `rusage` into the zeroed
+            // value it is given and reads nothing else.
+            let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+            if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } == 0 {
+                let t = u.ru_stime;
+                return KernelUse {
+                    seconds_system: t.tv_sec as f64 + t.tv_usec as f64 * 1e-6,
+                    page_faults: (u.ru_minflt + u.ru_majflt).max(0) as u64,
+                };
+            }
+        }
+        KernelUse::default()
+    }
+
+    /// The kernel use since `earlier` (never negative).
+    pub(crate) fn since(earlier: KernelUse) -> KernelUse {
+        let n = KernelUse::now();
+        KernelUse {
+            seconds_system: (n.seconds_system - earlier.seconds_system).max(0.0),
+            page_faults: n.page_faults.saturating_sub(earlier.page_faults),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -236,5 +279,37 @@ mod tests {
             let k = timed.iter().filter(|i| r.contains(i)).count();
             assert!((12..=20).contains(&k), "quarter {q}: {k}");
         }
+    }
+    /// Touching fresh memory shows up as page faults between two
+    /// readings. (Tests run in parallel threads of one process, which the
+    /// readings also count, so only a lower bound is checked.)
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    #[test]
+    fn kernel_use_counts_the_faults_of_fresh_memory() {
+        const LEN: usize = 64 << 20;
+        let k0 = KernelUse::now();
+        // SAFETY: a private anonymous mapping of the kernel's choosing,
+        // checked, written inside its length and unmapped once.
+        unsafe {
+            let p = libc::mmap(
+                std::ptr::null_mut(),
+                LEN,
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_PRIVATE | libc::MAP_ANONYMOUS,
+                -1,
+                0,
+            );
+            assert_ne!(p, libc::MAP_FAILED);
+            let b = p as *mut u8;
+            for i in (0..LEN).step_by(4096) {
+                std::ptr::write_volatile(b.add(i), 1);
+            }
+            libc::munmap(p, LEN);
+        }
+        let d = KernelUse::since(k0);
+        // One fault per page, or one per 2 MiB where huge pages back the
+        // mapping: at least LEN / 2 MiB = 32.
+        assert!(d.page_faults >= 32, "{d:?}");
+        assert!(d.seconds_system >= 0.0 && d.seconds_system.is_finite());
     }
 }

@@ -63,6 +63,16 @@ pub struct Stats {
     /// `seconds_traverse`.
     #[serde(default)]
     pub seconds_sample: f64,
+    /// System (kernel) CPU seconds of the process during the render,
+    /// summed over threads: mostly the clearing of fresh pages for the
+    /// bricks a cold frame decodes, which lands in `seconds_decode` too.
+    /// Process-wide (`getrusage`); 0 where the platform gives no figure.
+    #[serde(default)]
+    pub seconds_system: f64,
+    /// Page faults of the process during the render (minor and major),
+    /// counted like `seconds_system`.
+    #[serde(default)]
+    pub page_faults: u64,
     /// The traversal's stable name ([`Method::name`](super::traverse::Method::name):
     /// `cd`, `cd min_leap=3`, `fvt`, `dda-chamfer no_switch`, ...; the
     /// template renderer prefixes `template `).
@@ -107,11 +117,20 @@ impl Stats {
             seconds_tiles: 0.0,
             seconds_traverse: 0.0,
             seconds_sample: 0.0,
+            seconds_system: 0.0,
+            page_faults: 0,
             traversal: opts.method.name(),
             mode: opts.mode.name().into(),
             width: 0,
             height: 0,
         }
+    }
+
+    /// The kernel's share since `k0` ([`KernelUse`](super::clock::KernelUse)).
+    pub(crate) fn set_kernel(&mut self, k0: super::clock::KernelUse) {
+        let k = super::clock::KernelUse::since(k0);
+        self.seconds_system = k.seconds_system;
+        self.page_faults = k.page_faults;
     }
 
     /// Adds the counters of `o` (another part or frame): sums, except
@@ -136,5 +155,7 @@ impl Stats {
         self.seconds_tiles += o.seconds_tiles;
         self.seconds_traverse += o.seconds_traverse;
         self.seconds_sample += o.seconds_sample;
+        self.seconds_system += o.seconds_system;
+        self.page_faults += o.page_faults;
     }
 }

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use super::cache::{Accessor, BrickCache, CacheCounters};
 use super::camera::Camera;
-use super::clock::{self, Clock, TileTime};
+use super::clock::{self, Clock, KernelUse, TileTime};
 use super::colour::{colour_blocks, Colouring, PxBlock};
 use super::cull::Cover;
 use super::error::RenderError;
@@ -54,25 +54,26 @@ pub fn render_in(
     opts: &RenderOptions,
     progress: &dyn Progress,
 ) -> Result<(Frame, Stats), RenderError> {
-    let t0 = Instant::now();
+    let (t0, k0) = (Instant::now(), KernelUse::now());
     let (tiles, stats) = render_shard(vol, cache, camera, opts, Shard::WHOLE, progress)?;
-    Ok(whole_frame(vol, camera, opts, tiles, stats, t0))
+    Ok(whole_frame(vol, camera, opts, tiles, stats, (t0, k0)))
 }
 
 /// The frame of a whole render's tiles, coloured ([`finish`]), with the
-/// render's time since `t0`.
+/// render's time and kernel use since `start`.
 fn whole_frame(
     vol: &PackedVolume,
     camera: &Camera,
     opts: &RenderOptions,
     tiles: Vec<TilePx>,
     stats: Stats,
-    t0: Instant,
+    (t0, k0): (Instant, KernelUse),
 ) -> (Frame, Stats) {
     let colouring = Colouring::of(vol, opts);
     let (w, h) = (camera.width, camera.height);
     let (frame, mut stats) = finish(&colouring, w, h, tiles, stats, opts.unrounded);
     stats.seconds_total = t0.elapsed().as_secs_f64();
+    stats.set_kernel(k0);
     (frame, stats)
 }
 
@@ -89,13 +90,13 @@ pub fn render_in_until(
     progress: &dyn Progress,
     stop: &AtomicBool,
 ) -> Result<Option<(Frame, Stats)>, RenderError> {
-    let t0 = Instant::now();
+    let (t0, k0) = (Instant::now(), KernelUse::now());
     let (tiles, stats) =
         render_shard_until(vol, cache, camera, opts, Shard::WHOLE, progress, Some(stop))?;
     if stop.load(Ordering::Relaxed) {
         return Ok(None);
     }
-    Ok(Some(whole_frame(vol, camera, opts, tiles, stats, t0)))
+    Ok(Some(whole_frame(vol, camera, opts, tiles, stats, (t0, k0))))
 }
 
 /// Renders the tiles of `shard` after checking the options: their pixels
@@ -123,7 +124,7 @@ fn render_shard_until(
     progress: &dyn Progress,
     stop: Option<&AtomicBool>,
 ) -> Result<(Vec<TilePx>, Stats), RenderError> {
-    let t0 = Instant::now();
+    let (t0, k0) = (Instant::now(), KernelUse::now());
     check_render(vol, camera, opts)?;
     if shard.n == 0 || shard.k >= shard.n {
         return Err(RenderError::Option {
@@ -166,6 +167,7 @@ fn render_shard_until(
     let mut stats = Stats::counted(rays, hits, &steps, &cc, cache, opts, t0);
     (stats.width, stats.height) = (w, hgt);
     stats.rays_culled = culled;
+    stats.set_kernel(k0);
     (
         stats.seconds_tiles,
         stats.seconds_traverse,

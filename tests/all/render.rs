@@ -418,3 +418,44 @@ fn stats_split_the_tiles_time() {
         );
     }
 }
+
+/// `--stats` reports the kernel's share of each frame: a cold frame of a
+/// fresh process decodes its bricks into fresh memory, which the kernel
+/// maps in (page faults); a warm frame of the same process decodes
+/// nothing. Process-wide figures, read in a process of its own.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+#[test]
+fn stats_report_the_kernel_share_of_a_cold_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let p = |n: &str| d.join(n).to_str().unwrap().to_owned();
+    common::ok(common::cdvol().args(["phantom", "ct", "--dims", "96,96,96", "-o", &p("ct.json")]));
+    common::ok(common::cdvol().args(["prep", &p("ct.json"), "-o", &p("ct.cdv"), "--iso", "300"]));
+    common::ok(common::cdvol().args([
+        "render",
+        &p("ct.cdv"),
+        "-o",
+        &p("ct.png"),
+        "--width",
+        "128",
+        "--height",
+        "128",
+        "--frames",
+        "2",
+        "--orbit",
+        "0",
+        "--stats",
+        &p("s.json"),
+    ]));
+    let s: Vec<Stats> = serde_json::from_slice(&std::fs::read(p("s.json")).unwrap()).unwrap();
+    assert_eq!(s.len(), 2);
+    assert!(s[0].bricks_read > 0, "{:?}", s[0]);
+    assert!(s[0].page_faults > 0, "cold frame: {:?}", s[0]);
+    assert_eq!(s[1].bricks_read, 0, "warm frame: {:?}", s[1]);
+    for f in &s {
+        assert!(
+            f.seconds_system.is_finite() && f.seconds_system >= 0.0,
+            "{f:?}"
+        );
+    }
+}

@@ -161,7 +161,7 @@ pub fn render_template_with(
     topts: TemplateOptions,
     progress: &dyn Progress,
 ) -> Result<(Frame, Stats), RenderError> {
-    let t0 = Instant::now();
+    let (t0, k0) = (Instant::now(), crate::render::clock::KernelUse::now());
     check_mode(vol, &opts.mode, opts.iso)?;
     check_scene_iso(vol, opts)?;
     if let Projection::Persp { .. } = camera.projection {
@@ -325,6 +325,7 @@ pub fn render_template_with(
     let mut stats = Stats::counted(inter_px, hits, &steps, &cc, &cache, opts, t0);
     stats.traversal = format!("template {}", opts.method.name());
     (stats.width, stats.height) = (w, hh);
+    stats.set_kernel(k0);
     Ok((frame, stats))
 }
 
