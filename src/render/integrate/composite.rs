@@ -67,13 +67,37 @@ pub(super) fn composite32<T: Real>(
     step: f64,
     px: &mut Px,
 ) -> StepCounts {
-    let mut s = Sampler32 {
+    let look = Look::new(&ctx.opts.look, ctx.opts.normals, ray);
+    // One marcher per look: without shading or gradient opacity, its
+    // sample loop holds no gradient code at all.
+    if look.on {
+        march32::<T, true>(ctx, ray, acc, clock, lut, step, look, px)
+    } else {
+        march32::<T, false>(ctx, ray, acc, clock, lut, step, look, px)
+    }
+}
+
+/// [`composite32`] with the look's `on` fixed at compile time (`LOOK`).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn march32<T: Real, const LOOK: bool>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    acc: &mut Accessor,
+    clock: &mut Clock,
+    lut: &TfLut,
+    step: f64,
+    look: Look,
+    px: &mut Px,
+) -> StepCounts {
+    debug_assert_eq!(look.on, LOOK);
+    let mut s = Sampler32::<LOOK> {
         coords: ctx.coords,
         inv_size: &ctx.inv_size,
         ray,
         lut,
         step,
-        look: Look::new(&ctx.opts.look, ctx.opts.normals, ray),
+        look,
         stop: ctx.opts.early_stop as f32,
         c: Trilinear32 { f: [0.0; 8] },
         u: Vec3::ZERO,
@@ -303,8 +327,10 @@ impl Sampler for Sampler64<'_> {
 }
 
 /// The f32 sampler: local coordinates per cell, advanced by a constant
-/// increment per sample.
-struct Sampler32<'a> {
+/// increment per sample. `LOOK`: the look's `on` (shading or gradient
+/// opacity), a constant so that the unshaded sampler's loop has no
+/// gradient code in it.
+struct Sampler32<'a, const LOOK: bool> {
     coords: [&'a [f64]; 3],
     inv_size: &'a [Vec<f64>; 3],
     ray: &'a Ray,
@@ -327,10 +353,10 @@ struct Sampler32<'a> {
     acc: Vec4,
 }
 
-impl Sampler for Sampler32<'_> {
+impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
     #[inline(always)]
     fn plane_gradients(&self) -> bool {
-        self.look.on && self.look.smooth
+        LOOK && self.look.smooth
     }
 
     #[inline(always)]
@@ -370,7 +396,7 @@ impl Sampler for Sampler32<'_> {
         if s.w == 0.0 {
             return Flow::Continue;
         }
-        if self.look.on {
+        if LOOK {
             let g = if self.look.smooth {
                 trilinear_vec(&self.grads, uc.into())
             } else {
