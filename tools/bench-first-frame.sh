@@ -4,7 +4,10 @@
 # (`--frames 2 --orbit 0`, one process, one cache): frame 0 decodes every
 # brick it needs (cold), frame 1 finds them all in the cache (warm).
 # Binaries are run interleaved, REPS times each; the table gives medians
-# of the per-frame `seconds_total` and the bricks read by frame 0.
+# of the per-frame `seconds_total`, the bricks read by frame 0, its decode
+# seconds and its system (kernel) seconds (`seconds_system`: mostly the
+# clearing of fresh pages for the decoded bricks, docs/BENCHMARKS.md,
+# "The kernel's share of the first frame"; "-" from builds without it).
 #
 # usage: tools/bench-first-frame.sh WORKDIR BIN... 
 #   env: SIZES="256 512 1024" (phantoms WORKDIR/phN.cdv, made if missing),
@@ -42,14 +45,14 @@ for i in "${!bins[@]}"; do
         for v in $VERSIONS; do cases+=("$i:-v$v"); done
     fi
 done
-run() { # bin file traversal -> "cold warm bricks_read cold_decode"
+run() { # bin file traversal -> "cold warm bricks_read cold_decode cold_system"
     "$1" render -q "$2" -o "$work/ff.png" --width "${SIZE:-1024}" --height "${SIZE:-1024}" \
         --view 30,20 --threads "${THREADS:-1}" --frames 2 --orbit 0 --traversal "$3" \
         ${EXTRA:-} --stats "$work/ff.json" > /dev/null
-    python3 -c "import json; d=json.load(open('$work/ff.json')); print(d[0]['seconds_total'], d[1]['seconds_total'], d[0]['bricks_read'], d[0]['seconds_decode'])"
+    python3 -c "import json; d=json.load(open('$work/ff.json')); print(d[0]['seconds_total'], d[1]['seconds_total'], d[0]['bricks_read'], d[0]['seconds_decode'], d[0].get('seconds_system', 'nan'))"
 }
 median() { sort -g | awk '{a[NR]=$1} END {print (NR%2 ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2)}'; }
-printf '| volume | traversal | binary | file | cold s | warm s | cold/warm | bricks read | cold decode s |\n|---|---|---|---|---|---|---|---|---|\n'
+printf '| volume | traversal | binary | file | cold s | warm s | cold/warm | bricks read | cold decode s | cold system s |\n|---|---|---|---|---|---|---|---|---|---|\n'
 for n in ${SIZES:-256 512 1024}; do
     for t in ${TRAV:-cd fvt}; do
         rm -f "$work"/ff.*.txt
@@ -65,8 +68,10 @@ for n in ${SIZES:-256 512 1024}; do
             w=$(cut -d' ' -f2 "$work/ff.$k.txt" | median)
             b=$(cut -d' ' -f3 "$work/ff.$k.txt" | median)
             dc=$(cut -d' ' -f4 "$work/ff.$k.txt" | median)
-            printf '| %d^3 | %s | %s | ph%d%s.cdv | %.3f | %.3f | %.2f | %s | %.3f |\n' "$n" "$t" "${bins[$i]}" \
-                "$n" "${cases[$k]#*:}" "$c" "$w" "$(echo "$c / $w" | bc -l)" "$b" "$dc"
+            sy=$(cut -d' ' -f5 "$work/ff.$k.txt" | median)
+            [ "$sy" = nan ] && sy=- || sy=$(printf '%.3f' "$sy")
+            printf '| %d^3 | %s | %s | ph%d%s.cdv | %.3f | %.3f | %.2f | %s | %.3f | %s |\n' "$n" "$t" "${bins[$i]}" \
+                "$n" "${cases[$k]#*:}" "$c" "$w" "$(echo "$c / $w" | bc -l)" "$b" "$dc" "$sy"
         done
     done
 done

@@ -212,7 +212,8 @@ pub(crate) fn split(times: &[TileTime], decode: f64) -> (f64, f64, f64) {
 /// (`getrusage`, all threads): system CPU seconds and page faults. Most of
 /// a first frame's system time is the kernel clearing fresh pages for the
 /// bricks it decodes, which on a virtual machine can take longer than the
-/// decoding itself (docs/BENCHMARKS.md, "The first frame's kernel time").
+/// decoding itself (docs/BENCHMARKS.md, "The kernel's share of the first
+/// frame").
 /// Process-wide, so other threads' work in the same process (a `serve`
 /// reading a request) counts too. Zero where the platform gives no
 /// figures (only Linux with glibc is asked).
@@ -280,6 +281,7 @@ mod tests {
             assert!((12..=20).contains(&k), "quarter {q}: {k}");
         }
     }
+
     /// Touching fresh memory shows up as page faults between two
     /// readings. (Tests run in parallel threads of one process, which the
     /// readings also count, so only a lower bound is checked.)
