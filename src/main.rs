@@ -280,7 +280,17 @@ fn serve(cfg: &cdvol::serve::ServeConfig) -> Result<()> {
     let files = cdvol::serve::open_files(&cfg.files)?;
     let server = cdvol::serve::Server::bind(&files, cfg)?;
     cdvol::serve::stop_on_signals(server.stop_flag())?;
-    eprintln!("cdvol serve: listening on http://{}/", server.local_addr());
+    // One write, so a reader of the pipe never sees half an address.
+    let line = format!(
+        "cdvol serve: listening on http://{}/\n",
+        server.local_addr()
+    );
+    {
+        use std::io::Write;
+        let mut err = std::io::stderr().lock();
+        // Best effort, like eprintln!, but without its panic on a closed stderr.
+        let _ = err.write_all(line.as_bytes()).and_then(|()| err.flush());
+    }
     server.run();
     eprintln!("cdvol serve: stopped");
     Ok(())

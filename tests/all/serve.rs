@@ -393,6 +393,37 @@ fn sigterm_stops_the_server_cleanly() {
     assert!(status.success(), "{status:?}");
 }
 
+/// The address line reaches stderr in one write. CI's browser test once
+/// matched `http://127.0.` in a first chunk, because the line went out in
+/// 14 writes, and opened a page on 127.0.0.0. A reader blocked on the pipe
+/// may wake at the first write, so with a split line the first read can
+/// hold only its first piece; with one write it always holds the whole
+/// line. Against the 14-write binary this failed 1 run in 5 here: it
+/// catches the split sometimes, never passes a split line it saw.
+#[test]
+fn the_address_line_is_one_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = head(dir.path());
+    let mut child = cdvol()
+        .arg("serve")
+        .arg(&file)
+        .args(["--bind", "127.0.0.1:0"])
+        .stderr(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut err = child.stderr.take().unwrap();
+    let mut buf = [0u8; 4096];
+    let n = err.read(&mut buf).unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    let first = String::from_utf8_lossy(&buf[..n]);
+    assert!(
+        first.starts_with("cdvol serve: listening on http://127.0.0.1:") && first.ends_with("/\n"),
+        "first read from stderr: {first:?}"
+    );
+}
+
 #[test]
 fn refuses_bad_command_lines() {
     let dir = tempfile::tempdir().unwrap();

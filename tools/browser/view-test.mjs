@@ -57,7 +57,8 @@ function startServer() {
     proc.stderr.on("data", (d) => {
       err += d;
       proc.stderrText = err.slice(-4000);
-      const m = err.match(/listening on (http:\/\/[^\s]+)/);
+      // Wait for the whole line: a pipe may deliver it in pieces.
+      const m = err.match(/listening on (http:\/\/\S+)\r?\n/);
       if (m) ok({ proc, url: m[1] });
     });
     proc.on("exit", (c) => no(new Error(`cdvol serve exited ${c}: ${err}`)));
