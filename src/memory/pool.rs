@@ -9,7 +9,9 @@
 //! pool"). [`PlanePool`] serves allocations of [`MIN`] to [`MAX`] bytes
 //! from chunks of [`CHUNK`] bytes, aligned to 2 MiB and marked
 //! `MADV_HUGEPAGE`, so where transparent huge pages are enabled (`always`
-//! or `madvise`) a chunk is one fault. A freed slot is reused by the next
+//! or `madvise`) a chunk is one fault. A class's first [`SMALL_CHUNKS`]
+//! chunks stay on ordinary pages, so a small render does not clear 2 MiB
+//! for every class it puts a few planes in. A freed slot is reused by the next
 //! allocation of its size class without the kernel; a chunk whose slots
 //! are all free is returned to the system unless it is its class's only
 //! chunk with free slots, so memory still follows the brick cache's budget
@@ -38,6 +40,12 @@ pub const MAX: usize = 256 << 10;
 const PAGE: usize = 4096;
 /// Size classes: slots of 1 to `MAX / PAGE` pages (index = pages).
 const CLASSES: usize = MAX / PAGE + 1;
+/// A class's first chunks stay on ordinary pages; later ones ask for a
+/// huge page. A huge page is cleared whole at its first touch, so a small
+/// render that fills a few slots of each class would pay for 2 MiB per
+/// class it barely uses: a third of a 1 x 1 render's CPU time
+/// (docs/BENCHMARKS.md, "Huge pages only for a class's later chunks").
+pub const SMALL_CHUNKS: usize = 4;
 
 /// The first page of every chunk.
 #[repr(C)]
@@ -74,6 +82,8 @@ struct State {
     partial: [*mut Header; CLASSES],
     /// Chunks currently mapped (the tests check what is returned).
     chunks: usize,
+    /// Per class, chunks ever mapped (see [`SMALL_CHUNKS`]).
+    made: [usize; CLASSES],
 }
 
 // SAFETY: the raw pointers are only touched under the pool's mutex.
@@ -97,6 +107,7 @@ impl PlanePool {
             state: Mutex::new(State {
                 partial: [null_mut(); CLASSES],
                 chunks: 0,
+                made: [0; CLASSES],
             }),
         }
     }
@@ -124,11 +135,12 @@ impl PlanePool {
         let mut st = self.lock();
         let mut h = st.partial[pages];
         if h.is_null() {
-            h = new_chunk(pages);
+            h = new_chunk(pages, st.made[pages] >= SMALL_CHUNKS);
             if h.is_null() {
                 return null_mut();
             }
             st.chunks += 1;
+            st.made[pages] += 1;
             // SAFETY: `h` is a fresh chunk's header, not in any list.
             unsafe { push(&mut st, h) };
         }
@@ -225,9 +237,10 @@ unsafe fn unlink(st: &mut State, h: *mut Header) {
     }
 }
 
-/// A new chunk for slots of `pages` pages, aligned to [`CHUNK`], its
-/// header written; null if the system refuses the mapping.
-fn new_chunk(pages: usize) -> *mut Header {
+/// A new chunk for slots of `pages` pages, aligned to [`CHUNK`] and
+/// advised onto a huge page when `huge`, its header written; null if the
+/// system refuses the mapping.
+fn new_chunk(pages: usize, huge: bool) -> *mut Header {
     // Map twice the size and trim to an aligned chunk.
     // SAFETY: an anonymous private mapping at an address of the kernel's
     // choice; the result is checked.
@@ -253,7 +266,9 @@ fn new_chunk(pages: usize) -> *mut Header {
         unmap((base + CHUNK) as *mut u8, raw + 2 * CHUNK - base - CHUNK);
         // Advice only: where huge pages are off it fails, and the chunk
         // is 512 ordinary pages.
-        libc::madvise(base as *mut libc::c_void, CHUNK, libc::MADV_HUGEPAGE);
+        if huge {
+            libc::madvise(base as *mut libc::c_void, CHUNK, libc::MADV_HUGEPAGE);
+        }
         let h = base as *mut Header;
         ptr::write(
             h,
@@ -399,6 +414,52 @@ mod tests {
         let p = unsafe { pool.alloc(l) };
         assert_eq!(p as usize & !(CHUNK - 1), b);
         unsafe { pool.dealloc(p, l) };
+    }
+
+    /// `VmFlags` of the mapping that holds `addr`, from /proc/self/smaps.
+    fn vm_flags(addr: usize) -> String {
+        let smaps = std::fs::read_to_string("/proc/self/smaps").unwrap();
+        let mut inside = false;
+        for line in smaps.lines() {
+            let range = line.split_whitespace().next().unwrap_or("");
+            if let Some((a, b)) = range.split_once('-') {
+                if let (Ok(a), Ok(b)) = (usize::from_str_radix(a, 16), usize::from_str_radix(b, 16))
+                {
+                    inside = (a..b).contains(&addr);
+                    continue;
+                }
+            }
+            if let (true, Some(f)) = (inside, line.strip_prefix("VmFlags:")) {
+                return f.trim().to_string();
+            }
+        }
+        panic!("no mapping holds {addr:#x}");
+    }
+
+    /// A class's first [`SMALL_CHUNKS`] chunks are not advised onto huge
+    /// pages; the next one is (`hg` in its `VmFlags`), where the kernel
+    /// has transparent huge pages at all.
+    #[test]
+    fn huge_pages_only_after_the_first_chunks() {
+        let pool = PlanePool::new();
+        let l = layout(40 * 1024, 8);
+        let per_chunk = (CHUNK - PAGE) / (10 * PAGE);
+        let ps: Vec<*mut u8> = (0..SMALL_CHUNKS * per_chunk + 1)
+            .map(|_| unsafe { pool.alloc(l) })
+            .collect();
+        assert!(ps.iter().all(|p| !p.is_null()));
+        assert_eq!(pool.chunks(), SMALL_CHUNKS + 1);
+        for c in 0..SMALL_CHUNKS {
+            let f = vm_flags(ps[c * per_chunk] as usize);
+            assert!(!f.split(' ').any(|x| x == "hg"), "chunk {c}: {f}");
+        }
+        if std::path::Path::new("/sys/kernel/mm/transparent_hugepage").exists() {
+            let f = vm_flags(*ps.last().unwrap() as usize);
+            assert!(f.split(' ').any(|x| x == "hg"), "the later chunk: {f}");
+        }
+        for p in ps {
+            unsafe { pool.dealloc(p, l) };
+        }
     }
 
     #[test]
