@@ -19,7 +19,7 @@ cd "$work"
 # apt-get download needs package lists; refresh them once if it fails.
 if ! apt-get download invesalius-examples >/dev/null 2>&1; then
     echo "fetch-ct: apt-get download failed; refreshing package lists" >&2
-    if [ "$(id -u)" = 0 ]; then apt-get update -qq >&2; else sudo apt-get update -qq >&2; fi
+    if [ "$(id -u)" = 0 ]; then apt-get -o DPkg::Lock::Timeout=600 update -qq >&2; else sudo apt-get -o DPkg::Lock::Timeout=600 update -qq >&2; fi
     apt-get download invesalius-examples >&2 || {
         echo "fetch-ct: cannot download Debian package invesalius-examples" >&2
         exit 1

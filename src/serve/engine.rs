@@ -118,6 +118,9 @@ pub struct Counters {
     pub frames: AtomicU64,
     pub cancelled: AtomicU64,
     pub refused: AtomicU64,
+    /// Renders running now (0 or 1: one render slot): a client or test
+    /// can tell that a request has started rendering.
+    pub rendering: AtomicU64,
 }
 
 /// The scene a cache is built for: the file, the scene's iso value (f32
@@ -216,9 +219,12 @@ impl<'v> Engine<'v> {
             return Err(cancelled());
         };
         let t0 = Instant::now();
+        self.counters.rendering.fetch_add(1, Ordering::Relaxed);
         let out = self
             .pool
-            .install(|| render_in_until(vol, cache, camera, opts, &NoProgress, stop))?;
+            .install(|| render_in_until(vol, cache, camera, opts, &NoProgress, stop));
+        self.counters.rendering.fetch_sub(1, Ordering::Relaxed);
+        let out = out?;
         let seconds_render = t0.elapsed().as_secs_f64();
         let Some((frame, stats)) = out else {
             return Err(cancelled());

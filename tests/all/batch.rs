@@ -128,9 +128,16 @@ fn mixed_inputs_one_broken_then_resume() {
         assert_eq!(status(&r, good), "skipped", "{good}");
     }
     // A changed input is redone; a damaged output is redone.
-    std::thread::sleep(std::time::Duration::from_millis(20));
-    let nrrd = std::fs::read(input.join("b/vol.nrrd")).unwrap();
-    std::fs::write(input.join("b/vol.nrrd"), nrrd).unwrap();
+    // The same bytes with a later modification time (set, not waited for:
+    // some file systems keep whole seconds).
+    let nrrd = std::fs::OpenOptions::new()
+        .write(true)
+        .open(input.join("b/vol.nrrd"))
+        .unwrap();
+    let was = nrrd.metadata().unwrap().modified().unwrap();
+    nrrd.set_modified(was + std::time::Duration::from_secs(5))
+        .unwrap();
+    drop(nrrd);
     let cdv = std::fs::read(out.join("a_head.json.cdv")).unwrap();
     std::fs::write(out.join("a_head.json.cdv"), &cdv[..cdv.len() / 2]).unwrap();
     // Fix the broken input: the batch now succeeds.

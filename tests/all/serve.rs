@@ -344,29 +344,49 @@ fn a_newer_request_of_a_session_cancels_the_older() {
     // Slow: a 1024^2 composite with short steps on one thread (seconds).
     let slow = "/api/image?mode=composite&preset=ct-bone&step=0.05&w=1024&h=1024&session=";
     let addr = srv.addr.clone();
+    let older = std::thread::spawn(move || {
+        let r = get(&addr, &format!("{slow}s1"));
+        (r, Instant::now())
+    });
+    // Wait until the older request is rendering (no fixed sleep: a loaded
+    // machine may take long to get there).
+    let status = |addr: &str| -> serde_json::Value {
+        serde_json::from_slice(&get(addr, "/api/status").body).unwrap()
+    };
     let t0 = Instant::now();
-    let older = std::thread::spawn(move || (get(&addr, &format!("{slow}s1")), t0.elapsed()));
-    std::thread::sleep(Duration::from_millis(300));
+    while status(&srv.addr)["rendering"].as_u64() != Some(1) {
+        assert!(
+            !older.is_finished(),
+            "the older request ended before rendering"
+        );
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "never started rendering"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let sent = Instant::now();
     let newer = get(&srv.addr, "/api/image?session=s1&w=32&h=32&mode=mip");
     let other = get(&srv.addr, "/api/image?session=s2&w=32&h=32&mode=mip");
-    let (older, took) = older.join().unwrap();
+    let (older, ended) = older.join().unwrap();
     let short = |r: &Reply| format!("{} {:?}", r.status, r.header("content-type"));
     assert_eq!(older.status, 409, "older: {}", short(&older));
     assert!(older.text().contains("cancelled"), "{}", older.text());
     assert_eq!(newer.status, 200, "{}", newer.text());
     // Another session's request is never cancelled by s1.
     assert_eq!(other.status, 200, "{}", other.text());
-    let status: serde_json::Value =
-        serde_json::from_slice(&get(&srv.addr, "/api/status").body).unwrap();
-    assert_eq!(status["cancelled"].as_u64(), Some(1), "{status}");
-    // The cancelled render stopped early: a whole one takes far longer.
-    let t1 = Instant::now();
+    let st = status(&srv.addr);
+    assert_eq!(st["cancelled"].as_u64(), Some(1), "{st}");
+    assert_eq!(st["rendering"].as_u64(), Some(0), "{st}");
+    // The cancelled render stopped early: it ended well within the time a
+    // whole render of the same view takes (its own render seconds).
     let whole = get(&srv.addr, &format!("{slow}s3"));
     assert_eq!(whole.status, 200, "{}", short(&whole));
+    let render = whole.stats()["seconds_render"].as_f64().unwrap();
+    let stopped = ended.saturating_duration_since(sent).as_secs_f64();
     assert!(
-        took * 2 < t1.elapsed(),
-        "cancelled after {took:?}, a whole render took {:?}",
-        t1.elapsed()
+        stopped * 2.0 < render,
+        "cancelled {stopped:.3} s after the newer request, a whole render took {render:.3} s"
     );
 }
 

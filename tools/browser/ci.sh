@@ -15,8 +15,8 @@ root=$(cd "$(dirname "$0")/../.." && pwd)
 install() {
     if ! command -v chromium >/dev/null; then
         as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
-        as_root apt-get update -qq
-        DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -q chromium >/dev/null
+        as_root apt-get -o DPkg::Lock::Timeout=600 update -qq
+        DEBIAN_FRONTEND=noninteractive as_root apt-get -o DPkg::Lock::Timeout=600 install -y -q chromium >/dev/null
     fi
     (cd "$root/tools/browser" && npm ci --no-audit --no-fund --silent)
 }

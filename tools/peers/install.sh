@@ -17,8 +17,8 @@ for p in "${debs[@]}"; do
 done
 if [ ${#missing[@]} -gt 0 ]; then
     echo "installing: ${missing[*]}" >&2
-    $sudo apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >&2
+    $sudo apt-get -o DPkg::Lock::Timeout=600 update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get -o DPkg::Lock::Timeout=600 install -y -qq "${missing[@]}" >&2
 fi
 for b in vdb_render vdb_tool taskset; do command -v "$b" >/dev/null || { echo "missing $b" >&2; exit 1; }; done
 /usr/bin/python3 -c 'import pyopenvdb, numpy' || { echo "pyopenvdb/numpy not importable by /usr/bin/python3" >&2; exit 1; }

@@ -121,7 +121,7 @@ install_packages() {
         printf '#!/bin/sh\nexit 101\n' > "$policy" && chmod 755 "$policy" && made_policy=1
     fi
     local rc=0
-    { apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q slurm-wlm munge; } >&2 || rc=$?
+    { apt-get -o DPkg::Lock::Timeout=600 update -q && DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -q slurm-wlm munge; } >&2 || rc=$?
     [ $made_policy = 1 ] && rm -f "$policy"
     [ $rc = 0 ] || die "apt-get install slurm-wlm munge failed (exit $rc)"
 }

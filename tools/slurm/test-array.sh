@@ -117,8 +117,15 @@ job_field() { # JOBLINE FIELD -> value of FIELD= in a `scontrol show job -o` lin
     tr ' ' '\n' <<< "$1" | sed -n "s/^$2=//p" | head -n 1
 }
 final() { # JOBID -> its state once finished (UNKNOWN if slurmctld forgot it), nothing while it runs
-    local st
-    st=$(job_field "$(scontrol show job -o "$1" 2>/dev/null || true)" JobState)
+    local st out rc=0
+    out=$(scontrol show job -o "$1" 2>&1) || rc=$?
+    if [ "$rc" != 0 ]; then
+        # A forgotten job is finished; any other failure (slurmctld slow to
+        # answer under load) says nothing, and the loop asks again.
+        case $out in *"Invalid job id"*) echo UNKNOWN ;; esac
+        return 0
+    fi
+    st=$(job_field "$out" JobState)
     case $st in
         "") echo UNKNOWN ;;
         PENDING | RUNNING | CONFIGURING | COMPLETING | SUSPENDED | REQUEUED | RESIZING) ;;
