@@ -67,8 +67,12 @@ op = vtk.vtkPiecewiseFunction()
 prop = vtk.vtkVolumeProperty()
 prop.SetInterpolationTypeToLinear()
 if a.shade:
-    # cdvol render --shade: its surface light, a headlight (VTK's default
-    # light follows the camera), two-sided.
+    # cdvol render --shade: its surface light, a headlight, two-sided (the
+    # renderer's default). The light is added below, with a white ambient
+    # colour: VTK's shading table scales Ambient by the light's ambient
+    # colour, which is black by default, so with the renderer's automatic
+    # light SetAmbient had no effect (docs/peers/PEERS.md, twenty-first
+    # session).
     prop.ShadeOn()
     prop.SetAmbient(0.12)
     prop.SetDiffuse(0.75)
@@ -113,6 +117,11 @@ vol.SetProperty(prop)
 ren = vtk.vtkRenderer()
 ren.SetBackground(0, 0, 0)
 ren.AddVolume(vol)
+if a.shade:
+    light = vtk.vtkLight()
+    light.SetLightTypeToHeadlight()
+    light.SetAmbientColor(1.0, 1.0, 1.0)  # diffuse and specular colours: white by default
+    ren.AddLight(light)  # a renderer with a light creates none of its own
 win = vtk.vtkRenderWindow()
 win.SetOffScreenRendering(1)
 win.SetSize(a.size, a.size)
