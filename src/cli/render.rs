@@ -58,6 +58,12 @@ pub enum PrecisionArg {
     F64,
 }
 
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OnOff {
+    On,
+    Off,
+}
+
 #[derive(Args, Debug)]
 pub struct RenderArgs {
     /// Packed file from `cdvol prep`.
@@ -151,6 +157,11 @@ pub struct RenderArgs {
     /// reference); docs/TRADEOFFS.md measures the difference.
     #[arg(long, value_enum, default_value = "f32")]
     pub sample_precision: PrecisionArg,
+    /// Composite, f32, unshaded, uniform axes: take a ray's samples eight
+    /// at a time, their cells found by position (on), or one at a time
+    /// by the cell planes (off); docs/TRADEOFFS.md measures the difference.
+    #[arg(long, value_enum, default_value = "on")]
+    pub sample_batches: OnOff,
     /// Composite: stop a ray once its opacity exceeds this (1 = never).
     #[arg(long, default_value_t = cdvol::render::EARLY_STOP)]
     pub early_stop: f64,
@@ -452,6 +463,7 @@ impl RenderArgs {
                 },
                 precision: self.precision.into(),
                 sampling: self.sample_precision.into(),
+                sample_batches: self.sample_batches == OnOff::On,
                 early_stop: self.early_stop,
                 look: self.look()?,
                 window: self.window()?,

@@ -72,6 +72,10 @@ pub struct RenderOptions {
     /// traversal keeps [`RenderOptions::precision`]). Measured against f64
     /// in docs/TRADEOFFS.md, "Sampling precision".
     pub sampling: Precision,
+    /// The unshaded f32 composite takes a ray's samples eight at a time,
+    /// their cells by position, where every axis is uniform (on by
+    /// default; docs/TRADEOFFS.md, "Sampling precision").
+    pub sample_batches: bool,
     /// Composite stops a ray once its opacity exceeds this (early ray
     /// termination; 0.99 by default, 1 never stops early).
     pub early_stop: f64,
@@ -228,6 +232,7 @@ impl RenderOptions {
             precision: Precision::F64,
             hit_params: HitParams::default(),
             sampling: Precision::F32,
+            sample_batches: true,
             early_stop: EARLY_STOP,
             look: CompositeLook::default(),
             window: Window::Auto,

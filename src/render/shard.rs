@@ -131,6 +131,10 @@ pub struct OptionsKey {
     /// Composite: the sampler's arithmetic, the early-stop opacity and
     /// the look.
     pub sampling: Option<String>,
+    /// Composite: `--sample-batches` (absent from manifests written
+    /// before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample_batches: Option<bool>,
     pub early_stop: Option<f64>,
     pub look: Option<super::CompositeLook>,
     /// Surface and composite: [`Normals::name`](super::Normals::name).
@@ -170,6 +174,7 @@ impl OptionsKey {
             tile: o.tile,
             cd_lazy_min: o.cd_lazy_min,
             sampling: composite.then(|| o.sampling.name().into()),
+            sample_batches: composite.then_some(o.sample_batches),
             early_stop: composite.then_some(o.early_stop),
             look: composite.then(|| o.look.clone()),
             normals: (composite || matches!(o.mode, Mode::Surface { .. }))

@@ -12,8 +12,9 @@
 
 use glam::{Vec3, Vec3A, Vec4};
 
+use super::batch::{self, Batches, End};
 use super::{Ctx, Px};
-use crate::render::cache::Accessor;
+use crate::render::cache::{Accessor, RBrick};
 use crate::render::clock::Clock;
 use crate::render::gradient::{outer_cell_gradients, vertex_gradients, Normals, VertexGradients};
 use crate::render::lut::TfLut;
@@ -105,6 +106,8 @@ fn march32<T: Real, const LOOK: bool>(
         inv: Vec3::ZERO,
         grads: [Vec3A::ZERO; 8],
         acc: Vec4::ZERO,
+        // Shading needs each sample's gradient: one at a time.
+        batches: if LOOK { None } else { ctx.index_map.as_ref() },
     };
     let counts = march(ctx, ray, acc, clock, step, &mut s);
     px.hit = s.acc.w > 0.0;
@@ -132,6 +135,12 @@ trait Sampler {
     );
     /// The sample at `t` (in the cell last entered); `Stop` once opaque.
     fn sample(&mut self, t: f64) -> Flow;
+    /// Composites samples `k, k + 1, ...` while they lie in brick `b`,
+    /// several at a time ([`batch::run`]): how many it took and why it
+    /// stopped; `None` for a sampler that takes one sample at a time.
+    fn batch(&mut self, _b: &RBrick, _k: f64) -> Option<(u64, End)> {
+        None
+    }
 }
 
 /// A 0-cell code from which the run marcher hands the ray back to the
@@ -200,6 +209,7 @@ fn march<T: Real, P: Sampler>(
             let mut tn: [f64; 3] = std::array::from_fn(|a| ahead(a, cell[a]));
             let mut k = first_sample(v.t_enter, step, inv_step).max(k_next);
             let mut entered = false;
+            let mut batched = true;
             loop {
                 let t = k * step;
                 for a in 0..3 {
@@ -241,9 +251,43 @@ fn march<T: Real, P: Sampler>(
                     };
                     s.enter(acc, cell, f, g, t);
                     entered = true;
+                    batched = false;
                 }
                 if s.sample(t) == Flow::Stop {
                     break 'run None;
+                }
+                // The samples after it, in batches while they stay in
+                // this brick (once per cell entered: a batch that took
+                // nothing is not tried again in the same cell).
+                if !batched {
+                    batched = true;
+                    let (b, _) = acc.brick(cell);
+                    let Some((taken, end)) = s.batch(b, k) else {
+                        continue;
+                    };
+                    if taken == 0 {
+                        continue;
+                    }
+                    // The cell the plane crossings put the next sample in
+                    // (or, once opaque, the last one), the crossings
+                    // counted as the loop above counts them.
+                    let stop = end == End::Stop;
+                    let t = (k + taken as f64 - stop as u8 as f64) * step;
+                    for a in 0..3 {
+                        let Some(c) = cell_at(ctx, ray, a, cell[a], t, &ahead) else {
+                            break 'run None;
+                        };
+                        let moved = c.abs_diff(cell[a]) as u64;
+                        counts.steps += moved;
+                        counts.cell_steps += moved;
+                        cell[a] = c;
+                        tn[a] = ahead(a, c);
+                    }
+                    if stop {
+                        break 'run None;
+                    }
+                    k += taken as f64;
+                    entered = false;
                 }
             }
         };
@@ -253,6 +297,56 @@ fn march<T: Real, P: Sampler>(
             None => return counts,
         }
     }
+}
+
+/// The cell along axis `a` of the ray's sample at `t`, found forward
+/// from cell `from` (that of an earlier sample) exactly as the run
+/// marcher's plane crossings (`ahead(a, i) <= t`) would find it; `None`
+/// when the ray leaves the volume first. It jumps to the cell the
+/// position names ([`IndexMap`](batch::IndexMap)) and corrects by the
+/// planes, so the batches' samples cost no crossing each.
+fn cell_at<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    a: usize,
+    from: u32,
+    t: f64,
+    ahead: &impl Fn(usize, u32) -> f64,
+) -> Option<u32> {
+    let d = ray.dir[a];
+    if d == 0.0 {
+        return Some(from);
+    }
+    let n = (ctx.coords[a].len() - 1) as u32;
+    let guess = ctx
+        .index_map
+        .as_ref()
+        .map_or(from, |m| m.cell(a, ray.origin[a] + t * d, n));
+    let mut c;
+    if d > 0.0 {
+        c = guess.max(from);
+        while ahead(a, c) <= t {
+            c += 1;
+            if c >= n {
+                return None;
+            }
+        }
+        while c > from && ahead(a, c - 1) > t {
+            c -= 1;
+        }
+    } else {
+        c = guess.min(from);
+        while ahead(a, c) <= t {
+            if c == 0 {
+                return None;
+            }
+            c -= 1;
+        }
+        while c < from && ahead(a, c + 1) > t {
+            c += 1;
+        }
+    }
+    Some(c)
 }
 
 /// The f64 sampler: [`AlongRay`] per cell, the f64 table.
@@ -351,6 +445,8 @@ struct Sampler32<'a, const LOOK: bool> {
     /// The ray's premultiplied colour and opacity so far, `[r, g, b, a]`:
     /// a sample is composited into all four lanes at once.
     acc: Vec4,
+    /// The grid's index map when samples go in batches (batch.rs).
+    batches: Option<&'a batch::IndexMap>,
 }
 
 impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
@@ -411,6 +507,20 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
         } else {
             Flow::Continue
         }
+    }
+
+    #[inline(always)]
+    fn batch(&mut self, b: &RBrick, k: f64) -> Option<(u64, End)> {
+        let map = self.batches?;
+        let x = Batches {
+            map,
+            ray: self.ray,
+            step: self.step,
+            lut: self.lut,
+            resume: RESUME_CODE,
+            stop: self.stop,
+        };
+        Some(batch::run(&x, b, k, &mut self.acc))
     }
 }
 

@@ -10,6 +10,7 @@
 //!                                               | composite | cost -> Px
 //! ```
 
+mod batch;
 mod composite;
 mod cost;
 mod depth;
@@ -89,6 +90,10 @@ pub(crate) struct Ctx<'a, T> {
     /// cell ([`Accessor::remember_gradients`]): when rays are dense
     /// enough to meet a cell more than once ([`rays_meet_cells_again`]).
     pub(crate) memo_gradients: bool,
+    /// Where the unshaded composite takes its samples in batches
+    /// ([`RenderOptions::sample_batches`], every axis uniform): the
+    /// grid's map from positions to cells (batch.rs).
+    pub(crate) index_map: Option<batch::IndexMap>,
 }
 
 /// Whether neighbouring rays of `camera` meet the same cells often enough
@@ -149,6 +154,11 @@ impl<'a, T: Real> Ctx<'a, T> {
             },
             inv_size: coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect()),
             memo_gradients: rays_meet_cells_again(h, camera),
+            index_map: if opts.sample_batches {
+                batch::IndexMap::of(coords, std::array::from_fn(|k| h.axes[k].is_uniform()))
+            } else {
+                None
+            },
         }
     }
 }

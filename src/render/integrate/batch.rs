@@ -1,0 +1,426 @@
+//! The unshaded composite's samples eight at a time (`--sample-batches`,
+//! on by default): where every axis of the grid is uniform, the run
+//! marcher of composite.rs hands the samples of a 1-cell run to
+//! [`run`], which takes them in batches of [`LANES`] along the ray and
+//! finds each sample's cell by its position (`floor` of its index
+//! coordinate) instead of crossing the cell planes one at a time. The
+//! position, cell, local coordinates and trilinear value of the eight
+//! samples are one loop each over eight lanes, which the compiler turns
+//! into SIMD arithmetic (AVX2 where the CPU has it, [`run`] dispatches);
+//! the codes, the vertices and the table are read lane by lane, and the
+//! samples are composited in order, as [`Sampler32`] composites them.
+//!
+//! What changes against the sampler one sample at a time: a sample on or
+//! within rounding of a cell face may be given the neighbouring cell.
+//! The trilinear interpolants of two cells agree on their shared face,
+//! so the value moves by rounding only; a 0-cell's samples are
+//! transparent either way (the transfer function is zero over its value
+//! range). docs/TRADEOFFS.md ("Sampling precision") measures the image
+//! difference; docs/BENCHMARKS.md ("Composite samples eight at a time")
+//! the time.
+//!
+//! [`Sampler32`]: super::composite
+
+use glam::Vec4;
+
+use crate::render::cache::{Codes, RBrick};
+use crate::render::lut::TfLut;
+use crate::render::samples::{gather8, Corners, Samples};
+use crate::render::traverse::{Ray, OBJECT};
+
+/// Samples per batch.
+pub(super) const LANES: usize = 8;
+
+/// Above every index coordinate of a brick's cells (2^24: f32 counts
+/// integers exactly up to it).
+const TOP: f32 = 16_777_216.0;
+
+/// A uniform grid's map from positions to index coordinates: per axis
+/// `(p - s0) * inv_h` is the sample index, its integer part the cell.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct IndexMap {
+    s0: [f64; 3],
+    inv_h: [f64; 3],
+}
+
+impl IndexMap {
+    /// The map of a grid with these sample positions when every axis is
+    /// uniform (`uniform[k]`), else `None`.
+    pub(crate) fn of(coords: [&[f64]; 3], uniform: [bool; 3]) -> Option<IndexMap> {
+        if !uniform.iter().all(|&u| u) || coords.iter().any(|c| c.len() < 2) {
+            return None;
+        }
+        Some(IndexMap {
+            s0: coords.map(|c| c[0]),
+            inv_h: coords.map(|c| (c.len() - 1) as f64 / (c[c.len() - 1] - c[0])),
+        })
+    }
+
+    /// The cell along axis `a` (of `n`) whose span holds position `p`, by
+    /// the map, clamped to the grid: an estimate within a rounding of the
+    /// planes' answer.
+    pub(crate) fn cell(&self, a: usize, p: f64, n: u32) -> u32 {
+        let q = ((p - self.s0[a]) * self.inv_h[a]).floor();
+        // NaN and below 0 go to 0; above, to the last cell.
+        if q >= 0.0 {
+            q.min((n - 1) as f64) as u32
+        } else {
+            0
+        }
+    }
+}
+
+/// Why [`run`] handed the samples back.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum End {
+    /// The next sample lies outside the brick (or the volume), or the
+    /// brick holds no f32 values and code plane to batch.
+    Brick,
+    /// The next sample lies in a 0-cell whose code says leap
+    /// (`>= resume`): the marcher hands the ray back to the traversal.
+    Leap,
+    /// The ray became opaque.
+    Stop,
+}
+
+/// What one ray's batches need besides the brick.
+pub(super) struct Batches<'a> {
+    pub map: &'a IndexMap,
+    pub ray: &'a Ray,
+    pub step: f64,
+    pub lut: &'a TfLut,
+    /// Codes from which the marcher leaps rather than skips.
+    pub resume: u8,
+    pub stop: f32,
+}
+
+/// Composites samples `k, k + 1, ...` (at `t = k * step`) of the ray into
+/// `acc` while they lie in brick `b`, [`LANES`] at a time; returns how
+/// many it took and why it stopped. A sample in a 0-cell with a code
+/// below `resume` adds nothing, as in the marcher.
+pub(super) fn run(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { run_avx2(x, b, k, acc) };
+    }
+    run_any(x, b, k, acc)
+}
+
+/// [`run_any`] compiled for AVX2: the same code, the same results (no
+/// fused multiply-add: Rust does not contract `a + b * c`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn run_avx2(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
+    run_any(x, b, k, acc)
+}
+
+/// See [`run`].
+#[inline(always)]
+fn run_any(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
+    let (Samples::F32(vals), Codes::Plane(codes)) = (&b.values, &b.codes) else {
+        return (0, End::Brick);
+    };
+    let cells = b.cells;
+    let (sx, sy) = (cells[0] as usize + 1, cells[1] as usize + 1);
+    let sxy = sx * sy;
+    // Brick-local index coordinate per axis: `q(t) = q0 + t * qd`.
+    let (m, ray) = (x.map, x.ray);
+    let q0: [f64; 3] =
+        std::array::from_fn(|a| (ray.origin[a] - m.s0[a]) * m.inv_h[a] - b.first[a] as f64);
+    let qd: [f64; 3] = std::array::from_fn(|a| ray.dir[a] * m.inv_h[a]);
+    // Per lane, the increment of `q` by one step, in f32.
+    let dq: [f32; 3] = std::array::from_fn(|a| (x.step * qd[a]) as f32);
+    let lane: [f32; LANES] = std::array::from_fn(|j| j as f32);
+    // The ray's colour and transmittance (1 - opacity) so far; it stops
+    // once the transmittance falls below `clear` (opacity above `stop`).
+    let mut colour = acc.truncate();
+    let mut through = 1.0 - acc.w;
+    let clear = 1.0 - x.stop;
+    let mut taken = 0u64;
+    loop {
+        let t = (k + taken as f64) * x.step;
+        let base: [f32; 3] = std::array::from_fn(|a| (q0[a] + t * qd[a]) as f32);
+        // Each lane's cell and local coordinates: `floor(q)` as the
+        // truncation of `q + 1` (clamped to [0, 2^24], so that it converts
+        // without the checks of `as`), less 1. A lane whose `q + 1` rounds
+        // up to an integer gets the next cell with a local coordinate a
+        // rounding below 0, clamped as the one-at-a-time sampler clamps.
+        // Then whether the cell is in the brick (-1 wraps to above any
+        // size), its index in the code plane and its minimum corner's in
+        // the values.
+        let mut u = [[0f32; LANES]; 3];
+        let mut inside = [0u32; LANES];
+        let mut code_at = [0usize; LANES];
+        let mut value_at = [0usize; LANES];
+        for j in 0..LANES {
+            let mut c = [0u32; 3];
+            for a in 0..3 {
+                let q = base[a] + lane[j] * dq[a];
+                // Not `clamp`, which keeps NaN.
+                #[allow(clippy::manual_clamp)]
+                let q1 = (q + 1.0).max(0.0).min(TOP);
+                // SAFETY: `q1` is in [0, 2^24] (`max` takes 0 for NaN), so
+                // it truncates to an i32.
+                let ci = unsafe { q1.to_int_unchecked::<i32>() } - 1;
+                u[a][j] = (q - ci as f32).clamp(0.0, 1.0);
+                c[a] = ci as u32;
+            }
+            inside[j] = ((c[0] < cells[0]) & (c[1] < cells[1]) & (c[2] < cells[2])) as u32;
+            // In usize, where a lane outside (below 2^32 per axis) cannot
+            // overflow; only the lanes inside are read.
+            let c = c.map(|x| x as usize);
+            code_at[j] = (c[2] * cells[1] as usize + c[1]) * cells[0] as usize + c[0];
+            value_at[j] = (c[2] * sy + c[1]) * sx + c[0];
+        }
+        // Along the ray each axis's cell moves one way only, and the brick
+        // is a box: the lanes inside are a prefix when lane 0 is.
+        let inside = if inside[0] == 1 {
+            inside.iter().sum::<u32>() as usize
+        } else {
+            0
+        };
+        // Their codes: stop before a leap; 0-cells add nothing.
+        let (mut n, mut end) = (inside, End::Brick);
+        let mut object = [false; LANES];
+        for j in 0..inside {
+            let code = codes[code_at[j]];
+            if code != OBJECT && code >= x.resume {
+                (n, end) = (j, End::Leap);
+                break;
+            }
+            object[j] = code == OBJECT;
+        }
+        // Their trilinear values, as `Trilinear32::value` computes them.
+        let mut value = [0f32; LANES];
+        for j in 0..n {
+            let f = gather8(
+                vals,
+                Corners {
+                    base: value_at[j],
+                    sx,
+                    z: sxy,
+                },
+                |x| x,
+            );
+            let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
+            let (ux, uy, uz) = (u[0][j], u[1][j], u[2][j]);
+            let x00 = lerp(f[0], f[1], ux);
+            let x10 = lerp(f[2], f[3], ux);
+            let x01 = lerp(f[4], f[5], ux);
+            let x11 = lerp(f[6], f[7], ux);
+            value[j] = lerp(lerp(x00, x10, uy), lerp(x01, x11, uy), uz);
+        }
+        // Front to back, in order, by transmittance: one multiplication
+        // carries from sample to sample (`a + (1 - a) s` would be three).
+        for j in 0..n {
+            if !object[j] {
+                continue;
+            }
+            let s = x.lut.sample32(value[j]);
+            if s.w == 0.0 {
+                continue;
+            }
+            colour += through * s.truncate();
+            through *= 1.0 - s.w;
+            if through < clear {
+                *acc = colour.extend(1.0 - through);
+                return (taken + j as u64 + 1, End::Stop);
+            }
+        }
+        taken += n as u64;
+        if n < LANES {
+            *acc = colour.extend(1.0 - through);
+            return (taken, end);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::classify::{TfPoint, TransferFunction};
+    use crate::render::cache::GradPlane;
+    use proptest::prelude::*;
+
+    fn tf() -> TransferFunction {
+        let p = |value: f64, opacity: f64, color: [f64; 3]| TfPoint {
+            value,
+            opacity,
+            color,
+        };
+        TransferFunction {
+            points: vec![
+                p(20.0, 0.0, [1.0, 0.2, 0.1]),
+                p(90.0, 0.3, [0.9, 0.8, 0.2]),
+                p(160.0, 0.05, [0.2, 0.6, 1.0]),
+            ],
+        }
+    }
+
+    fn brick(first: [u32; 3], cells: [u32; 3], vals: Vec<f32>, codes: Vec<u8>) -> RBrick {
+        RBrick {
+            first,
+            cells,
+            codes: Codes::Plane(codes),
+            values: Samples::F32(vals),
+            octants: Vec::new(),
+            levels: Vec::new(),
+            bytes: 0,
+            dda: [Vec::new(), Vec::new()],
+            block_max: Vec::new(),
+            grads: GradPlane::EMPTY,
+        }
+    }
+
+    /// What [`run`] should do, sample by sample in f64: the cell by
+    /// `floor` of the index coordinate, the code, the trilinear value, the
+    /// f64 table, front-to-back compositing. `None` when a sample lies
+    /// within 1e-4 of a cell face, where f32 and f64 may pick different
+    /// cells.
+    #[allow(clippy::too_many_arguments)]
+    fn reference(
+        b: &RBrick,
+        map: &IndexMap,
+        ray: &Ray,
+        step: f64,
+        lut: &TfLut,
+        stop: f64,
+        vals: &[f32],
+        codes: &[u8],
+    ) -> Option<(u64, End, [f64; 4])> {
+        let c = b.cells.map(|c| c as usize);
+        let (sx, sy) = (c[0] + 1, c[1] + 1);
+        let mut acc = [0.0f64; 4];
+        for k in 0u64.. {
+            let t = k as f64 * step;
+            let q: [f64; 3] = std::array::from_fn(|a| {
+                (ray.origin[a] + t * ray.dir[a] - map.s0[a]) * map.inv_h[a] - b.first[a] as f64
+            });
+            if q.iter().any(|&x| (x - x.round()).abs() < 1e-4) {
+                return None;
+            }
+            let cell = q.map(|x| x.floor());
+            if (0..3).any(|a| cell[a] < 0.0 || cell[a] >= c[a] as f64) {
+                return Some((k, End::Brick, acc));
+            }
+            let [x, y, z] = cell.map(|x| x as usize);
+            let code = codes[(z * c[1] + y) * c[0] + x];
+            if code != OBJECT && code >= 2 {
+                return Some((k, End::Leap, acc));
+            }
+            if code != OBJECT {
+                continue;
+            }
+            let u: [f64; 3] = std::array::from_fn(|a| q[a] - cell[a]);
+            let v = |dx: usize, dy: usize, dz: usize| {
+                vals[((z + dz) * sy + y + dy) * sx + x + dx] as f64
+            };
+            let l = |a: f64, b: f64, t: f64| a + t * (b - a);
+            let value = l(
+                l(
+                    l(v(0, 0, 0), v(1, 0, 0), u[0]),
+                    l(v(0, 1, 0), v(1, 1, 0), u[0]),
+                    u[1],
+                ),
+                l(
+                    l(v(0, 0, 1), v(1, 0, 1), u[0]),
+                    l(v(0, 1, 1), v(1, 1, 1), u[0]),
+                    u[1],
+                ),
+                u[2],
+            );
+            let s = lut.sample(value);
+            let w = 1.0 - acc[3];
+            for ch in 0..4 {
+                acc[ch] += w * s[ch];
+            }
+            if acc[3] > stop {
+                return Some((k + 1, End::Stop, acc));
+            }
+        }
+        unreachable!()
+    }
+
+    proptest! {
+        /// [`run`] takes the samples a one-at-a-time walk by position
+        /// takes, ends where it ends (leaving the brick, at a leap code,
+        /// once opaque) and composites the same colour to f32 accuracy; its
+        /// AVX2 build gives the baseline build's bits.
+        #[test]
+        fn batches_take_the_samples_one_at_a_time_would(
+            cells in proptest::array::uniform3(1u32..9),
+            first in proptest::array::uniform3(0u32..20),
+            h in proptest::array::uniform3(0.3f64..2.5),
+            s0 in proptest::array::uniform3(-5.0f64..5.0),
+            at in proptest::array::uniform3(0.0f64..1.0),
+            dir in proptest::array::uniform3(-1.0f64..1.0),
+            step in prop_oneof![Just(0.07), Just(0.37), Just(1.3), Just(4.0)],
+            stop in prop_oneof![Just(0.6), Just(0.99), Just(1.0)],
+            seed in any::<u64>(),
+        ) {
+            prop_assume!(dir.iter().map(|d| d * d).sum::<f64>() > 1e-3);
+            let len = dir.iter().map(|d| d * d).sum::<f64>().sqrt();
+            let c = cells.map(|c| c as usize);
+            let samples = (c[0] + 1) * (c[1] + 1) * (c[2] + 1);
+            let mut r = seed;
+            let mut next = || {
+                r = r.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (r >> 33) as u32
+            };
+            let vals: Vec<f32> = (0..samples).map(|_| (next() % 200) as f32).collect();
+            let codes: Vec<u8> = (0..c[0] * c[1] * c[2])
+                .map(|_| match next() % 12 {
+                    0 => 0,
+                    1 => 1,
+                    2 => 2,
+                    3 => 5,
+                    _ => OBJECT,
+                })
+                .collect();
+            let b = brick(first, cells, vals.clone(), codes.clone());
+            let n: [usize; 3] = std::array::from_fn(|a| (first[a] + cells[a]) as usize + 3);
+            let coords: [Vec<f64>; 3] =
+                std::array::from_fn(|a| (0..=n[a]).map(|i| s0[a] + i as f64 * h[a]).collect());
+            let map = IndexMap::of([&coords[0], &coords[1], &coords[2]], [true; 3]).unwrap();
+            // The ray starts inside the brick.
+            let origin: [f64; 3] = std::array::from_fn(|a| {
+                s0[a] + (first[a] as f64 + at[a] * cells[a] as f64) * h[a]
+            });
+            let ray = Ray::new(origin, dir.map(|d| d / len)).unwrap();
+            let lut = TfLut::new(&tf(), step);
+            let Some((want_n, want_end, want)) =
+                reference(&b, &map, &ray, step, &lut, stop, &vals, &codes)
+            else {
+                return Err(TestCaseError::reject("a sample on a cell face"));
+            };
+            let x = Batches { map: &map, ray: &ray, step, lut: &lut, resume: 2, stop: stop as f32 };
+            let mut acc = Vec4::ZERO;
+            let (got_n, got_end) = run_any(&x, &b, 0.0, &mut acc);
+            prop_assert_eq!((got_n, got_end), (want_n, want_end));
+            for ch in 0..4 {
+                prop_assert!((acc[ch] as f64 - want[ch]).abs() < 1e-4, "{acc} {want:?}");
+            }
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                let mut acc2 = Vec4::ZERO;
+                // SAFETY: the CPU has AVX2, checked just above.
+                let got2 = unsafe { run_avx2(&x, &b, 0.0, &mut acc2) };
+                prop_assert_eq!(got2, (got_n, got_end));
+                prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
+            }
+        }
+    }
+
+    #[test]
+    fn only_uniform_grids_have_an_index_map() {
+        let u: Vec<f64> = (0..5).map(|i| i as f64 * 0.5).collect();
+        assert!(IndexMap::of([&u, &u, &u], [true; 3]).is_some());
+        assert!(IndexMap::of([&u, &u, &u], [true, false, true]).is_none());
+        let m = IndexMap::of([&u, &u, &u], [true; 3]).unwrap();
+        assert_eq!(m.cell(0, 1.2, 4), 2);
+        assert_eq!(m.cell(0, -3.0, 4), 0);
+        assert_eq!(m.cell(0, 99.0, 4), 3);
+        assert_eq!(m.cell(0, f64::NAN, 4), 0);
+    }
+}
