@@ -8,7 +8,11 @@
 //! [`composite32`] (the default) and [`composite`] (f64, the reference).
 //! Both take the same samples in the same cells; the traversal that finds
 //! the cells is f64 either way, so every exact traversal gives the same
-//! image with either sampler.
+//! image with either sampler. On uniform grids the unshaded f32 sampler
+//! takes a run's samples eight at a time, their cells by position
+//! (batch.rs, `--sample-batches`); the runs still start where the
+//! traversal finds them, so every traversal gives the same image there
+//! too.
 
 use glam::{Vec3, Vec3A, Vec4};
 
@@ -106,8 +110,9 @@ fn march32<T: Real, const LOOK: bool>(
         inv: Vec3::ZERO,
         grads: [Vec3A::ZERO; 8],
         acc: Vec4::ZERO,
-        // Shading needs each sample's gradient: one at a time.
-        batches: if LOOK { None } else { ctx.index_map.as_ref() },
+        // Shading needs each sample's gradient: one at a time (see
+        // `batches`).
+        batches: ctx.index_map.as_ref(),
     };
     let counts = march(ctx, ray, acc, clock, step, &mut s);
     px.hit = s.acc.w > 0.0;
@@ -135,6 +140,10 @@ trait Sampler {
     );
     /// The sample at `t` (in the cell last entered); `Stop` once opaque.
     fn sample(&mut self, t: f64) -> Flow;
+    /// Whether [`Sampler::batch`] takes samples several at a time.
+    fn batches(&self) -> bool {
+        false
+    }
     /// Composites samples `k, k + 1, ...` while they lie in brick `b`,
     /// several at a time ([`batch::run`]): how many it took and why it
     /// stopped; `None` for a sampler that takes one sample at a time.
@@ -189,6 +198,7 @@ fn march<T: Real, P: Sampler>(
         }
     };
     let mut counts = StepCounts::default();
+    let batches = s.batches();
     let mut t_min = 0.0;
     // The first sample not yet handled: runs never go back.
     let mut k_next = 0.0f64;
@@ -251,7 +261,7 @@ fn march<T: Real, P: Sampler>(
                     };
                     s.enter(acc, cell, f, g, t);
                     entered = true;
-                    batched = false;
+                    batched = !batches;
                 }
                 if s.sample(t) == Flow::Stop {
                     break 'run None;
@@ -259,35 +269,21 @@ fn march<T: Real, P: Sampler>(
                 // The samples after it, in batches while they stay in
                 // this brick (once per cell entered: a batch that took
                 // nothing is not tried again in the same cell).
-                if !batched {
+                if batches && !batched {
                     batched = true;
-                    let (b, _) = acc.brick(cell);
-                    let Some((taken, end)) = s.batch(b, k) else {
-                        continue;
+                    let mut at = Marched {
+                        cell,
+                        tn,
+                        k,
+                        counts,
                     };
-                    if taken == 0 {
-                        continue;
+                    let flow = batched_samples(ctx, ray, acc, s, step, &mut at, &ahead);
+                    (cell, tn, k, counts) = (at.cell, at.tn, at.k, at.counts);
+                    match flow {
+                        Batched::None => {}
+                        Batched::Taken => entered = false,
+                        Batched::Done => break 'run None,
                     }
-                    // The cell the plane crossings put the next sample in
-                    // (or, once opaque, the last one), the crossings
-                    // counted as the loop above counts them.
-                    let stop = end == End::Stop;
-                    let t = (k + taken as f64 - stop as u8 as f64) * step;
-                    for a in 0..3 {
-                        let Some(c) = cell_at(ctx, ray, a, cell[a], t, &ahead) else {
-                            break 'run None;
-                        };
-                        let moved = c.abs_diff(cell[a]) as u64;
-                        counts.steps += moved;
-                        counts.cell_steps += moved;
-                        cell[a] = c;
-                        tn[a] = ahead(a, c);
-                    }
-                    if stop {
-                        break 'run None;
-                    }
-                    k += taken as f64;
-                    entered = false;
                 }
             }
         };
@@ -297,6 +293,69 @@ fn march<T: Real, P: Sampler>(
             None => return counts,
         }
     }
+}
+
+/// Where the run marcher stands: the current cell, its planes ahead,
+/// the next sample's index and the steps so far.
+struct Marched {
+    cell: [u32; 3],
+    tn: [f64; 3],
+    k: f64,
+    counts: StepCounts,
+}
+
+/// What [`batched_samples`] did.
+enum Batched {
+    /// Took no sample.
+    None,
+    /// Took samples; the marcher stands at the next one's cell.
+    Taken,
+    /// The ray is opaque or has left the volume.
+    Done,
+}
+
+/// The samples from `at.k` on, handed to `s` in batches while they stay
+/// in the current cell's brick ([`Sampler::batch`]), then the marcher
+/// moved to the cell of the next sample (or, once opaque, of the last
+/// one) as its plane crossings would have moved it, the crossings
+/// counted as it counts them. Not inlined: called once per 1-cell
+/// entered, it keeps the marcher's loop small (the shaded composite's
+/// marcher, which never batches, lost 3 % of instructions to inlining
+/// choices while it was inline).
+#[inline(never)]
+fn batched_samples<T: Real, P: Sampler>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    acc: &mut Accessor,
+    s: &mut P,
+    step: f64,
+    at: &mut Marched,
+    ahead: &impl Fn(usize, u32) -> f64,
+) -> Batched {
+    let (b, _) = acc.brick(at.cell);
+    let Some((taken, end)) = s.batch(b, at.k) else {
+        return Batched::None;
+    };
+    if taken == 0 {
+        return Batched::None;
+    }
+    let stop = end == End::Stop;
+    let t = (at.k + taken as f64 - stop as u8 as f64) * step;
+    for a in 0..3 {
+        let Some(c) = cell_at(ctx, ray, a, at.cell[a], t, ahead) else {
+            return Batched::Done;
+        };
+        let moved = c.abs_diff(at.cell[a]) as u64;
+        at.counts.steps += moved;
+        at.counts.cell_steps += moved;
+        at.cell[a] = c;
+        at.tn[a] = ahead(a, c);
+    }
+    if stop {
+        return Batched::Done;
+    }
+    at.k += taken as f64;
+    Batched::Taken
 }
 
 /// The cell along axis `a` of the ray's sample at `t`, found forward
@@ -510,6 +569,13 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
     }
 
     #[inline(always)]
+    fn batches(&self) -> bool {
+        // A constant false for the shaded sampler: its marcher is
+        // compiled without the batch code.
+        !LOOK && self.batches.is_some()
+    }
+
+    #[inline(always)]
     fn batch(&mut self, b: &RBrick, k: f64) -> Option<(u64, End)> {
         let map = self.batches?;
         let x = Batches {
@@ -629,8 +695,10 @@ impl<'a> Look<'a> {
     /// lit by the surface mode's headlight model
     /// ([`shade`](crate::render::shade::shade): ambient 0.12, diffuse
     /// 0.75, white specular 0.25 with exponent 32, two-sided). Lane by
-    /// lane, as four scalar expressions would round.
-    #[inline]
+    /// lane, as four scalar expressions would round. Always inlined: as
+    /// a call it cost the shaded composite 7 % when the unshaded marcher
+    /// grew (twenty-first session).
+    #[inline(always)]
     fn apply(&self, s: Vec4, g: Vec3A) -> Vec4 {
         let len = g.length();
         let mut s = s;
