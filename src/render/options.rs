@@ -74,7 +74,7 @@ pub struct RenderOptions {
     pub sampling: Precision,
     /// The unshaded f32 composite takes a ray's samples eight at a time,
     /// their cells by position, where every axis is uniform (on by
-    /// default; docs/TRADEOFFS.md, "Sampling precision").
+    /// default; docs/TRADEOFFS.md, "Sample batches").
     pub sample_batches: bool,
     /// Composite stops a ray once its opacity exceeds this (early ray
     /// termination; 0.99 by default, 1 never stops early).

@@ -4,22 +4,21 @@
 //! [`run`], which takes them in batches of [`LANES`] along the ray and
 //! finds each sample's cell by its position (`floor` of its index
 //! coordinate) instead of crossing the cell planes one at a time. The
-//! position, cell, local coordinates and trilinear value of the eight
-//! samples are one loop each over eight lanes, which the compiler turns
-//! into SIMD arithmetic (AVX2 where the CPU has it, [`run`] dispatches);
-//! the codes, the vertices and the table are read lane by lane, and the
-//! samples are composited in order, as [`Sampler32`] composites them.
+//! positions, cells, local coordinates and plane indices of the eight
+//! samples are one loop over eight lanes, which the compiler turns into
+//! SIMD arithmetic (AVX2 where the CPU has it, [`run`] dispatches); the
+//! codes, the vertices, the trilinear value and the table go lane by
+//! lane, and the samples are composited in order, the opacity carried as
+//! transmittance.
 //!
 //! What changes against the sampler one sample at a time: a sample on or
 //! within rounding of a cell face may be given the neighbouring cell.
 //! The trilinear interpolants of two cells agree on their shared face,
 //! so the value moves by rounding only; a 0-cell's samples are
 //! transparent either way (the transfer function is zero over its value
-//! range). docs/TRADEOFFS.md ("Sampling precision") measures the image
+//! range). docs/TRADEOFFS.md ("Sample batches") measures the image
 //! difference; docs/BENCHMARKS.md ("Composite samples eight at a time")
 //! the time.
-//!
-//! [`Sampler32`]: super::composite
 
 use glam::Vec4;
 

@@ -319,9 +319,9 @@ enum Batched {
 /// moved to the cell of the next sample (or, once opaque, of the last
 /// one) as its plane crossings would have moved it, the crossings
 /// counted as it counts them. Not inlined: called once per 1-cell
-/// entered, it keeps the marcher's loop small (the shaded composite's
-/// marcher, which never batches, lost 3 % of instructions to inlining
-/// choices while it was inline).
+/// entered, it keeps the marcher's loop small (while it was inline, the
+/// compiler's inlining elsewhere changed and the shaded composite, which
+/// never batches, ran 3-6 % more instructions).
 #[inline(never)]
 fn batched_samples<T: Real, P: Sampler>(
     ctx: &Ctx<T>,
