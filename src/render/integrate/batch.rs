@@ -73,7 +73,7 @@ impl IndexMap {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum End {
     /// The next sample lies outside the brick (or the volume), or the
-    /// brick holds no f32 values and code plane to batch.
+    /// brick holds no values and code plane to batch.
     Brick,
     /// The next sample lies in a 0-cell whose code says leap
     /// (`>= resume`): the marcher hands the ray back to the traversal.
@@ -114,12 +114,35 @@ fn run_avx2(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
     run_any(x, b, k, acc)
 }
 
-/// See [`run`].
+/// See [`run`]: [`lanes`] with the brick's kind of values.
 #[inline(always)]
 fn run_any(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
-    let (Samples::F32(vals), Codes::Plane(codes)) = (&b.values, &b.codes) else {
+    let Codes::Plane(codes) = &b.codes else {
         return (0, End::Brick);
     };
+    match &b.values {
+        Samples::F32(v) => lanes(x, b, codes, k, acc, |c| gather8(v, c, |x| x)),
+        Samples::Words16(w, t, _) => {
+            lanes(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
+        }
+        Samples::Words8(w, t, _) => {
+            lanes(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
+        }
+        Samples::Empty => (0, End::Brick),
+    }
+}
+
+/// [`run`] on brick `b` with code plane `codes`, whose cells' vertex
+/// values `vertices` reads (x fastest, as [`RBrick::vertices`]).
+#[inline(always)]
+fn lanes(
+    x: &Batches,
+    b: &RBrick,
+    codes: &[u8],
+    k: f64,
+    acc: &mut Vec4,
+    vertices: impl Fn(Corners) -> [f32; 8],
+) -> (u64, End) {
     let cells = b.cells;
     let (sx, sy) = (cells[0] as usize + 1, cells[1] as usize + 1);
     let sxy = sx * sy;
@@ -193,15 +216,11 @@ fn run_any(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
         // Their trilinear values, as `Trilinear32::value` computes them.
         let mut value = [0f32; LANES];
         for j in 0..n {
-            let f = gather8(
-                vals,
-                Corners {
-                    base: value_at[j],
-                    sx,
-                    z: sxy,
-                },
-                |x| x,
-            );
+            let f = vertices(Corners {
+                base: value_at[j],
+                sx,
+                z: sxy,
+            });
             let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
             let (ux, uy, uz) = (u[0][j], u[1][j], u[2][j]);
             let x00 = lerp(f[0], f[1], ux);
@@ -240,6 +259,7 @@ mod tests {
     use super::*;
     use crate::classify::{TfPoint, TransferFunction};
     use crate::render::cache::GradPlane;
+    use crate::render::samples::Order;
     use proptest::prelude::*;
 
     fn tf() -> TransferFunction {
@@ -257,12 +277,12 @@ mod tests {
         }
     }
 
-    fn brick(first: [u32; 3], cells: [u32; 3], vals: Vec<f32>, codes: Vec<u8>) -> RBrick {
+    fn brick(first: [u32; 3], cells: [u32; 3], values: Samples, codes: Vec<u8>) -> RBrick {
         RBrick {
             first,
             cells,
             codes: Codes::Plane(codes),
-            values: Samples::F32(vals),
+            values,
             octants: Vec::new(),
             levels: Vec::new(),
             bytes: 0,
@@ -377,7 +397,7 @@ mod tests {
                     _ => OBJECT,
                 })
                 .collect();
-            let b = brick(first, cells, vals.clone(), codes.clone());
+            let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
             let n: [usize; 3] = std::array::from_fn(|a| (first[a] + cells[a]) as usize + 3);
             let coords: [Vec<f64>; 3] =
                 std::array::from_fn(|a| (0..=n[a]).map(|i| s0[a] + i as f64 * h[a]).collect());
@@ -399,6 +419,20 @@ mod tests {
             prop_assert_eq!((got_n, got_end), (want_n, want_end));
             for ch in 0..4 {
                 prop_assert!((acc[ch] as f64 - want[ch]).abs() < 1e-4, "{acc} {want:?}");
+            }
+            // The same values as 16-bit words and a table, and as 8-bit
+            // ones (the values are whole numbers below 200): the same bits.
+            let table16: Vec<f32> = (0..65536).map(|w| w as f32).collect();
+            let table16: std::sync::Arc<[f32; 65536]> = std::sync::Arc::<[f32]>::from(table16).try_into().unwrap();
+            let table8: std::sync::Arc<[f32; 256]> = std::sync::Arc::new(std::array::from_fn(|w| w as f32));
+            for values in [
+                Samples::Words16(vals.iter().map(|&v| v as u16).collect(), table16, Order::Unsigned),
+                Samples::Words8(vals.iter().map(|&v| v as u8).collect(), table8, Order::Unsigned),
+            ] {
+                let w = brick(first, cells, values, codes.clone());
+                let mut acc_w = Vec4::ZERO;
+                prop_assert_eq!(run_any(&x, &w, 0.0, &mut acc_w), (got_n, got_end));
+                prop_assert_eq!(acc_w.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
             }
             #[cfg(target_arch = "x86_64")]
             if std::arch::is_x86_feature_detected!("avx2") {
