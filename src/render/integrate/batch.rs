@@ -22,10 +22,11 @@
 
 use glam::Vec4;
 
+use super::Ctx;
 use crate::render::cache::{Codes, RBrick};
 use crate::render::lut::TfLut;
 use crate::render::samples::{gather8, Corners, Samples};
-use crate::render::traverse::{Ray, OBJECT};
+use crate::render::traverse::{Ray, Real, OBJECT};
 
 /// Samples per batch.
 pub(super) const LANES: usize = 8;
@@ -252,6 +253,56 @@ fn lanes(
             return (taken, end);
         }
     }
+}
+
+/// The cell along axis `a` of the ray's sample at `t`, found forward
+/// from cell `from` (that of an earlier sample) exactly as the run
+/// marcher's plane crossings (`ahead(a, i) <= t`) would find it; `None`
+/// when the ray leaves the volume first. It jumps to the cell the
+/// position names ([`IndexMap`]) and corrects by the
+/// planes, so the batches' samples cost no crossing each.
+pub(super) fn cell_at<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    a: usize,
+    from: u32,
+    t: f64,
+    ahead: &impl Fn(usize, u32) -> f64,
+) -> Option<u32> {
+    let d = ray.dir[a];
+    if d == 0.0 {
+        return Some(from);
+    }
+    let n = (ctx.coords[a].len() - 1) as u32;
+    let guess = ctx
+        .index_map
+        .as_ref()
+        .map_or(from, |m| m.cell(a, ray.origin[a] + t * d, n));
+    let mut c;
+    if d > 0.0 {
+        c = guess.max(from);
+        while ahead(a, c) <= t {
+            c += 1;
+            if c >= n {
+                return None;
+            }
+        }
+        while c > from && ahead(a, c - 1) > t {
+            c -= 1;
+        }
+    } else {
+        c = guess.min(from);
+        while ahead(a, c) <= t {
+            if c == 0 {
+                return None;
+            }
+            c -= 1;
+        }
+        while c < from && ahead(a, c + 1) > t {
+            c += 1;
+        }
+    }
+    Some(c)
 }
 
 #[cfg(test)]

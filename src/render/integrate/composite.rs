@@ -146,9 +146,9 @@ trait Sampler {
     }
     /// Composites samples `k, k + 1, ...` while they lie in brick `b`,
     /// several at a time ([`batch::run`]): how many it took and why it
-    /// stopped; `None` for a sampler that takes one sample at a time.
-    fn batch(&mut self, _b: &RBrick, _k: f64) -> Option<(u64, End)> {
-        None
+    /// stopped. A sampler that takes one sample at a time takes none.
+    fn batch(&mut self, _b: &RBrick, _k: f64) -> (u64, End) {
+        (0, End::Brick)
     }
 }
 
@@ -333,16 +333,14 @@ fn batched_samples<T: Real, P: Sampler>(
     ahead: &impl Fn(usize, u32) -> f64,
 ) -> Batched {
     let (b, _) = acc.brick(at.cell);
-    let Some((taken, end)) = s.batch(b, at.k) else {
-        return Batched::None;
-    };
+    let (taken, end) = s.batch(b, at.k);
     if taken == 0 {
         return Batched::None;
     }
     let stop = end == End::Stop;
     let t = (at.k + taken as f64 - stop as u8 as f64) * step;
     for a in 0..3 {
-        let Some(c) = cell_at(ctx, ray, a, at.cell[a], t, ahead) else {
+        let Some(c) = batch::cell_at(ctx, ray, a, at.cell[a], t, ahead) else {
             return Batched::Done;
         };
         let moved = c.abs_diff(at.cell[a]) as u64;
@@ -356,56 +354,6 @@ fn batched_samples<T: Real, P: Sampler>(
     }
     at.k += taken as f64;
     Batched::Taken
-}
-
-/// The cell along axis `a` of the ray's sample at `t`, found forward
-/// from cell `from` (that of an earlier sample) exactly as the run
-/// marcher's plane crossings (`ahead(a, i) <= t`) would find it; `None`
-/// when the ray leaves the volume first. It jumps to the cell the
-/// position names ([`IndexMap`](batch::IndexMap)) and corrects by the
-/// planes, so the batches' samples cost no crossing each.
-fn cell_at<T: Real>(
-    ctx: &Ctx<T>,
-    ray: &Ray,
-    a: usize,
-    from: u32,
-    t: f64,
-    ahead: &impl Fn(usize, u32) -> f64,
-) -> Option<u32> {
-    let d = ray.dir[a];
-    if d == 0.0 {
-        return Some(from);
-    }
-    let n = (ctx.coords[a].len() - 1) as u32;
-    let guess = ctx
-        .index_map
-        .as_ref()
-        .map_or(from, |m| m.cell(a, ray.origin[a] + t * d, n));
-    let mut c;
-    if d > 0.0 {
-        c = guess.max(from);
-        while ahead(a, c) <= t {
-            c += 1;
-            if c >= n {
-                return None;
-            }
-        }
-        while c > from && ahead(a, c - 1) > t {
-            c -= 1;
-        }
-    } else {
-        c = guess.min(from);
-        while ahead(a, c) <= t {
-            if c == 0 {
-                return None;
-            }
-            c -= 1;
-        }
-        while c < from && ahead(a, c + 1) > t {
-            c += 1;
-        }
-    }
-    Some(c)
 }
 
 /// The f64 sampler: [`AlongRay`] per cell, the f64 table.
@@ -576,8 +524,10 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
     }
 
     #[inline(always)]
-    fn batch(&mut self, b: &RBrick, k: f64) -> Option<(u64, End)> {
-        let map = self.batches?;
+    fn batch(&mut self, b: &RBrick, k: f64) -> (u64, End) {
+        let Some(map) = self.batches else {
+            return (0, End::Brick);
+        };
         let x = Batches {
             map,
             ray: self.ray,
@@ -586,7 +536,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
             resume: RESUME_CODE,
             stop: self.stop,
         };
-        Some(batch::run(&x, b, k, &mut self.acc))
+        batch::run(&x, b, k, &mut self.acc)
     }
 }
 
