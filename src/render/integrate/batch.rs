@@ -20,7 +20,7 @@
 //! difference; docs/BENCHMARKS.md ("Composite samples eight at a time")
 //! the time.
 
-use glam::Vec4;
+use glam::{Vec3A, Vec4};
 
 use super::Ctx;
 use crate::render::cache::{Codes, RBrick};
@@ -91,6 +91,9 @@ pub(super) struct Batches<'a> {
     pub lut: &'a TfLut,
     /// Codes from which the marcher leaps rather than skips.
     pub resume: u8,
+    /// Shaded samples (smooth normals from the brick's gradient plane,
+    /// no gradient opacity): the unit vector to the eye.
+    pub shade: Option<Vec3A>,
     pub stop: f32,
 }
 
@@ -115,28 +118,45 @@ fn run_avx2(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
     run_any(x, b, k, acc)
 }
 
-/// See [`run`]: [`lanes`] with the brick's kind of values.
+/// See [`run`]: [`lanes`] with the brick's kind of values, shaded or
+/// not.
 #[inline(always)]
 fn run_any(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
+    if x.shade.is_some() {
+        // Shaded samples read the brick's gradient plane.
+        if b.grads.is_empty() {
+            return (0, End::Brick);
+        }
+        values::<true>(x, b, k, acc)
+    } else {
+        values::<false>(x, b, k, acc)
+    }
+}
+
+/// [`lanes`] with the brick's kind of values.
+#[inline(always)]
+fn values<const SHADE: bool>(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
     let Codes::Plane(codes) = &b.codes else {
         return (0, End::Brick);
     };
     match &b.values {
-        Samples::F32(v) => lanes(x, b, codes, k, acc, |c| gather8(v, c, |x| x)),
+        Samples::F32(v) => lanes::<SHADE>(x, b, codes, k, acc, |c| gather8(v, c, |x| x)),
         Samples::Words16(w, t, _) => {
-            lanes(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
+            lanes::<SHADE>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
         }
         Samples::Words8(w, t, _) => {
-            lanes(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
+            lanes::<SHADE>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
         }
         Samples::Empty => (0, End::Brick),
     }
 }
 
 /// [`run`] on brick `b` with code plane `codes`, whose cells' vertex
-/// values `vertices` reads (x fastest, as [`RBrick::vertices`]).
+/// values `vertices` reads (x fastest, as [`RBrick::vertices`]); with
+/// `SHADE`, lit by [`shade`] with the gradients of the brick's gradient
+/// plane.
 #[inline(always)]
-fn lanes(
+fn lanes<const SHADE: bool>(
     x: &Batches,
     b: &RBrick,
     codes: &[u8],
@@ -173,6 +193,7 @@ fn lanes(
         // size), its index in the code plane and its minimum corner's in
         // the values.
         let mut u = [[0f32; LANES]; 3];
+        let mut local = [[0u32; 3]; LANES];
         let mut inside = [0u32; LANES];
         let mut code_at = [0usize; LANES];
         let mut value_at = [0usize; LANES];
@@ -190,6 +211,7 @@ fn lanes(
                 c[a] = ci as u32;
             }
             inside[j] = ((c[0] < cells[0]) & (c[1] < cells[1]) & (c[2] < cells[2])) as u32;
+            local[j] = c;
             // In usize, where a lane outside (below 2^32 per axis) cannot
             // overflow; only the lanes inside are read.
             let c = c.map(|x| x as usize);
@@ -230,13 +252,44 @@ fn lanes(
             let x11 = lerp(f[6], f[7], ux);
             value[j] = lerp(lerp(x00, x10, uy), lerp(x01, x11, uy), uz);
         }
+        // The table's colour and opacity; shaded, lit by the gradients
+        // (a lane whose cell's gradients the plane lacks ends the batch:
+        // the marcher computes them).
+        let mut lit = [Vec4::ZERO; LANES];
+        for j in 0..n {
+            if object[j] {
+                lit[j] = x.lut.sample32(value[j]);
+            }
+        }
+        if SHADE {
+            let mut g = [[0f32; LANES]; 3];
+            // Consecutive samples often share a cell: its gradients once.
+            let mut held: Option<(usize, [Vec3A; 8])> = None;
+            for j in 0..n {
+                if lit[j].w == 0.0 {
+                    continue;
+                }
+                let grads = match held {
+                    Some((at, v)) if at == code_at[j] => v,
+                    _ => match b.grads.cell(local[j]) {
+                        Some(v) => {
+                            held = Some((code_at[j], v));
+                            v
+                        }
+                        None => {
+                            (n, end) = (j, End::Brick);
+                            break;
+                        }
+                    },
+                };
+                let v = trilinear_vec(&grads, Vec3A::new(u[0][j], u[1][j], u[2][j]));
+                (g[0][j], g[1][j], g[2][j]) = (v.x, v.y, v.z);
+            }
+            shade(&mut lit, &g, x.shade.unwrap_or(Vec3A::ZERO));
+        }
         // Front to back, in order, by transmittance: one multiplication
         // carries from sample to sample (`a + (1 - a) s` would be three).
-        for j in 0..n {
-            if !object[j] {
-                continue;
-            }
-            let s = x.lut.sample32(value[j]);
+        for (j, &s) in lit.iter().enumerate().take(n) {
             if s.w == 0.0 {
                 continue;
             }
@@ -252,6 +305,48 @@ fn lanes(
             *acc = colour.extend(1.0 - through);
             return (taken, end);
         }
+    }
+}
+
+/// Trilinear interpolation of 8 vertex vectors (x fastest) at `u`, as the
+/// one-at-a-time sampler interpolates its gradients.
+#[inline(always)]
+pub(super) fn trilinear_vec(g: &[Vec3A; 8], u: Vec3A) -> Vec3A {
+    let x00 = g[0].lerp(g[1], u.x);
+    let x10 = g[2].lerp(g[3], u.x);
+    let x01 = g[4].lerp(g[5], u.x);
+    let x11 = g[6].lerp(g[7], u.x);
+    x00.lerp(x10, u.y).lerp(x01.lerp(x11, u.y), u.z)
+}
+
+/// The composite's headlight shading (`Look::apply` in composite.rs,
+/// the surface mode's model: ambient 0.12, diffuse 0.75, white specular
+/// 0.25 with exponent 32, two-sided) of [`LANES`] samples `s`
+/// (premultiplied colour, opacity) with gradients `g` (per mm, one array
+/// per axis), `to_eye` the unit vector to the eye. Lane by lane in
+/// arrays, which the compiler turns into SIMD arithmetic: the square
+/// roots and divisions of eight samples in one instruction each.
+#[inline(always)]
+fn shade(s: &mut [Vec4; LANES], g: &[[f32; LANES]; 3], to_eye: Vec3A) {
+    const AMBIENT: f32 = 0.12;
+    let mut k = [0f32; LANES];
+    let mut spec = [0f32; LANES];
+    for j in 0..LANES {
+        let (x, y, z) = (g[0][j], g[1][j], g[2][j]);
+        let len = (x * x + y * y + z * z).sqrt();
+        // n.l = |g.e| / |g| for the normal facing the eye; r.e = 2 (n.l)^2 - 1.
+        let ndl = ((x * to_eye.x + y * to_eye.y + z * to_eye.z).abs() / len).min(1.0);
+        let re = (2.0 * ndl * ndl - 1.0).max(0.0);
+        // re^32 by squaring, as `powi(32)` computes it.
+        let re32 = (0..5).fold(re, |p, _| p * p);
+        // No gradient: the surface mode's flat fallback.
+        let on = len > 0.0;
+        k[j] = AMBIENT + 0.75 * if on { ndl } else { 0.5 };
+        spec[j] = if on { 0.25 * re32 } else { 0.0 };
+    }
+    for j in 0..LANES {
+        let a = s[j].w;
+        s[j] = (s[j] * k[j] + Vec4::splat(spec[j] * a)).with_w(a);
     }
 }
 
@@ -343,25 +438,94 @@ mod tests {
         }
     }
 
+    /// A brick of `cells` at `first` with random whole values below 200
+    /// and random codes (mostly 1-cells; codes 0, 1, 2 and 5), on a
+    /// uniform grid of spacing `h` from `s0`, and a unit ray from the
+    /// point at fraction `at` of the brick along `dir`.
+    struct Scene {
+        vals: Vec<f32>,
+        codes: Vec<u8>,
+        map: IndexMap,
+        ray: Ray,
+    }
+
+    fn scene(
+        cells: [u32; 3],
+        first: [u32; 3],
+        h: [f64; 3],
+        s0: [f64; 3],
+        at: [f64; 3],
+        dir: [f64; 3],
+        next: &mut impl FnMut() -> u32,
+    ) -> Scene {
+        let len = dir.iter().map(|d| d * d).sum::<f64>().sqrt();
+        let c = cells.map(|c| c as usize);
+        let samples = (c[0] + 1) * (c[1] + 1) * (c[2] + 1);
+        let vals: Vec<f32> = (0..samples).map(|_| (next() % 200) as f32).collect();
+        let codes: Vec<u8> = (0..c[0] * c[1] * c[2])
+            .map(|_| match next() % 12 {
+                0 => 0,
+                1 => 1,
+                2 => 2,
+                3 => 5,
+                _ => OBJECT,
+            })
+            .collect();
+        let n: [usize; 3] = std::array::from_fn(|a| (first[a] + cells[a]) as usize + 3);
+        let coords: [Vec<f64>; 3] =
+            std::array::from_fn(|a| (0..=n[a]).map(|i| s0[a] + i as f64 * h[a]).collect());
+        let map = IndexMap::of([&coords[0], &coords[1], &coords[2]], [true; 3]).unwrap();
+        // The ray starts inside the brick.
+        let origin: [f64; 3] =
+            std::array::from_fn(|a| s0[a] + (first[a] as f64 + at[a] * cells[a] as f64) * h[a]);
+        let ray = Ray::new(origin, dir.map(|d| d / len)).unwrap();
+        Scene {
+            vals,
+            codes,
+            map,
+            ray,
+        }
+    }
+
+    /// A pseudo-random sequence from `seed`.
+    fn rng(seed: u64) -> impl FnMut() -> u32 {
+        let mut r = seed;
+        move || {
+            r = r
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (r >> 33) as u32
+        }
+    }
+
     /// What [`run`] should do, sample by sample in f64: the cell by
     /// `floor` of the index coordinate, the code, the trilinear value, the
-    /// f64 table, front-to-back compositing. `None` when a sample lies
-    /// within 1e-4 of a cell face, where f32 and f64 may pick different
-    /// cells.
-    #[allow(clippy::too_many_arguments)]
+    /// f64 table, with `grads` (per vertex, x fastest) the headlight
+    /// shading of `Look::apply` from the trilinear gradient, front-to-back
+    /// compositing. A shaded sample in a cell the brick's gradient plane
+    /// has not set ends the run at it (`End::Brick`). `None` when a
+    /// sample lies within 1e-4 of a cell face, where f32 and f64 may pick
+    /// different cells, has a value within 1e-3 of the table's
+    /// transparent end, or a gradient shorter than 0.01, where f32 and
+    /// f64 may shade it differently.
     fn reference(
         b: &RBrick,
-        map: &IndexMap,
-        ray: &Ray,
-        step: f64,
-        lut: &TfLut,
-        stop: f64,
-        vals: &[f32],
-        codes: &[u8],
+        bx: &Batches,
+        sc: &Scene,
+        grads: Option<&[[f64; 3]]>,
     ) -> Option<(u64, End, [f64; 4])> {
+        let (map, ray, step, lut) = (&sc.map, &sc.ray, bx.step, bx.lut);
         let c = b.cells.map(|c| c as usize);
         let (sx, sy) = (c[0] + 1, c[1] + 1);
         let mut acc = [0.0f64; 4];
+        let l = |a: f64, b: f64, t: f64| a + t * (b - a);
+        let tri = |v: &dyn Fn(usize) -> f64, u: [f64; 3]| {
+            l(
+                l(l(v(0), v(1), u[0]), l(v(2), v(3), u[0]), u[1]),
+                l(l(v(4), v(5), u[0]), l(v(6), v(7), u[0]), u[1]),
+                u[2],
+            )
+        };
         for k in 0u64.. {
             let t = k as f64 * step;
             let q: [f64; 3] = std::array::from_fn(|a| {
@@ -375,7 +539,8 @@ mod tests {
                 return Some((k, End::Brick, acc));
             }
             let [x, y, z] = cell.map(|x| x as usize);
-            let code = codes[(z * c[1] + y) * c[0] + x];
+            let ci = (z * c[1] + y) * c[0] + x;
+            let code = sc.codes[ci];
             if code != OBJECT && code >= 2 {
                 return Some((k, End::Leap, acc));
             }
@@ -383,29 +548,38 @@ mod tests {
                 continue;
             }
             let u: [f64; 3] = std::array::from_fn(|a| q[a] - cell[a]);
-            let v = |dx: usize, dy: usize, dz: usize| {
-                vals[((z + dz) * sy + y + dy) * sx + x + dx] as f64
-            };
-            let l = |a: f64, b: f64, t: f64| a + t * (b - a);
-            let value = l(
-                l(
-                    l(v(0, 0, 0), v(1, 0, 0), u[0]),
-                    l(v(0, 1, 0), v(1, 1, 0), u[0]),
-                    u[1],
-                ),
-                l(
-                    l(v(0, 0, 1), v(1, 0, 1), u[0]),
-                    l(v(0, 1, 1), v(1, 1, 1), u[0]),
-                    u[1],
-                ),
-                u[2],
-            );
-            let s = lut.sample(value);
+            let vertex = |i: usize| ((z + i / 4) * sy + y + i / 2 % 2) * sx + x + i % 2;
+            let value = tri(&|i| sc.vals[vertex(i)] as f64, u);
+            if (value - tf().points[0].value).abs() < 1e-3 {
+                return None;
+            }
+            let mut s = lut.sample(value);
+            if s[3] == 0.0 {
+                continue;
+            }
+            if let Some(grads) = grads {
+                if !b.grads.cell_set(ci) {
+                    return Some((k, End::Brick, acc));
+                }
+                let g: [f64; 3] = std::array::from_fn(|a| tri(&|i| grads[vertex(i)][a], u));
+                let len = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if len < 0.01 {
+                    return None;
+                }
+                let e = bx.shade.unwrap();
+                let dot = g[0] * e.x as f64 + g[1] * e.y as f64 + g[2] * e.z as f64;
+                let ndl = (dot.abs() / len).min(1.0);
+                let spec = (2.0 * ndl * ndl - 1.0).max(0.0).powi(32);
+                let kd = 0.12 + 0.75 * ndl;
+                let a = s[3];
+                s = [s[0] * kd, s[1] * kd, s[2] * kd, 0.0].map(|v| v + 0.25 * spec * a);
+                s[3] = a;
+            }
             let w = 1.0 - acc[3];
             for ch in 0..4 {
                 acc[ch] += w * s[ch];
             }
-            if acc[3] > stop {
+            if acc[3] > bx.stop as f64 {
                 return Some((k + 1, End::Stop, acc));
             }
         }
@@ -430,41 +604,14 @@ mod tests {
             seed in any::<u64>(),
         ) {
             prop_assume!(dir.iter().map(|d| d * d).sum::<f64>() > 1e-3);
-            let len = dir.iter().map(|d| d * d).sum::<f64>().sqrt();
-            let c = cells.map(|c| c as usize);
-            let samples = (c[0] + 1) * (c[1] + 1) * (c[2] + 1);
-            let mut r = seed;
-            let mut next = || {
-                r = r.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                (r >> 33) as u32
-            };
-            let vals: Vec<f32> = (0..samples).map(|_| (next() % 200) as f32).collect();
-            let codes: Vec<u8> = (0..c[0] * c[1] * c[2])
-                .map(|_| match next() % 12 {
-                    0 => 0,
-                    1 => 1,
-                    2 => 2,
-                    3 => 5,
-                    _ => OBJECT,
-                })
-                .collect();
+            let sc = scene(cells, first, h, s0, at, dir, &mut rng(seed));
+            let (vals, codes) = (&sc.vals, &sc.codes);
             let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
-            let n: [usize; 3] = std::array::from_fn(|a| (first[a] + cells[a]) as usize + 3);
-            let coords: [Vec<f64>; 3] =
-                std::array::from_fn(|a| (0..=n[a]).map(|i| s0[a] + i as f64 * h[a]).collect());
-            let map = IndexMap::of([&coords[0], &coords[1], &coords[2]], [true; 3]).unwrap();
-            // The ray starts inside the brick.
-            let origin: [f64; 3] = std::array::from_fn(|a| {
-                s0[a] + (first[a] as f64 + at[a] * cells[a] as f64) * h[a]
-            });
-            let ray = Ray::new(origin, dir.map(|d| d / len)).unwrap();
             let lut = TfLut::new(&tf(), step);
-            let Some((want_n, want_end, want)) =
-                reference(&b, &map, &ray, step, &lut, stop, &vals, &codes)
-            else {
+            let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None };
+            let Some((want_n, want_end, want)) = reference(&b, &x, &sc, None) else {
                 return Err(TestCaseError::reject("a sample on a cell face"));
             };
-            let x = Batches { map: &map, ray: &ray, step, lut: &lut, resume: 2, stop: stop as f32 };
             let mut acc = Vec4::ZERO;
             let (got_n, got_end) = run_any(&x, &b, 0.0, &mut acc);
             prop_assert_eq!((got_n, got_end), (want_n, want_end));
@@ -491,6 +638,83 @@ mod tests {
                 // SAFETY: the CPU has AVX2, checked just above.
                 let got2 = unsafe { run_avx2(&x, &b, 0.0, &mut acc2) };
                 prop_assert_eq!(got2, (got_n, got_end));
+                prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
+            }
+        }
+
+        /// Shaded, [`run`] lights each sample as `Look::apply` does with
+        /// the trilinear gradient of the brick's gradient plane (to f32
+        /// accuracy against f64), and hands the ray back at the first
+        /// sample that needs a cell the plane has not set; its AVX2 build
+        /// gives the baseline build's bits.
+        #[test]
+        fn shaded_batches_light_samples_as_one_at_a_time_would(
+            cells in proptest::array::uniform3(1u32..9),
+            first in proptest::array::uniform3(0u32..20),
+            h in proptest::array::uniform3(0.3f64..2.5),
+            s0 in proptest::array::uniform3(-5.0f64..5.0),
+            at in proptest::array::uniform3(0.0f64..1.0),
+            dir in proptest::array::uniform3(-1.0f64..1.0),
+            eye in proptest::array::uniform3(-1.0f64..1.0),
+            step in prop_oneof![Just(0.07), Just(0.37), Just(1.3)],
+            stop in prop_oneof![Just(0.6), Just(1.0)],
+            unset in 0u32..4,
+            seed in any::<u64>(),
+        ) {
+            prop_assume!(dir.iter().map(|d| d * d).sum::<f64>() > 1e-3);
+            prop_assume!(eye.iter().map(|d| d * d).sum::<f64>() > 1e-3);
+            let mut next = rng(seed);
+            let sc = scene(cells, first, h, s0, at, dir, &mut next);
+            // Whole-number gradients in [-20, 20] per vertex; the plane
+            // has the inner ones, then every cell but about one in
+            // `unset + 1` (none with 0) is filled.
+            let c = cells.map(|c| c as usize);
+            let samples = (c[0] + 1) * (c[1] + 1) * (c[2] + 1);
+            let grads: Vec<[f64; 3]> =
+                (0..samples).map(|_| [0, 1, 2].map(|_| (next() % 41) as f64 - 20.0)).collect();
+            let g32: Vec<glam::Vec3> =
+                grads.iter().map(|g| glam::Vec3::from_array(g.map(|v| v as f32))).collect();
+            let mut b = brick(first, cells, Samples::F32(sc.vals.clone()), sc.codes.clone());
+            b.grads = GradPlane::inner(&g32, c);
+            for z in 0..cells[2] {
+                for y in 0..cells[1] {
+                    for x in 0..cells[0] {
+                        if unset > 0 && next() % (unset + 1) == 0 {
+                            continue;
+                        }
+                        let i = |dx: u32, dy: u32, dz: u32| {
+                            g32[(((z + dz) as usize * (c[1] + 1)) + (y + dy) as usize) * (c[0] + 1)
+                                + (x + dx) as usize]
+                        };
+                        b.grads.fill([x, y, z], [
+                            i(0, 0, 0), i(1, 0, 0), i(0, 1, 0), i(1, 1, 0),
+                            i(0, 0, 1), i(1, 0, 1), i(0, 1, 1), i(1, 1, 1),
+                        ]);
+                    }
+                }
+            }
+            let len = eye.iter().map(|d| d * d).sum::<f64>().sqrt();
+            let to_eye = Vec3A::from_array(eye.map(|e| (e / len) as f32));
+            let lut = TfLut::new(&tf(), step);
+            let x = Batches {
+                map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32,
+                shade: Some(to_eye),
+            };
+            let Some((want_n, want_end, want)) = reference(&b, &x, &sc, Some(&grads)) else {
+                return Err(TestCaseError::reject("a sample on a face, or ill-conditioned"));
+            };
+            let mut acc = Vec4::ZERO;
+            let got = run_any(&x, &b, 0.0, &mut acc);
+            prop_assert_eq!(got, (want_n, want_end));
+            for ch in 0..4 {
+                prop_assert!((acc[ch] as f64 - want[ch]).abs() < 1e-4, "{acc} {want:?}");
+            }
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                let mut acc2 = Vec4::ZERO;
+                // SAFETY: the CPU has AVX2, checked just above.
+                let got2 = unsafe { run_avx2(&x, &b, 0.0, &mut acc2) };
+                prop_assert_eq!(got2, got);
                 prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
             }
         }

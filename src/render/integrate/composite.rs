@@ -16,7 +16,7 @@
 
 use glam::{Vec3, Vec3A, Vec4};
 
-use super::batch::{self, Batches, End};
+use super::batch::{self, trilinear_vec, Batches, End};
 use super::{Ctx, Px};
 use crate::render::cache::{Accessor, RBrick};
 use crate::render::clock::Clock;
@@ -96,6 +96,10 @@ fn march32<T: Real, const LOOK: bool>(
     px: &mut Px,
 ) -> StepCounts {
     debug_assert_eq!(look.on, LOOK);
+    // Shaded, the batches light their samples with smooth normals (the
+    // brick's gradient plane); gradient opacity and the cell
+    // interpolant's normals take one sample at a time.
+    let batches = ctx.index_map.as_ref().filter(|_| !LOOK || look.batches());
     let mut s = Sampler32::<LOOK> {
         coords: ctx.coords,
         inv_size: &ctx.inv_size,
@@ -110,9 +114,7 @@ fn march32<T: Real, const LOOK: bool>(
         inv: Vec3::ZERO,
         grads: [Vec3A::ZERO; 8],
         acc: Vec4::ZERO,
-        // Shading needs each sample's gradient: one at a time (see
-        // `batches`).
-        batches: ctx.index_map.as_ref(),
+        batches,
     };
     let counts = march(ctx, ray, acc, clock, step, &mut s);
     px.hit = s.acc.w > 0.0;
@@ -518,9 +520,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
 
     #[inline(always)]
     fn batches(&self) -> bool {
-        // A constant false for the shaded sampler: its marcher is
-        // compiled without the batch code.
-        !LOOK && self.batches.is_some()
+        self.batches.is_some()
     }
 
     #[inline(always)]
@@ -535,6 +535,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
             lut: self.lut,
             resume: RESUME_CODE,
             stop: self.stop,
+            shade: LOOK.then_some(self.look.to_eye),
         };
         batch::run(&x, b, k, &mut self.acc)
     }
@@ -609,16 +610,6 @@ impl Trilinear32 {
     }
 }
 
-/// Trilinear interpolation of 8 vertex vectors (x fastest) at `u`.
-#[inline(always)]
-fn trilinear_vec(g: &[Vec3A; 8], u: Vec3A) -> Vec3A {
-    let x00 = g[0].lerp(g[1], u.x);
-    let x10 = g[2].lerp(g[3], u.x);
-    let x01 = g[4].lerp(g[5], u.x);
-    let x11 = g[6].lerp(g[7], u.x);
-    x00.lerp(x10, u.y).lerp(x01.lerp(x11, u.y), u.z)
-}
-
 /// [`CompositeLook`] for one ray: the headlight and whether anything
 /// beyond the transfer function applies.
 struct Look<'a> {
@@ -638,6 +629,13 @@ impl<'a> Look<'a> {
             smooth: normals == Normals::Smooth,
             to_eye: Vec3A::from((-ray.dir).as_vec3()),
         }
+    }
+
+    /// Whether the batches can take this look's samples: shading by
+    /// smooth normals alone ([`batch::run`] lights them as
+    /// [`Look::apply`] does).
+    fn batches(&self) -> bool {
+        self.look.shade && self.look.gradient_opacity.is_empty() && self.smooth
     }
 
     /// Sample `s` (premultiplied colour, opacity) with gradient `g` (per
