@@ -104,41 +104,47 @@ pub(super) struct Batches<'a> {
 pub(super) fn run(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { run_avx2(x, b, k, acc) };
+        // SAFETY: the CPU has AVX2, checked just above. Shaded and
+        // unshaded batches are two functions, so neither's code is laid
+        // out around the other's.
+        return unsafe {
+            if x.shade.is_some() {
+                run_avx2::<true>(x, b, k, acc)
+            } else {
+                run_avx2::<false>(x, b, k, acc)
+            }
+        };
     }
     run_any(x, b, k, acc)
 }
 
-/// [`run_any`] compiled for AVX2: the same code, the same results (no
+/// [`values`] compiled for AVX2: the same code, the same results (no
 /// fused multiply-add: Rust does not contract `a + b * c`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn run_avx2(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
-    run_any(x, b, k, acc)
+fn run_avx2<const SHADE: bool>(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
+    values::<SHADE>(x, b, k, acc)
 }
 
-/// See [`run`]: [`lanes`] with the brick's kind of values, shaded or
-/// not.
-#[inline(always)]
+/// See [`run`]: [`values`] shaded or not, for the baseline CPU.
 fn run_any(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
     if x.shade.is_some() {
-        // Shaded samples read the brick's gradient plane.
-        if b.grads.is_empty() {
-            return (0, End::Brick);
-        }
         values::<true>(x, b, k, acc)
     } else {
         values::<false>(x, b, k, acc)
     }
 }
 
-/// [`lanes`] with the brick's kind of values.
+/// [`lanes`] with the brick's kind of values, shaded or not.
 #[inline(always)]
 fn values<const SHADE: bool>(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
     let Codes::Plane(codes) = &b.codes else {
         return (0, End::Brick);
     };
+    // Shaded samples read the brick's gradient plane.
+    if SHADE && b.grads.is_empty() {
+        return (0, End::Brick);
+    }
     match &b.values {
         Samples::F32(v) => lanes::<SHADE>(x, b, codes, k, acc, |c| gather8(v, c, |x| x)),
         Samples::Words16(w, t, _) => {
@@ -252,44 +258,27 @@ fn lanes<const SHADE: bool>(
             let x11 = lerp(f[6], f[7], ux);
             value[j] = lerp(lerp(x00, x10, uy), lerp(x01, x11, uy), uz);
         }
-        // The table's colour and opacity; shaded, lit by the gradients
-        // (a lane whose cell's gradients the plane lacks ends the batch:
-        // the marcher computes them).
-        let mut lit = [Vec4::ZERO; LANES];
-        for j in 0..n {
-            if object[j] {
-                lit[j] = x.lut.sample32(value[j]);
-            }
-        }
-        if SHADE {
-            let mut g = [[0f32; LANES]; 3];
-            // Consecutive samples often share a cell: its gradients once.
-            let mut held: Option<(usize, [Vec3A; 8])> = None;
-            for j in 0..n {
-                if lit[j].w == 0.0 {
-                    continue;
-                }
-                let grads = match held {
-                    Some((at, v)) if at == code_at[j] => v,
-                    _ => match b.grads.cell(local[j]) {
-                        Some(v) => {
-                            held = Some((code_at[j], v));
-                            v
-                        }
-                        None => {
-                            (n, end) = (j, End::Brick);
-                            break;
-                        }
-                    },
-                };
-                let v = trilinear_vec(&grads, Vec3A::new(u[0][j], u[1][j], u[2][j]));
-                (g[0][j], g[1][j], g[2][j]) = (v.x, v.y, v.z);
-            }
-            shade(&mut lit, &g, x.shade.unwrap_or(Vec3A::ZERO));
-        }
         // Front to back, in order, by transmittance: one multiplication
         // carries from sample to sample (`a + (1 - a) s` would be three).
-        for (j, &s) in lit.iter().enumerate().take(n) {
+        // Shaded, the samples are lit first ([`shaded`]); that may end
+        // the batch early.
+        let lit = if SHADE {
+            let (lit, upto) = shaded(x, b, &object, &value, &u, &local, &code_at, n);
+            if upto < n {
+                (n, end) = (upto, End::Brick);
+            }
+            lit
+        } else {
+            [Vec4::ZERO; LANES]
+        };
+        for j in 0..n {
+            let s = if SHADE {
+                lit[j]
+            } else if object[j] {
+                x.lut.sample32(value[j])
+            } else {
+                continue;
+            };
             if s.w == 0.0 {
                 continue;
             }
@@ -308,6 +297,61 @@ fn lanes<const SHADE: bool>(
     }
 }
 
+/// The first `n` samples of a batch lit: per lane the table's colour and
+/// opacity at `value` where `object`, shaded by [`light`] with the
+/// gradient interpolated at `u` from the gradient plane of brick `b`
+/// (`local`: the cell in the brick, `code_at`: its index in the code
+/// plane). Also how many lanes it lit: fewer than `n` when a sample's
+/// cell is one the plane has not set (the marcher computes its
+/// gradients).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn shaded(
+    x: &Batches,
+    b: &RBrick,
+    object: &[bool; LANES],
+    value: &[f32; LANES],
+    u: &[[f32; LANES]; 3],
+    local: &[[u32; 3]; LANES],
+    code_at: &[usize; LANES],
+    n: usize,
+) -> ([Vec4; LANES], usize) {
+    let mut lit = [Vec4::ZERO; LANES];
+    for j in 0..n {
+        if object[j] {
+            lit[j] = x.lut.sample32(value[j]);
+        }
+    }
+    // Per lane the gradient's squared length and its dot product with the
+    // direction to the eye, as `Look::apply` computes them.
+    let (mut len2, mut dot) = ([0f32; LANES], [0f32; LANES]);
+    let to_eye = x.shade.unwrap_or(Vec3A::ZERO);
+    // Consecutive samples often share a cell: its gradients once (`held`:
+    // the code-plane index of the cell they are of).
+    let (mut grads, mut held) = ([Vec3A::ZERO; 8], usize::MAX);
+    let mut upto = n;
+    for j in 0..n {
+        if lit[j].w == 0.0 {
+            continue;
+        }
+        if held != code_at[j] {
+            let Some(v) = b.grads.cell(local[j]) else {
+                upto = j;
+                break;
+            };
+            (grads, held) = (v, code_at[j]);
+        }
+        let g = trilinear_vec(&grads, Vec3A::new(u[0][j], u[1][j], u[2][j]));
+        (len2[j], dot[j]) = (g.dot(g), g.dot(to_eye));
+    }
+    let (k, spec) = light(&len2, &dot);
+    for j in 0..upto {
+        let s = lit[j];
+        lit[j] = (s * k[j] + Vec4::splat(spec[j] * s.w)).with_w(s.w);
+    }
+    (lit, upto)
+}
+
 /// Trilinear interpolation of 8 vertex vectors (x fastest) at `u`, as the
 /// one-at-a-time sampler interpolates its gradients.
 #[inline(always)]
@@ -319,23 +363,24 @@ pub(super) fn trilinear_vec(g: &[Vec3A; 8], u: Vec3A) -> Vec3A {
     x00.lerp(x10, u.y).lerp(x01.lerp(x11, u.y), u.z)
 }
 
-/// The composite's headlight shading (`Look::apply` in composite.rs,
-/// the surface mode's model: ambient 0.12, diffuse 0.75, white specular
-/// 0.25 with exponent 32, two-sided) of [`LANES`] samples `s`
-/// (premultiplied colour, opacity) with gradients `g` (per mm, one array
-/// per axis), `to_eye` the unit vector to the eye. Lane by lane in
-/// arrays, which the compiler turns into SIMD arithmetic: the square
-/// roots and divisions of eight samples in one instruction each.
+/// The composite's headlight shading (`Look::apply` in composite.rs, the
+/// surface mode's model: ambient 0.12, diffuse 0.75, white specular 0.25
+/// with exponent 32, two-sided) of [`LANES`] samples whose gradients (per
+/// mm) have squared lengths `len2` and dot products `dot` with the unit
+/// vector to the eye: per lane the factor `k` of the premultiplied colour
+/// and the specular term per unit opacity, so that the lit sample is
+/// `s k + spec s.a`. Lane by lane in arrays, which the compiler turns into
+/// SIMD arithmetic: the square roots and divisions of eight samples in
+/// one instruction each, with `Look::apply`'s bits.
 #[inline(always)]
-fn shade(s: &mut [Vec4; LANES], g: &[[f32; LANES]; 3], to_eye: Vec3A) {
+fn light(len2: &[f32; LANES], dot: &[f32; LANES]) -> ([f32; LANES], [f32; LANES]) {
     const AMBIENT: f32 = 0.12;
     let mut k = [0f32; LANES];
     let mut spec = [0f32; LANES];
     for j in 0..LANES {
-        let (x, y, z) = (g[0][j], g[1][j], g[2][j]);
-        let len = (x * x + y * y + z * z).sqrt();
+        let len = len2[j].sqrt();
         // n.l = |g.e| / |g| for the normal facing the eye; r.e = 2 (n.l)^2 - 1.
-        let ndl = ((x * to_eye.x + y * to_eye.y + z * to_eye.z).abs() / len).min(1.0);
+        let ndl = (dot[j].abs() / len).min(1.0);
         let re = (2.0 * ndl * ndl - 1.0).max(0.0);
         // re^32 by squaring, as `powi(32)` computes it.
         let re32 = (0..5).fold(re, |p, _| p * p);
@@ -344,10 +389,7 @@ fn shade(s: &mut [Vec4; LANES], g: &[[f32; LANES]; 3], to_eye: Vec3A) {
         k[j] = AMBIENT + 0.75 * if on { ndl } else { 0.5 };
         spec[j] = if on { 0.25 * re32 } else { 0.0 };
     }
-    for j in 0..LANES {
-        let a = s[j].w;
-        s[j] = (s[j] * k[j] + Vec4::splat(spec[j] * a)).with_w(a);
-    }
+    (k, spec)
 }
 
 /// The cell along axis `a` of the ray's sample at `t`, found forward
@@ -636,7 +678,7 @@ mod tests {
             if std::arch::is_x86_feature_detected!("avx2") {
                 let mut acc2 = Vec4::ZERO;
                 // SAFETY: the CPU has AVX2, checked just above.
-                let got2 = unsafe { run_avx2(&x, &b, 0.0, &mut acc2) };
+                let got2 = unsafe { run_avx2::<false>(&x, &b, 0.0, &mut acc2) };
                 prop_assert_eq!(got2, (got_n, got_end));
                 prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
             }
@@ -679,7 +721,7 @@ mod tests {
             for z in 0..cells[2] {
                 for y in 0..cells[1] {
                     for x in 0..cells[0] {
-                        if unset > 0 && next() % (unset + 1) == 0 {
+                        if unset > 0 && next().is_multiple_of(unset + 1) {
                             continue;
                         }
                         let i = |dx: u32, dy: u32, dz: u32| {
@@ -713,7 +755,7 @@ mod tests {
             if std::arch::is_x86_feature_detected!("avx2") {
                 let mut acc2 = Vec4::ZERO;
                 // SAFETY: the CPU has AVX2, checked just above.
-                let got2 = unsafe { run_avx2(&x, &b, 0.0, &mut acc2) };
+                let got2 = unsafe { run_avx2::<true>(&x, &b, 0.0, &mut acc2) };
                 prop_assert_eq!(got2, got);
                 prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
             }
