@@ -157,9 +157,10 @@ pub struct RenderArgs {
     /// reference); docs/TRADEOFFS.md measures the difference.
     #[arg(long, value_enum, default_value = "f32")]
     pub sample_precision: PrecisionArg,
-    /// Composite, f32, unshaded, uniform axes: take a ray's samples eight
-    /// at a time, their cells found by position (on), or one at a time
-    /// by the cell planes (off); docs/TRADEOFFS.md measures the difference.
+    /// Composite, f32, uniform axes, unshaded or shaded by smooth normals
+    /// without gradient opacity: take a ray's samples eight at a time,
+    /// their cells found by position (on), or one at a time by the cell
+    /// planes (off); docs/TRADEOFFS.md measures the difference.
     #[arg(long, value_enum, default_value = "on")]
     pub sample_batches: OnOff,
     /// Composite: stop a ray once its opacity exceeds this (1 = never).

@@ -72,9 +72,10 @@ pub struct RenderOptions {
     /// traversal keeps [`RenderOptions::precision`]). Measured against f64
     /// in docs/TRADEOFFS.md, "Sampling precision".
     pub sampling: Precision,
-    /// The unshaded f32 composite takes a ray's samples eight at a time,
-    /// their cells by position, where every axis is uniform (on by
-    /// default; docs/TRADEOFFS.md, "Sample batches").
+    /// The f32 composite takes a ray's samples eight at a time, their
+    /// cells by position, where every axis is uniform, unshaded or shaded
+    /// by smooth normals without gradient opacity (on by default;
+    /// docs/TRADEOFFS.md, "Sample batches").
     pub sample_batches: bool,
     /// Composite stops a ray once its opacity exceeds this (early ray
     /// termination; 0.99 by default, 1 never stops early).

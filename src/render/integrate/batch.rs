@@ -1,5 +1,6 @@
-//! The unshaded composite's samples eight at a time (`--sample-batches`,
-//! on by default): where every axis of the grid is uniform, the run
+//! The composite's samples eight at a time (`--sample-batches`, on by
+//! default; unshaded, or shaded by smooth normals without gradient
+//! opacity): where every axis of the grid is uniform, the run
 //! marcher of composite.rs hands the samples of a 1-cell run to
 //! [`run`], which takes them in batches of [`LANES`] along the ray and
 //! finds each sample's cell by its position (`floor` of its index
@@ -9,7 +10,11 @@
 //! SIMD arithmetic (AVX2 where the CPU has it, [`run`] dispatches); the
 //! codes, the vertices, the trilinear value and the table go lane by
 //! lane, and the samples are composited in order, the opacity carried as
-//! transmittance.
+//! transmittance. Shaded, each lane's gradient is interpolated from its
+//! cell's vertex gradients in the brick's gradient plane, and the
+//! headlight's square roots and divisions go in lanes ([`light`]); a
+//! sample whose cell the plane has not set yet hands the ray back to the
+//! marcher, which computes the cell's outer gradients.
 //!
 //! What changes against the sampler one sample at a time: a sample on or
 //! within rounding of a cell face may be given the neighbouring cell.
