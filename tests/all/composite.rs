@@ -248,15 +248,16 @@ fn uniform_volume() -> impl Strategy<Value = ([usize; 3], Vec<f64>, [Vec<f64>; 3
 proptest! {
     #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
 
-    /// On uniform axes the f32 sampler takes its samples in batches of
-    /// eight, their cells by position (integrate/batch.rs), shaded (smooth
-    /// normals) or not: it equals the one-at-a-time f32 sampler to 2/255
+    /// The f32 sampler takes its samples in batches of eight, their cells
+    /// by position (integrate/batch.rs), on uniform and rectilinear axes,
+    /// shaded (smooth normals) or not: it equals the one-at-a-time f32
+    /// sampler to 2/255
     /// (a sample on a face may take the neighbouring cell; opacity is
     /// carried as transmittance), unshaded also the brute-force oracle to
     /// 2/255, and FVT, CD and the octree draw the same bytes.
     #[test]
     fn batched_composite_matches_the_oracle_and_one_sample_at_a_time(
-        (dims, values, pos) in uniform_volume(),
+        (dims, values, pos) in prop_oneof![uniform_volume(), volume()],
         az in -180.0f64..180.0,
         el in -80.0f64..80.0,
         step in prop_oneof![Just(0.13), Just(0.5), Just(1.3), Just(3.7)],

@@ -40,24 +40,123 @@ pub(super) const LANES: usize = 8;
 /// integers exactly up to it).
 const TOP: f32 = 16_777_216.0;
 
-/// A uniform grid's map from positions to index coordinates: per axis
-/// `(p - s0) * inv_h` is the sample index, its integer part the cell.
-#[derive(Clone, Copy, Debug)]
+/// A grid's map from positions to cells. On a uniform axis `(p - s0) *
+/// inv_h` is the sample index, its integer part the cell. On a grid with
+/// a rectilinear axis, [`IndexMap::rect`] holds per axis a [`RectAxis`]
+/// for the rectilinear ones (the cell from a table, the local coordinate
+/// from the cell's planes) and `None` for the uniform ones.
+#[derive(Clone, Debug)]
 pub(crate) struct IndexMap {
     s0: [f64; 3],
     inv_h: [f64; 3],
+    rect: Option<Box<[Option<RectAxis>; 3]>>,
+}
+
+/// One axis of a rectilinear grid (varying slice thickness) as the
+/// batches find cells on it, positions relative to its first sample `s0`
+/// in f32: the axis is cut into buckets of half its thinnest cell, so
+/// that at most one plane lies in a bucket and its neighbour, and each
+/// bucket knows the cell holding its start. A position's cell is its
+/// bucket's, or the next one when the position lies at or beyond that
+/// cell's upper plane.
+#[derive(Clone, Debug)]
+struct RectAxis {
+    /// `1 / w`, `w` the bucket width.
+    inv_w: f32,
+    /// The last bucket's index.
+    last: f32,
+    /// Per bucket, the cell holding its start.
+    bucket: Vec<u32>,
+    /// The sample positions less `s0`: one per plane.
+    s: Vec<f32>,
+    /// `1 / (s[i + 1] - s[i])` per cell, and a 0 after the last.
+    inv: Vec<f32>,
+}
+
+/// Buckets per rectilinear axis, at most (4 MiB of cells): an axis whose
+/// thinnest cell would need more takes one sample at a time.
+const MAX_BUCKETS: usize = 1 << 20;
+
+impl RectAxis {
+    /// The axis of sample positions `c` (increasing, at least 2), or
+    /// `None` when its thinnest cell is too thin for [`MAX_BUCKETS`].
+    fn of(c: &[f64]) -> Option<RectAxis> {
+        let thinnest = c
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(f64::INFINITY, f64::min);
+        let w = thinnest / 2.0;
+        let extent = c[c.len() - 1] - c[0];
+        let n = (extent / w).ceil() + 2.0;
+        if !(w > 0.0 && n <= MAX_BUCKETS as f64) {
+            return None;
+        }
+        let cells = c.len() - 1;
+        let bucket = (0..n as usize)
+            .map(|k| {
+                // The largest cell whose lower plane is at or before the
+                // bucket's start, within the grid.
+                let start = c[0] + k as f64 * w;
+                (c.partition_point(|&x| x <= start).max(1) - 1).min(cells - 1) as u32
+            })
+            .collect();
+        let mut inv: Vec<f32> = c.windows(2).map(|w| (1.0 / (w[1] - w[0])) as f32).collect();
+        inv.push(0.0);
+        Some(RectAxis {
+            inv_w: (1.0 / w) as f32,
+            last: (n as usize - 1) as f32,
+            bucket,
+            s: c.iter().map(|&x| (x - c[0]) as f32).collect(),
+            inv,
+        })
+    }
+
+    /// The cell holding position `p` (relative to `s0`) less `first`
+    /// (wrapping: below `first`, or before the axis, is above any brick
+    /// size), and the local coordinate in it clamped to [0, 1]. A
+    /// position within rounding of a plane may get the cell on its other
+    /// side.
+    #[inline(always)]
+    fn cell(&self, p: f32, first: u32) -> (u32, f32) {
+        // Not `clamp`, which keeps NaN.
+        #[allow(clippy::manual_clamp)]
+        let kf = (p * self.inv_w).max(0.0).min(self.last);
+        // SAFETY: `kf` is in [0, last] (`max` takes 0 for NaN), and `last`
+        // is below 2^20, so it truncates to an i32.
+        let k = unsafe { kf.to_int_unchecked::<i32>() } as usize;
+        // At most the last cell, whose upper plane `s` holds.
+        let mut c = self.bucket[k] as usize;
+        c += (p >= self.s[c + 1]) as usize;
+        let u = ((p - self.s[c]) * self.inv[c]).clamp(0.0, 1.0);
+        // Before the axis (or NaN): no cell.
+        let c = if p >= 0.0 { c as u32 } else { u32::MAX };
+        (c.wrapping_sub(first), u)
+    }
 }
 
 impl IndexMap {
-    /// The map of a grid with these sample positions when every axis is
-    /// uniform (`uniform[k]`), else `None`.
+    /// The map of a grid with these sample positions (at least 2 per
+    /// axis), `uniform[k]` when axis `k` is uniform; `None` when a
+    /// rectilinear grid has an axis too fine for the tables.
     pub(crate) fn of(coords: [&[f64]; 3], uniform: [bool; 3]) -> Option<IndexMap> {
-        if !uniform.iter().all(|&u| u) || coords.iter().any(|c| c.len() < 2) {
+        if coords.iter().any(|c| c.len() < 2) {
             return None;
         }
+        let rect = if uniform.iter().all(|&u| u) {
+            None
+        } else {
+            let mut axes = [None, None, None];
+            for a in 0..3 {
+                if !uniform[a] {
+                    axes[a] = Some(RectAxis::of(coords[a])?);
+                }
+            }
+            Some(Box::new(axes))
+        };
         Some(IndexMap {
             s0: coords.map(|c| c[0]),
             inv_h: coords.map(|c| (c.len() - 1) as f64 / (c[c.len() - 1] - c[0])),
+            rect,
         })
     }
 
@@ -65,6 +164,14 @@ impl IndexMap {
     /// the map, clamped to the grid: an estimate within a rounding of the
     /// planes' answer.
     pub(crate) fn cell(&self, a: usize, p: f64, n: u32) -> u32 {
+        if let Some(Some(r)) = self.rect.as_ref().map(|r| &r[a]) {
+            let p = (p - self.s0[a]) as f32;
+            return if p >= 0.0 {
+                r.cell(p, 0).0.min(n - 1)
+            } else {
+                0
+            };
+        }
         let q = ((p - self.s0[a]) * self.inv_h[a]).floor();
         // NaN and below 0 go to 0; above, to the last cell.
         if q >= 0.0 {
@@ -109,40 +216,63 @@ pub(super) struct Batches<'a> {
 pub(super) fn run(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above. Shaded and
-        // unshaded batches are two functions, so neither's code is laid
-        // out around the other's.
-        return unsafe {
-            if x.shade.is_some() {
-                run_avx2::<true>(x, b, k, acc)
-            } else {
-                run_avx2::<false>(x, b, k, acc)
-            }
-        };
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { avx2(x, b, k, acc) };
     }
     run_any(x, b, k, acc)
+}
+
+/// [`run_any`] compiled for AVX2. Shaded and unshaded batches, on uniform
+/// and rectilinear grids, are four functions, so none's code is laid out
+/// around another's.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+unsafe fn avx2(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
+    // SAFETY: the caller checked that the CPU has AVX2.
+    unsafe {
+        match (x.shade.is_some(), x.map.rect.is_some()) {
+            (false, false) => run_avx2::<false, false>(x, b, k, acc),
+            (false, true) => run_avx2::<false, true>(x, b, k, acc),
+            (true, false) => run_avx2::<true, false>(x, b, k, acc),
+            (true, true) => run_avx2::<true, true>(x, b, k, acc),
+        }
+    }
 }
 
 /// [`values`] compiled for AVX2: the same code, the same results (no
 /// fused multiply-add: Rust does not contract `a + b * c`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn run_avx2<const SHADE: bool>(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
-    values::<SHADE>(x, b, k, acc)
+fn run_avx2<const SHADE: bool, const RECT: bool>(
+    x: &Batches,
+    b: &RBrick,
+    k: f64,
+    acc: &mut Vec4,
+) -> (u64, End) {
+    values::<SHADE, RECT>(x, b, k, acc)
 }
 
-/// See [`run`]: [`values`] shaded or not, for the baseline CPU.
+/// See [`run`]: [`values`] for the baseline CPU.
 fn run_any(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
-    if x.shade.is_some() {
-        values::<true>(x, b, k, acc)
-    } else {
-        values::<false>(x, b, k, acc)
+    match (x.shade.is_some(), x.map.rect.is_some()) {
+        (false, false) => values::<false, false>(x, b, k, acc),
+        (false, true) => values::<false, true>(x, b, k, acc),
+        (true, false) => values::<true, false>(x, b, k, acc),
+        (true, true) => values::<true, true>(x, b, k, acc),
     }
 }
 
-/// [`lanes`] with the brick's kind of values, shaded or not.
+/// [`lanes`] with the brick's kind of values, shaded or not, on a
+/// rectilinear grid or not.
 #[inline(always)]
-fn values<const SHADE: bool>(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
+fn values<const SHADE: bool, const RECT: bool>(
+    x: &Batches,
+    b: &RBrick,
+    k: f64,
+    acc: &mut Vec4,
+) -> (u64, End) {
     let Codes::Plane(codes) = &b.codes else {
         return (0, End::Brick);
     };
@@ -151,12 +281,12 @@ fn values<const SHADE: bool>(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) ->
         return (0, End::Brick);
     }
     match &b.values {
-        Samples::F32(v) => lanes::<SHADE>(x, b, codes, k, acc, |c| gather8(v, c, |x| x)),
+        Samples::F32(v) => lanes::<SHADE, RECT>(x, b, codes, k, acc, |c| gather8(v, c, |x| x)),
         Samples::Words16(w, t, _) => {
-            lanes::<SHADE>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
+            lanes::<SHADE, RECT>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
         }
         Samples::Words8(w, t, _) => {
-            lanes::<SHADE>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
+            lanes::<SHADE, RECT>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
         }
         Samples::Empty => (0, End::Brick),
     }
@@ -164,10 +294,11 @@ fn values<const SHADE: bool>(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) ->
 
 /// [`run`] on brick `b` with code plane `codes`, whose cells' vertex
 /// values `vertices` reads (x fastest, as [`RBrick::vertices`]); with
-/// `SHADE`, lit by [`shade`] with the gradients of the brick's gradient
-/// plane.
+/// `SHADE`, lit by [`light`] with the gradients of the brick's gradient
+/// plane; with `RECT`, each lane's cells from the map's [`RectAxis`]
+/// tables.
 #[inline(always)]
-fn lanes<const SHADE: bool>(
+fn lanes<const SHADE: bool, const RECT: bool>(
     x: &Batches,
     b: &RBrick,
     codes: &[u8],
@@ -178,11 +309,27 @@ fn lanes<const SHADE: bool>(
     let cells = b.cells;
     let (sx, sy) = (cells[0] as usize + 1, cells[1] as usize + 1);
     let sxy = sx * sy;
-    // Brick-local index coordinate per axis: `q(t) = q0 + t * qd`.
+    // Brick-local index coordinate per axis, `q(t) = q0 + t * qd`; on a
+    // rectilinear axis, the position relative to the axis's first sample.
     let (m, ray) = (x.map, x.ray);
-    let q0: [f64; 3] =
-        std::array::from_fn(|a| (ray.origin[a] - m.s0[a]) * m.inv_h[a] - b.first[a] as f64);
-    let qd: [f64; 3] = std::array::from_fn(|a| ray.dir[a] * m.inv_h[a]);
+    let rect: [Option<&RectAxis>; 3] = match (RECT, m.rect.as_deref()) {
+        (true, Some(r)) => r.each_ref().map(Option::as_ref),
+        _ => [None; 3],
+    };
+    let q0: [f64; 3] = std::array::from_fn(|a| {
+        if rect[a].is_some() {
+            ray.origin[a] - m.s0[a]
+        } else {
+            (ray.origin[a] - m.s0[a]) * m.inv_h[a] - b.first[a] as f64
+        }
+    });
+    let qd: [f64; 3] = std::array::from_fn(|a| {
+        if rect[a].is_some() {
+            ray.dir[a]
+        } else {
+            ray.dir[a] * m.inv_h[a]
+        }
+    });
     // Per lane, the increment of `q` by one step, in f32.
     let dq: [f32; 3] = std::array::from_fn(|a| (x.step * qd[a]) as f32);
     let lane: [f32; LANES] = std::array::from_fn(|j| j as f32);
@@ -212,6 +359,10 @@ fn lanes<const SHADE: bool>(
             let mut c = [0u32; 3];
             for a in 0..3 {
                 let q = base[a] + lane[j] * dq[a];
+                if let (true, Some(r)) = (RECT, rect[a]) {
+                    (c[a], u[a][j]) = r.cell(q, b.first[a]);
+                    continue;
+                }
                 // Not `clamp`, which keeps NaN.
                 #[allow(clippy::manual_clamp)]
                 let q1 = (q + 1.0).max(0.0).min(TOP);
@@ -230,8 +381,12 @@ fn lanes<const SHADE: bool>(
             value_at[j] = (c[2] * sy + c[1]) * sx + c[0];
         }
         // Along the ray each axis's cell moves one way only, and the brick
-        // is a box: the lanes inside are a prefix when lane 0 is.
-        let inside = if inside[0] == 1 {
+        // is a box: the lanes inside are a prefix when lane 0 is. The
+        // tables of a rectilinear grid may put a lane within rounding of
+        // a plane across it, so there the prefix is counted.
+        let inside = if RECT {
+            inside.iter().take_while(|&&i| i == 1).count()
+        } else if inside[0] == 1 {
             inside.iter().sum::<u32>() as usize
         } else {
             0
@@ -486,19 +641,24 @@ mod tests {
     }
 
     /// A brick of `cells` at `first` with random whole values below 200
-    /// and random codes (mostly 1-cells; codes 0, 1, 2 and 5), on a
-    /// uniform grid of spacing `h` from `s0`, and a unit ray from the
-    /// point at fraction `at` of the brick along `dir`.
+    /// and random codes (mostly 1-cells; codes 0, 1, 2 and 5), on a grid
+    /// from `s0` whose axis `a` is uniform of spacing `h[a]` where
+    /// `uniform[a]`, else of random gaps from `h[a] / 4` to `2 h[a]`, and
+    /// a unit ray from the point at fraction `at` of the brick along
+    /// `dir`.
     struct Scene {
         vals: Vec<f32>,
         codes: Vec<u8>,
+        coords: [Vec<f64>; 3],
         map: IndexMap,
         ray: Ray,
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn scene(
         cells: [u32; 3],
         first: [u32; 3],
+        uniform: [bool; 3],
         h: [f64; 3],
         s0: [f64; 3],
         at: [f64; 3],
@@ -519,16 +679,36 @@ mod tests {
             })
             .collect();
         let n: [usize; 3] = std::array::from_fn(|a| (first[a] + cells[a]) as usize + 3);
-        let coords: [Vec<f64>; 3] =
-            std::array::from_fn(|a| (0..=n[a]).map(|i| s0[a] + i as f64 * h[a]).collect());
-        let map = IndexMap::of([&coords[0], &coords[1], &coords[2]], [true; 3]).unwrap();
+        let coords: [Vec<f64>; 3] = std::array::from_fn(|a| {
+            let mut p = vec![s0[a]];
+            for i in 0..n[a] {
+                let gap = if uniform[a] {
+                    h[a]
+                } else {
+                    h[a] * (0.25 + (next() % 1000) as f64 * 0.00175)
+                };
+                p.push(if uniform[a] {
+                    s0[a] + (i + 1) as f64 * gap
+                } else {
+                    p[i] + gap
+                });
+            }
+            p
+        });
+        let map = IndexMap::of([&coords[0], &coords[1], &coords[2]], uniform).unwrap();
         // The ray starts inside the brick.
-        let origin: [f64; 3] =
-            std::array::from_fn(|a| s0[a] + (first[a] as f64 + at[a] * cells[a] as f64) * h[a]);
+        let origin: [f64; 3] = std::array::from_fn(|a| {
+            let (lo, hi) = (
+                coords[a][first[a] as usize],
+                coords[a][(first[a] + cells[a]) as usize],
+            );
+            lo + at[a] * (hi - lo)
+        });
         let ray = Ray::new(origin, dir.map(|d| d / len)).unwrap();
         Scene {
             vals,
             codes,
+            coords,
             map,
             ray,
         }
@@ -561,7 +741,7 @@ mod tests {
         sc: &Scene,
         grads: Option<&[[f64; 3]]>,
     ) -> Option<(u64, End, [f64; 4])> {
-        let (map, ray, step, lut) = (&sc.map, &sc.ray, bx.step, bx.lut);
+        let (ray, step, lut) = (&sc.ray, bx.step, bx.lut);
         let c = b.cells.map(|c| c as usize);
         let (sx, sy) = (c[0] + 1, c[1] + 1);
         let mut acc = [0.0f64; 4];
@@ -575,14 +755,27 @@ mod tests {
         };
         for k in 0u64.. {
             let t = k as f64 * step;
-            let q: [f64; 3] = std::array::from_fn(|a| {
-                (ray.origin[a] + t * ray.dir[a] - map.s0[a]) * map.inv_h[a] - b.first[a] as f64
-            });
-            if q.iter().any(|&x| (x - x.round()).abs() < 1e-4) {
-                return None;
+            // Per axis the cell by the planes (the largest with its
+            // lower plane at or before the position; -1 before the grid),
+            // less `first`, and the local coordinate.
+            let mut cell = [0i64; 3];
+            let mut u = [0.0f64; 3];
+            for a in 0..3 {
+                let s = &sc.coords[a];
+                let p = ray.origin[a] + t * ray.dir[a];
+                let g = s.partition_point(|&x| x <= p) as i64 - 1;
+                if g < 0 || g as usize >= s.len() - 1 {
+                    cell[a] = -1;
+                    continue;
+                }
+                let g = g as usize;
+                u[a] = (p - s[g]) / (s[g + 1] - s[g]);
+                if u[a] < 1e-4 || u[a] > 1.0 - 1e-4 {
+                    return None;
+                }
+                cell[a] = g as i64 - b.first[a] as i64;
             }
-            let cell = q.map(|x| x.floor());
-            if (0..3).any(|a| cell[a] < 0.0 || cell[a] >= c[a] as f64) {
+            if (0..3).any(|a| cell[a] < 0 || cell[a] >= c[a] as i64) {
                 return Some((k, End::Brick, acc));
             }
             let [x, y, z] = cell.map(|x| x as usize);
@@ -594,7 +787,6 @@ mod tests {
             if code != OBJECT {
                 continue;
             }
-            let u: [f64; 3] = std::array::from_fn(|a| q[a] - cell[a]);
             let vertex = |i: usize| ((z + i / 4) * sy + y + i / 2 % 2) * sx + x + i % 2;
             let value = tri(&|i| sc.vals[vertex(i)] as f64, u);
             if (value - tf().points[0].value).abs() < 1e-3 {
@@ -636,12 +828,14 @@ mod tests {
     proptest! {
         /// [`run`] takes the samples a one-at-a-time walk by position
         /// takes, ends where it ends (leaving the brick, at a leap code,
-        /// once opaque) and composites the same colour to f32 accuracy; its
-        /// AVX2 build gives the baseline build's bits.
+        /// once opaque) and composites the same colour to f32 accuracy, on
+        /// uniform and rectilinear grids; its AVX2 build gives the
+        /// baseline build's bits.
         #[test]
         fn batches_take_the_samples_one_at_a_time_would(
             cells in proptest::array::uniform3(1u32..9),
             first in proptest::array::uniform3(0u32..20),
+            uniform in prop_oneof![Just([true; 3]), proptest::array::uniform3(any::<bool>())],
             h in proptest::array::uniform3(0.3f64..2.5),
             s0 in proptest::array::uniform3(-5.0f64..5.0),
             at in proptest::array::uniform3(0.0f64..1.0),
@@ -651,7 +845,7 @@ mod tests {
             seed in any::<u64>(),
         ) {
             prop_assume!(dir.iter().map(|d| d * d).sum::<f64>() > 1e-3);
-            let sc = scene(cells, first, h, s0, at, dir, &mut rng(seed));
+            let sc = scene(cells, first, uniform, h, s0, at, dir, &mut rng(seed));
             let (vals, codes) = (&sc.vals, &sc.codes);
             let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
             let lut = TfLut::new(&tf(), step);
@@ -683,7 +877,7 @@ mod tests {
             if std::arch::is_x86_feature_detected!("avx2") {
                 let mut acc2 = Vec4::ZERO;
                 // SAFETY: the CPU has AVX2, checked just above.
-                let got2 = unsafe { run_avx2::<false>(&x, &b, 0.0, &mut acc2) };
+                let got2 = unsafe { avx2(&x, &b, 0.0, &mut acc2) };
                 prop_assert_eq!(got2, (got_n, got_end));
                 prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
             }
@@ -698,6 +892,7 @@ mod tests {
         fn shaded_batches_light_samples_as_one_at_a_time_would(
             cells in proptest::array::uniform3(1u32..9),
             first in proptest::array::uniform3(0u32..20),
+            uniform in prop_oneof![Just([true; 3]), proptest::array::uniform3(any::<bool>())],
             h in proptest::array::uniform3(0.3f64..2.5),
             s0 in proptest::array::uniform3(-5.0f64..5.0),
             at in proptest::array::uniform3(0.0f64..1.0),
@@ -711,7 +906,7 @@ mod tests {
             prop_assume!(dir.iter().map(|d| d * d).sum::<f64>() > 1e-3);
             prop_assume!(eye.iter().map(|d| d * d).sum::<f64>() > 1e-3);
             let mut next = rng(seed);
-            let sc = scene(cells, first, h, s0, at, dir, &mut next);
+            let sc = scene(cells, first, uniform, h, s0, at, dir, &mut next);
             // Whole-number gradients in [-20, 20] per vertex; the plane
             // has the inner ones, then every cell but about one in
             // `unset + 1` (none with 0) is filled.
@@ -760,7 +955,7 @@ mod tests {
             if std::arch::is_x86_feature_detected!("avx2") {
                 let mut acc2 = Vec4::ZERO;
                 // SAFETY: the CPU has AVX2, checked just above.
-                let got2 = unsafe { run_avx2::<true>(&x, &b, 0.0, &mut acc2) };
+                let got2 = unsafe { avx2(&x, &b, 0.0, &mut acc2) };
                 prop_assert_eq!(got2, got);
                 prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
             }
@@ -768,14 +963,45 @@ mod tests {
     }
 
     #[test]
-    fn only_uniform_grids_have_an_index_map() {
+    fn index_maps_find_the_cells_of_positions() {
         let u: Vec<f64> = (0..5).map(|i| i as f64 * 0.5).collect();
-        assert!(IndexMap::of([&u, &u, &u], [true; 3]).is_some());
-        assert!(IndexMap::of([&u, &u, &u], [true, false, true]).is_none());
         let m = IndexMap::of([&u, &u, &u], [true; 3]).unwrap();
+        assert!(m.rect.is_none());
         assert_eq!(m.cell(0, 1.2, 4), 2);
         assert_eq!(m.cell(0, -3.0, 4), 0);
         assert_eq!(m.cell(0, 99.0, 4), 3);
         assert_eq!(m.cell(0, f64::NAN, 4), 0);
+        // Rectilinear: gaps 1, 0.25, 3, 0.5 from -2; the cell of every
+        // position away from the planes is the planes' own.
+        let r = vec![-2.0, -1.0, -0.75, 2.25, 2.75];
+        let m = IndexMap::of([&r, &u, &u], [false, true, true]).unwrap();
+        assert!(m.rect.is_some());
+        for i in 0..=600 {
+            let p = -2.5 + i as f64 * 0.01;
+            if r.iter().any(|&s| (s - p).abs() < 1e-6) {
+                continue;
+            }
+            let want = (r.partition_point(|&s| s <= p).max(1) - 1).min(3) as u32;
+            assert_eq!(m.cell(0, p, 4), want, "{p}");
+            // The lanes' answer: the same cell, and none before the axis.
+            let (c, u) = m.rect.as_ref().unwrap()[0]
+                .as_ref()
+                .unwrap()
+                .cell((p + 2.0) as f32, 0);
+            if p < -2.0 {
+                assert_eq!(c, u32::MAX, "{p}");
+            } else if p < 2.75 {
+                assert_eq!(c, want, "{p}");
+                let w = (p - r[c as usize]) / (r[c as usize + 1] - r[c as usize]);
+                assert!((u as f64 - w).abs() < 1e-5, "{p}: {u} against {w}");
+            } else {
+                assert!(c >= 4, "{p}");
+            }
+        }
+        assert_eq!(m.cell(0, f64::NAN, 4), 0);
+        // An axis whose thinnest cell would need too many buckets.
+        let fine = vec![0.0, 1e-9, 1000.0];
+        assert!(IndexMap::of([&fine, &u, &u], [false, true, true]).is_none());
+        assert!(IndexMap::of([&[0.0][..], &u, &u], [true; 3]).is_none());
     }
 }
