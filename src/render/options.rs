@@ -73,9 +73,9 @@ pub struct RenderOptions {
     /// in docs/TRADEOFFS.md, "Sampling precision".
     pub sampling: Precision,
     /// The f32 composite takes a ray's samples eight at a time, their
-    /// cells by position, where every axis is uniform, unshaded or shaded
-    /// by smooth normals without gradient opacity (on by default;
-    /// docs/TRADEOFFS.md, "Sample batches").
+    /// cells by position, unshaded or shaded by smooth normals without
+    /// gradient opacity (on by default; docs/TRADEOFFS.md, "Sample
+    /// batches").
     pub sample_batches: bool,
     /// Composite stops a ray once its opacity exceeds this (early ray
     /// termination; 0.99 by default, 1 never stops early).

@@ -1,10 +1,11 @@
 //! The composite's samples eight at a time (`--sample-batches`, on by
 //! default; unshaded, or shaded by smooth normals without gradient
-//! opacity): where every axis of the grid is uniform, the run
-//! marcher of composite.rs hands the samples of a 1-cell run to
-//! [`run`], which takes them in batches of [`LANES`] along the ray and
-//! finds each sample's cell by its position (`floor` of its index
-//! coordinate) instead of crossing the cell planes one at a time. The
+//! opacity): the run marcher of composite.rs hands the samples of a
+//! 1-cell run to [`run`], which takes them in batches of [`LANES`] along
+//! the ray and finds each sample's cell by its position instead of
+//! crossing the cell planes one at a time: on a uniform axis `floor` of
+//! its index coordinate, on a rectilinear one (varying slice thickness) a
+//! table lookup and one comparison ([`RectAxis`]). The
 //! positions, cells, local coordinates and plane indices of the eight
 //! samples are one loop over eight lanes, which the compiler turns into
 //! SIMD arithmetic (AVX2 where the CPU has it, [`run`] dispatches); the

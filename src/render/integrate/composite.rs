@@ -8,8 +8,8 @@
 //! [`composite32`] (the default) and [`composite`] (f64, the reference).
 //! Both take the same samples in the same cells; the traversal that finds
 //! the cells is f64 either way, so every exact traversal gives the same
-//! image with either sampler. On uniform grids the f32 sampler takes a
-//! run's samples eight at a time, their cells by position (batch.rs,
+//! image with either sampler. The f32 sampler takes a run's samples
+//! eight at a time, their cells by position (batch.rs,
 //! `--sample-batches`; shaded only with smooth normals and no gradient
 //! opacity); the runs still start where the
 //! traversal finds them, so every traversal gives the same image there
