@@ -93,12 +93,16 @@ impl RectAxis {
             return None;
         }
         let cells = c.len() - 1;
+        // Per bucket the largest cell whose lower plane is at or before
+        // the bucket's start, within the grid: one walk up the planes.
+        let mut cell = 0;
         let bucket = (0..n as usize)
             .map(|k| {
-                // The largest cell whose lower plane is at or before the
-                // bucket's start, within the grid.
                 let start = c[0] + k as f64 * w;
-                (c.partition_point(|&x| x <= start).max(1) - 1).min(cells - 1) as u32
+                while cell + 1 < cells && c[cell + 1] <= start {
+                    cell += 1;
+                }
+                cell as u32
             })
             .collect();
         let mut inv: Vec<f32> = c.windows(2).map(|w| (1.0 / (w[1] - w[0])) as f32).collect();

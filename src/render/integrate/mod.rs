@@ -154,7 +154,7 @@ impl<'a, T: Real> Ctx<'a, T> {
             },
             inv_size: coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect()),
             memo_gradients: rays_meet_cells_again(h, camera),
-            index_map: if opts.sample_batches {
+            index_map: if opts.sample_batches && matches!(opts.mode, Mode::Composite { .. }) {
                 batch::IndexMap::of(coords, std::array::from_fn(|k| h.axes[k].is_uniform()))
             } else {
                 None
