@@ -90,9 +90,9 @@ pub(crate) struct Ctx<'a, T> {
     /// cell ([`Accessor::remember_gradients`]): when rays are dense
     /// enough to meet a cell more than once ([`rays_meet_cells_again`]).
     pub(crate) memo_gradients: bool,
-    /// Where the unshaded composite takes its samples in batches
-    /// ([`RenderOptions::sample_batches`], every axis uniform): the
-    /// grid's map from positions to cells (batch.rs).
+    /// Where the composite takes its samples in batches
+    /// ([`RenderOptions::sample_batches`]): the grid's map from positions
+    /// to cells (batch.rs).
     pub(crate) index_map: Option<batch::IndexMap>,
 }
 
