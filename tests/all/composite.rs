@@ -251,10 +251,10 @@ proptest! {
     /// The f32 sampler takes its samples in batches of eight, their cells
     /// by position (integrate/batch.rs), on uniform and rectilinear axes,
     /// shaded (smooth normals) or not: it equals the one-at-a-time f32
-    /// sampler to 2/255
-    /// (a sample on a face may take the neighbouring cell; opacity is
-    /// carried as transmittance), unshaded also the brute-force oracle to
-    /// 2/255, and FVT, CD and the octree draw the same bytes.
+    /// sampler to 2/255 (a sample on a face may take the neighbouring
+    /// cell; opacity is carried as transmittance), unshaded also the
+    /// brute-force oracle to 2/255, and FVT, CD and the octree draw the
+    /// same bytes.
     #[test]
     fn batched_composite_matches_the_oracle_and_one_sample_at_a_time(
         (dims, values, pos) in prop_oneof![uniform_volume(), volume()],
