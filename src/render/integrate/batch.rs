@@ -219,31 +219,38 @@ pub(super) struct Batches<'a> {
 /// many it took and why it stopped. A sample in a 0-cell with a code
 /// below `resume` adds nothing, as in the marcher.
 pub(super) fn run(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { avx2(x, b, k, acc) };
-    }
-    run_any(x, b, k, acc)
+    select(x, b, k, acc, true)
 }
 
-/// [`run_any`] compiled for AVX2. Shaded and unshaded batches, on uniform
-/// and rectilinear grids, are four functions, so none's code is laid out
-/// around another's.
-///
-/// # Safety
-/// The CPU must have AVX2.
-#[cfg(target_arch = "x86_64")]
-unsafe fn avx2(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
-    // SAFETY: the caller checked that the CPU has AVX2.
-    unsafe {
-        match (x.shade.is_some(), x.map.rect.is_some()) {
-            (false, false) => run_avx2::<false, false>(x, b, k, acc),
-            (false, true) => run_avx2::<false, true>(x, b, k, acc),
-            (true, false) => run_avx2::<true, false>(x, b, k, acc),
-            (true, true) => run_avx2::<true, true>(x, b, k, acc),
-        }
+/// [`run`] by one of four kernels, shaded or not, on a uniform or a
+/// rectilinear grid: compiled for AVX2 when `avx2` asks for it and the
+/// CPU has it (four functions, so none's code is laid out around
+/// another's), else for the baseline CPU.
+fn select(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4, avx2: bool) -> (u64, End) {
+    match (x.shade.is_some(), x.map.rect.is_some()) {
+        (false, false) => kernel::<false, false>(x, b, k, acc, avx2),
+        (false, true) => kernel::<false, true>(x, b, k, acc, avx2),
+        (true, false) => kernel::<true, false>(x, b, k, acc, avx2),
+        (true, true) => kernel::<true, true>(x, b, k, acc, avx2),
     }
+}
+
+/// See [`select`].
+#[inline(always)]
+fn kernel<const SHADE: bool, const RECT: bool>(
+    x: &Batches,
+    b: &RBrick,
+    k: f64,
+    acc: &mut Vec4,
+    avx2: bool,
+) -> (u64, End) {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 && std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { run_avx2::<SHADE, RECT>(x, b, k, acc) };
+    }
+    let _ = avx2;
+    values::<SHADE, RECT>(x, b, k, acc)
 }
 
 /// [`values`] compiled for AVX2: the same code, the same results (no
@@ -257,16 +264,6 @@ fn run_avx2<const SHADE: bool, const RECT: bool>(
     acc: &mut Vec4,
 ) -> (u64, End) {
     values::<SHADE, RECT>(x, b, k, acc)
-}
-
-/// See [`run`]: [`values`] for the baseline CPU.
-fn run_any(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
-    match (x.shade.is_some(), x.map.rect.is_some()) {
-        (false, false) => values::<false, false>(x, b, k, acc),
-        (false, true) => values::<false, true>(x, b, k, acc),
-        (true, false) => values::<true, false>(x, b, k, acc),
-        (true, true) => values::<true, true>(x, b, k, acc),
-    }
 }
 
 /// [`lanes`] with the brick's kind of values, shaded or not, on a

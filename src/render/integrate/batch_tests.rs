@@ -252,7 +252,7 @@ proptest! {
             return Err(TestCaseError::reject("a sample on a cell face"));
         };
         let mut acc = Vec4::ZERO;
-        let (got_n, got_end) = run_any(&x, &b, 0.0, &mut acc);
+        let (got_n, got_end) = select(&x, &b, 0.0, &mut acc, false);
         prop_assert_eq!((got_n, got_end), (want_n, want_end));
         for ch in 0..4 {
             prop_assert!((acc[ch] as f64 - want[ch]).abs() < 1e-4, "{acc} {want:?}");
@@ -268,14 +268,13 @@ proptest! {
         ] {
             let w = brick(first, cells, values, codes.clone());
             let mut acc_w = Vec4::ZERO;
-            prop_assert_eq!(run_any(&x, &w, 0.0, &mut acc_w), (got_n, got_end));
+            prop_assert_eq!(select(&x, &w, 0.0, &mut acc_w, false), (got_n, got_end));
             prop_assert_eq!(acc_w.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
         }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             let mut acc2 = Vec4::ZERO;
-            // SAFETY: the CPU has AVX2, checked just above.
-            let got2 = unsafe { avx2(&x, &b, 0.0, &mut acc2) };
+            let got2 = select(&x, &b, 0.0, &mut acc2, true);
             prop_assert_eq!(got2, (got_n, got_end));
             prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
         }
@@ -344,7 +343,7 @@ proptest! {
             return Err(TestCaseError::reject("a sample on a face, or ill-conditioned"));
         };
         let mut acc = Vec4::ZERO;
-        let got = run_any(&x, &b, 0.0, &mut acc);
+        let got = select(&x, &b, 0.0, &mut acc, false);
         prop_assert_eq!(got, (want_n, want_end));
         for ch in 0..4 {
             prop_assert!((acc[ch] as f64 - want[ch]).abs() < 1e-4, "{acc} {want:?}");
@@ -352,8 +351,7 @@ proptest! {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             let mut acc2 = Vec4::ZERO;
-            // SAFETY: the CPU has AVX2, checked just above.
-            let got2 = unsafe { avx2(&x, &b, 0.0, &mut acc2) };
+            let got2 = select(&x, &b, 0.0, &mut acc2, true);
             prop_assert_eq!(got2, got);
             prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
         }
