@@ -20,8 +20,8 @@ use cdvol::prep::{prep, PrepOptions, PrepReport};
 use cdvol::progress::Progress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
-use cdvol::render::traverse::{Method, TGrid};
-use cdvol::render::{render, Mode, RenderOptions};
+use cdvol::render::traverse::TGrid;
+use cdvol::render::{default_method, render, Mode, RenderOptions};
 use cdvol::tools::phantom;
 
 use crate::print_prep;
@@ -90,7 +90,7 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     let mut show = |name: &str, vol: &PackedVolume, mode: Mode| -> Result<()> {
         // The defaults of `cdvol render`: 32-pixel tiles, 512 MiB cache,
         // f64.
-        let opts = RenderOptions::new(mode, Method::Cd { min_leap: 1 });
+        let opts = RenderOptions::new(mode, default_method(vol));
         let (frame, stats) = render(vol, &camera, &opts, progress)?;
         let path = dir.join(format!("{name}.png"));
         cdvol::render::save(&frame, &path).map_err(anyhow::Error::msg)?;

@@ -183,7 +183,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
         }
         Command::Render(a) => {
             let vol = PackedVolume::open(&a.file)?;
-            let job = a.job()?;
+            let job = a.job(&vol)?;
             // The transfer function is an input too (the job checks the
             // packed file).
             if let Some(tf) = &a.tf {

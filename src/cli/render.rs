@@ -6,12 +6,14 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 
 use cdvol::classify::TransferFunction;
+use cdvol::format::reader::PackedVolume;
 use cdvol::render::camera::CameraError;
 use cdvol::render::job::{CameraSpec, JobError, RenderJob, View};
 use cdvol::render::shade::{HitMethod, HitParams};
 use cdvol::render::traverse::{DistKind, Method};
 use cdvol::render::{
-    CompositeLook, Mode, Precision, RenderError, RenderOptions, Shard, ShardLayout, Window,
+    default_method, CompositeLook, Mode, Precision, RenderError, RenderOptions, Shard, ShardLayout,
+    Window,
 };
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -94,13 +96,14 @@ pub struct RenderArgs {
     pub scale_bar: Option<cdvol::render::scalebar::ScaleBar>,
     #[arg(long, value_enum, default_value = "surface")]
     pub mode: ModeArg,
-    /// Ray generator (paper section 5): chessboard distance (default),
-    /// single-cell steps, CD with anisotropic codes (files prepared with
-    /// --aniso), an octree, the 3D DDA with city-block / chessboard /
-    /// chamfer leaps (regular grids; files prepared with --dda), or
-    /// template-based CD (parallel projection, regular grids).
-    #[arg(long, value_enum, default_value = "cd")]
-    pub traversal: TraversalArg,
+    /// Ray generator (paper section 5): chessboard distance, single-cell
+    /// steps, CD with anisotropic codes (files prepared with --aniso), an
+    /// octree, the 3D DDA with city-block / chessboard / chamfer leaps
+    /// (regular grids; files prepared with --dda), or template-based CD
+    /// (parallel projection, regular grids). Default: cd-aniso when the
+    /// file has anisotropic codes, else cd (the same image either way).
+    #[arg(long, value_enum)]
+    pub traversal: Option<TraversalArg>,
     /// CD leaps only over cells with at least this code; smaller codes take
     /// single-cell steps (1 = the paper).
     #[arg(long, default_value_t = 1)]
@@ -405,9 +408,10 @@ impl RenderArgs {
         Ok(look)
     }
 
-    /// The traversal; `template` leaps like `cd` (its renderer is chosen
-    /// by [`RenderJob::template`]).
-    pub fn method(&self) -> Method {
+    /// The traversal for `vol`; `template` leaps like `cd` (its renderer
+    /// is chosen by [`RenderJob::template`]); none named, the file's
+    /// default ([`cdvol::render::default_method`]) with `--min-leap`.
+    pub fn method(&self, vol: &PackedVolume) -> Method {
         let min_leap = self
             .switch_fvt_at
             .map_or(self.min_leap, |d| d.saturating_add(1));
@@ -415,7 +419,11 @@ impl RenderArgs {
             kind,
             switch_fvt: !self.no_switch_fvt,
         };
-        match self.traversal {
+        let traversal = self.traversal.unwrap_or(match default_method(vol) {
+            Method::CdAniso { .. } => TraversalArg::CdAniso,
+            _ => TraversalArg::Cd,
+        });
+        match traversal {
             TraversalArg::Fvt => Method::Fvt,
             TraversalArg::Cd | TraversalArg::Template => Method::Cd { min_leap },
             TraversalArg::CdAniso => Method::CdAniso { min_leap },
@@ -426,8 +434,8 @@ impl RenderArgs {
         }
     }
 
-    /// The library's render job for these arguments.
-    pub fn job(&self) -> anyhow::Result<RenderJob> {
+    /// The library's render job for these arguments on `vol`.
+    pub fn job(&self, vol: &PackedVolume) -> anyhow::Result<RenderJob> {
         if self.cache_mb < 1 {
             anyhow::bail!(
                 "option --cache-mb: {} MiB, expected at least 1 (with no cache every brick \
@@ -453,7 +461,7 @@ impl RenderArgs {
             },
             options: RenderOptions {
                 mode: self.mode()?,
-                method: self.method(),
+                method: self.method(vol),
                 tile: self.tile,
                 cache_bytes: self.cache_mb.saturating_mul(1 << 20),
                 cd_lazy_min: self.cd_lazy_min,
@@ -476,7 +484,7 @@ impl RenderArgs {
                 unrounded: self.bit_depth != cdvol::render::Bits::Eight,
                 cull: !self.no_cull,
             },
-            template: self.traversal == TraversalArg::Template,
+            template: self.traversal == Some(TraversalArg::Template),
             output: self.output.clone(),
             stats: self.stats.clone(),
             frames: self.frames,

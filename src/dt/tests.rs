@@ -66,6 +66,36 @@ fn brute_blocks(obj: &[u8], dims: [usize; 3], o: usize) -> Vec<u8> {
     out
 }
 
+/// The distances of octant `o` per cell: [`octant_slice`] chained over z
+/// in the octant's z order (towards higher z when the region extends to
+/// lower z).
+fn octant_cells(obj: &[u8], dims: [usize; 3], o: usize) -> Vec<u8> {
+    let [nx, ny, nz] = dims;
+    let n = nx * ny;
+    let dist: Vec<u8> = obj.iter().map(|&c| if c != 0 { 0 } else { 1 }).collect();
+    let zs: Vec<usize> = if octant_negative(o, 2) {
+        (0..nz).collect()
+    } else {
+        (0..nz).rev().collect()
+    };
+    let mut out = vec![0u8; obj.len()];
+    let mut prev: Option<Vec<u8>> = None;
+    for z in zs {
+        let mut cur = vec![0u8; n];
+        octant_slice(
+            o,
+            &dist[z * n..(z + 1) * n],
+            prev.as_deref(),
+            nx,
+            ny,
+            &mut cur,
+        );
+        out[z * n..(z + 1) * n].copy_from_slice(&cur);
+        prev = Some(cur);
+    }
+    out
+}
+
 fn volume() -> impl Strategy<Value = (Vec<u8>, [usize; 3])> {
     (1usize..12, 1usize..12, 1usize..12, 0u32..=100).prop_flat_map(|(x, y, z, pct)| {
         let n = x * y * z;
@@ -81,6 +111,13 @@ proptest! {
     #[test]
     fn isotropic_equals_brute_force((obj, dims) in volume()) {
         prop_assert_eq!(chessboard_3d(&obj, dims), brute(&obj, dims, None));
+    }
+
+    /// Every cell's one-sided distance, slice by slice in the octant's z
+    /// order, before any reduction to blocks.
+    #[test]
+    fn octant_slices_equal_brute_force((obj, dims) in volume(), o in 0usize..8) {
+        prop_assert_eq!(octant_cells(&obj, dims, o), brute(&obj, dims, Some(o)));
     }
 
     #[test]

@@ -56,8 +56,8 @@ pub mod traverse;
 pub use error::RenderError;
 pub use gradient::Normals;
 pub use options::{
-    mode_name, CompositeLook, GradientPoint, Mode, Precision, RenderOptions, Window, EARLY_STOP,
-    MAX_PIXELS, MIN_STEP_MM,
+    default_method, mode_name, CompositeLook, GradientPoint, Mode, Precision, RenderOptions,
+    Window, EARLY_STOP, MAX_PIXELS, MIN_STEP_MM,
 };
 pub use output::{
     image_files, save, save_on, stage, stage_on, Background, BackgroundError, Bits, Colouring,

@@ -219,6 +219,20 @@ pub enum Window {
     Fixed { width: f64, level: f64 },
 }
 
+/// The traversal a render of `vol` uses when none is named (`cdvol
+/// render` without `--traversal`, `cdvol serve`, the demo): CD with the
+/// file's anisotropic (octant) codes where `prep --aniso` stored them
+/// (paper section 4.2.1), else CD. Both are exact, so the image is the
+/// same; the octant codes leap further (docs/BENCHMARKS.md, "Octant codes
+/// by default in the render").
+pub fn default_method(vol: &PackedVolume) -> Method {
+    if vol.header().aniso_block.is_some() {
+        Method::CdAniso { min_leap: 1 }
+    } else {
+        Method::Cd { min_leap: 1 }
+    }
+}
+
 impl RenderOptions {
     /// `mode` by `method` with the defaults of `cdvol render`: 32-pixel
     /// tiles, a 512 MiB cache, CD's lazy threshold, f64, default hit

@@ -169,7 +169,8 @@ impl<'v> Engine<'v> {
     pub fn render(&self, req: &ViewRequest) -> Result<Rendered, Failure> {
         let served = &self.files[req.file.min(self.files.len().saturating_sub(1))];
         let vol = &served.vol;
-        let opts = req.options(self.cache_bytes)?;
+        let mut opts = req.options(self.cache_bytes)?;
+        opts.method = crate::render::default_method(vol);
         let spec = req.camera(vol)?;
         let camera = req.place(vol, &spec)?;
         let command = req.command(&served.name, &spec);

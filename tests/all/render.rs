@@ -459,3 +459,55 @@ fn stats_report_the_kernel_share_of_a_cold_frame() {
         );
     }
 }
+
+/// Without `--traversal`, `cdvol render` walks a file prepared with
+/// `--aniso` by CD with its octant codes and any other file by CD: the
+/// stats name the traversal, the octant codes take fewer steps, and the
+/// image is byte for byte the one `--traversal cd` draws of the same file
+/// (and of the file without octant codes). `--min-leap` still applies.
+#[test]
+fn the_default_traversal_uses_the_files_octant_codes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let p = |n: &str| d.join(n).to_str().unwrap().to_owned();
+    common::ok(common::cdvol().args(["phantom", "ct", "--dims", "80,72,64", "-o", &p("ct.json")]));
+    common::ok(common::cdvol().args(["prep", &p("ct.json"), "-o", &p("iso.cdv"), "--iso", "300"]));
+    common::ok(common::cdvol().args([
+        "prep",
+        &p("ct.json"),
+        "-o",
+        &p("an.cdv"),
+        "--iso",
+        "300",
+        "--aniso",
+    ]));
+    let render = |file: &str, name: &str, more: &[&str]| -> Stats {
+        let (png, json) = (p(&format!("{name}.png")), p(&format!("{name}.json")));
+        common::ok(
+            common::cdvol()
+                .args(["render", &p(file), "-o", &png, "--stats", &json])
+                .args(["--width", "96", "--height", "96", "--view", "30,20"])
+                .args(more),
+        );
+        serde_json::from_slice(&std::fs::read(json).unwrap()).unwrap()
+    };
+    let auto_an = render("an.cdv", "auto-an", &[]);
+    let cd_an = render("an.cdv", "cd-an", &["--traversal", "cd"]);
+    let auto_iso = render("iso.cdv", "auto-iso", &[]);
+    let leap_an = render("an.cdv", "leap-an", &["--min-leap", "3"]);
+    assert_eq!(auto_an.traversal, "cd-aniso");
+    assert_eq!(cd_an.traversal, "cd");
+    assert_eq!(auto_iso.traversal, "cd");
+    assert_eq!(leap_an.traversal, "cd-aniso min_leap=3");
+    assert!(
+        auto_an.steps < cd_an.steps,
+        "octant codes: {} steps, CD {}",
+        auto_an.steps,
+        cd_an.steps
+    );
+    let png = |n: &str| std::fs::read(p(&format!("{n}.png"))).unwrap();
+    assert!(auto_an.hits > 0);
+    assert_eq!(png("auto-an"), png("cd-an"));
+    assert_eq!(png("auto-an"), png("auto-iso"));
+    assert_eq!(png("auto-an"), png("leap-an"));
+}

@@ -27,6 +27,9 @@ ap.add_argument("--threads", default="1,2")
 ap.add_argument("--view", default="35,15")
 ap.add_argument("--iso", type=float, default=300.0)
 ap.add_argument("--tf", default=os.path.join(HERE, "skin-bone-tf.json"))
+# More `cdvol prep` flags, e.g. "--aniso" (octant codes, which the render
+# then uses by default); timed with the rest of the set-up.
+ap.add_argument("--prep-flags", default="")
 a = ap.parse_args()
 os.makedirs(a.work, exist_ok=True)
 os.makedirs(a.out, exist_ok=True)
@@ -81,8 +84,8 @@ img = lambda name: os.path.join(W, name)
 def cdvol(rep, n):
     b = a.cdvol
     st = img("stats.json")
-    s_iso, _, _ = run(pin(n) + [b, "prep", "-q", "--iso", str(a.iso), a.ct, "-o", img("ct-iso.cdv")])
-    s_tf, _, _ = run(pin(n) + [b, "prep", "-q", "--classify-tf", a.tf, a.ct, "-o", img("ct-tf.cdv")])
+    s_iso, _, _ = run(pin(n) + [b, "prep", "-q"] + a.prep_flags.split() + ["--iso", str(a.iso), a.ct, "-o", img("ct-iso.cdv")])
+    s_tf, _, _ = run(pin(n) + [b, "prep", "-q"] + a.prep_flags.split() + ["--classify-tf", a.tf, a.ct, "-o", img("ct-tf.cdv")])
     # MIP maps the file's value range (--window full), as the VTK MIP's
     # colour map does; shaded composite lights as VTK's ShadeOn is set up.
     for mode, f, extra, setup in [
@@ -217,7 +220,8 @@ def ratio(peer, cd, key):
 
 lines = [f"View {a.view} (azimuth, elevation), orthographic, eye {CAM['eye']}, target "
          f"{CAM['target']}, up {CAM['up']}, frame {CAM['frame']} mm, {a.size}x{a.size}; "
-         f"medians of {a.reps} interleaved repeats.", "",
+         f"medians of {a.reps} interleaved repeats; `cdvol prep` "
+         f"{'flags ' + a.prep_flags if a.prep_flags.strip() else 'with its defaults'}.", "",
          "Time ratio = peer time / cdvol time (above 1: cdvol is faster).", "",
          "| mode | peer | threads | cdvol render s | peer render s | ratio render | "
          "cdvol setup+render s | peer setup+render s | ratio incl. setup | target | met? |",

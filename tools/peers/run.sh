@@ -13,6 +13,7 @@
 #        OUT=docs/peers (where the CSVs, PNGs and RESULTS.md go)
 #        CT_SIDECAR=path/to/volume.json (another raw volume instead of the CT,
 #        e.g. a `cdvol phantom ct --dims 512,512,512` phantom)
+#        PREP_FLAGS="--aniso" (more `cdvol prep` flags for the packed files)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 work=$(mkdir -p "${1:-$root/target/peers}" && cd "${1:-$root/target/peers}" && pwd)
@@ -31,4 +32,4 @@ fi
 "$CDVOL" --version >&2
 "$work/venv/bin/python" "$root/tools/peers/bench.py" --cdvol "$CDVOL" --ct "$sidecar" \
     --work "$work" --out "$out" --reps "${REPS:-5}" --size "${SIZE:-512}" \
-    --threads "${THREADS:-1,2}" --view "${VIEW:-35,15}"
+    --threads "${THREADS:-1,2}" --view "${VIEW:-35,15}" --prep-flags "${PREP_FLAGS:-}"
