@@ -7,7 +7,8 @@
 # the split of `--stats` (decode, traverse, sample) of one run of each.
 #
 # usage: tools/bench-fig16-whole.sh [WORKDIR]   (NS="2 21", REPS=11,
-#        BIN=path/to/cdvol to time another build)
+#        BIN=path/to/cdvol to time another build, PREP_FLAGS="--aniso"
+#        with CD=cd-aniso for the octant codes)
 set -euo pipefail
 work=${1:-target/bench-fig16}
 mkdir -p "$work"
@@ -27,22 +28,22 @@ median() { sort -g | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2
 printf '| N | FVT s | CD s | FVT/CD | FVT steps/ray | CD steps/ray | CD decode / traverse / sample / tiles s |\n|---|---|---|---|---|---|---|\n'
 for n in ${NS:-2 21}; do
     "$BIN" phantom spheres -q --per-axis "$n" -o "$work/s$n.json" > /dev/null
-    "$BIN" prep -q --iso 1000 "$work/s$n.json" -o "$work/s$n.cdv" > /dev/null
-    : > "$work/fvt.txt"; : > "$work/cd.txt"
+    "$BIN" prep -q ${PREP_FLAGS:-} --iso 1000 "$work/s$n.json" -o "$work/s$n.cdv" > /dev/null
+    : > "$work/fvt.txt"; : > "$work/${CD:-cd}.txt"
     for _ in $(seq "${REPS:-11}"); do
-        for t in fvt cd; do
+        for t in fvt ${CD:-cd}; do
             clock taskset -c 0 "$BIN" render -q "$work/s$n.cdv" -o "$work/$t.png" --width 250 --height 250 \
                 --view 30,20 --traversal "$t" --threads 1 >> "$work/$t.txt"
         done
     done
-    cmp "$work/fvt.png" "$work/cd.png"
-    f=$(median < "$work/fvt.txt"); c=$(median < "$work/cd.txt")
+    cmp "$work/fvt.png" "$work/${CD:-cd}.png"
+    f=$(median < "$work/fvt.txt"); c=$(median < "$work/${CD:-cd}.txt")
     split=()
-    for t in fvt cd; do
+    for t in fvt ${CD:-cd}; do
         "$BIN" render -q "$work/s$n.cdv" -o "$work/$t.png" --width 250 --height 250 --view 30,20 \
             --traversal "$t" --threads 1 --stats "$work/$t.json" > /dev/null
         split+=("$(python3 -c "import json; d=json.load(open('$work/$t.json')); print('%.2f' % (d['steps'] / d['rays']))")")
     done
-    cd_split=$(python3 -c "import json; d=json.load(open('$work/cd.json')); print('%.4f / %.4f / %.4f / %.4f' % tuple(d.get(k, float('nan')) for k in ('seconds_decode', 'seconds_traverse', 'seconds_sample', 'seconds_tiles')))")
+    cd_split=$(python3 -c "import json; d=json.load(open('$work/${CD:-cd}.json')); print('%.4f / %.4f / %.4f / %.4f' % tuple(d.get(k, float('nan')) for k in ('seconds_decode', 'seconds_traverse', 'seconds_sample', 'seconds_tiles')))")
     printf '| %s | %.4f | %.4f | %.2f | %s | %s | %s |\n' "$n" "$f" "$c" "$(echo "$f / $c" | bc -l)" "${split[0]}" "${split[1]}" "$cd_split"
 done
