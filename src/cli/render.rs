@@ -160,8 +160,8 @@ pub struct RenderArgs {
     /// reference); docs/TRADEOFFS.md measures the difference.
     #[arg(long, value_enum, default_value = "f32")]
     pub sample_precision: PrecisionArg,
-    /// Composite, f32, unshaded or shaded by smooth normals without
-    /// gradient opacity: take a ray's samples eight at a time,
+    /// Composite, f32, unshaded or with smooth normals (shading, gradient
+    /// opacity): take a ray's samples eight at a time,
     /// their cells found by position (on), or one at a time by the cell
     /// planes (off); docs/TRADEOFFS.md measures the difference.
     #[arg(long, value_enum, default_value = "on")]

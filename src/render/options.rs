@@ -73,7 +73,7 @@ pub struct RenderOptions {
     /// in docs/TRADEOFFS.md, "Sampling precision".
     pub sampling: Precision,
     /// The f32 composite takes a ray's samples eight at a time, their
-    /// cells by position, unshaded or shaded by smooth normals without
+    /// cells by position, unshaded or with smooth normals for shading and
     /// gradient opacity (on by default; docs/TRADEOFFS.md, "Sample
     /// batches").
     pub sample_batches: bool,

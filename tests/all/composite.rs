@@ -250,7 +250,8 @@ proptest! {
 
     /// The f32 sampler takes its samples in batches of eight, their cells
     /// by position (integrate/batch.rs), on uniform and rectilinear axes,
-    /// shaded (smooth normals) or not: it equals the one-at-a-time f32
+    /// shaded (smooth normals), with gradient opacity, both or neither:
+    /// it equals the one-at-a-time f32
     /// sampler to 2/255 (a sample on a face may take the neighbouring
     /// cell; opacity is carried as transmittance), unshaded also the
     /// brute-force oracle to 2/255, and FVT, CD and the octree draw the
@@ -262,17 +263,27 @@ proptest! {
         el in -80.0f64..80.0,
         step in prop_oneof![Just(0.13), Just(0.5), Just(1.3), Just(3.7)],
         shade in any::<bool>(),
+        gradient_opacity in any::<bool>(),
     ) {
         let dir = tempfile::tempdir().unwrap();
         let vol = packed_tf(dir.path(), dims, &values, &pos);
         let cam = orbit(&vol, [az, el], None, 24, 24);
-        let look = cdvol::render::CompositeLook { shade, gradient_opacity: vec![] };
+        let p = |gradient: f64, opacity: f64| cdvol::render::GradientPoint { gradient, opacity };
+        let look = cdvol::render::CompositeLook {
+            shade,
+            gradient_opacity: if gradient_opacity {
+                vec![p(5.0, 0.2), p(60.0, 1.0)]
+            } else {
+                vec![]
+            },
+        };
         let with = |o: RenderOptions, batches: bool| RenderOptions {
             look: look.clone(),
             sample_batches: batches,
             ..o
         };
-        let want = (!shade).then(|| oracle_image(&cam, dims, &values, &pos, step));
+        let want = look.gradient_opacity.is_empty() && !shade;
+        let want = want.then(|| oracle_image(&cam, dims, &values, &pos, step));
         let one = with(opts(Method::Cd { min_leap: 1 }, Precision::F32, step), false);
         let single = draw(&vol, &cam, &one);
         let mut first: Option<Frame> = None;

@@ -1,5 +1,5 @@
 //! The composite's samples eight at a time (`--sample-batches`, on by
-//! default; unshaded, or shaded by smooth normals without gradient
+//! default; unshaded, or with smooth gradients for shading and gradient
 //! opacity): the run marcher of composite.rs hands the samples of a
 //! 1-cell run to [`run`], which takes them in batches of [`LANES`] along
 //! the ray and finds each sample's cell by its position instead of
@@ -11,9 +11,11 @@
 //! SIMD arithmetic (AVX2 where the CPU has it, [`run`] dispatches); the
 //! codes, the vertices, the trilinear value and the table go lane by
 //! lane, and the samples are composited in order, the opacity carried as
-//! transmittance. Shaded, each lane's gradient is interpolated from its
-//! cell's vertex gradients in the brick's gradient plane, and the
-//! headlight's square roots and divisions go in lanes ([`light`]); a
+//! transmittance. Shaded or with gradient opacity, each lane's gradient
+//! is interpolated from its cell's vertex gradients in the brick's
+//! gradient plane, the gradient opacity scales the sample by the
+//! gradient's length, and the headlight's square roots and divisions go
+//! in lanes ([`light`]); a
 //! sample whose cell the plane has not set yet hands the ray back to the
 //! marcher, which computes the cell's outer gradients.
 //!
@@ -31,6 +33,7 @@ use glam::{Vec3A, Vec4};
 use super::Ctx;
 use crate::render::cache::{Codes, RBrick};
 use crate::render::lut::TfLut;
+use crate::render::options::CompositeLook;
 use crate::render::samples::{gather8, Corners, Samples};
 use crate::render::traverse::{Ray, Real, OBJECT};
 
@@ -208,9 +211,12 @@ pub(super) struct Batches<'a> {
     pub lut: &'a TfLut,
     /// Codes from which the marcher leaps rather than skips.
     pub resume: u8,
-    /// Shaded samples (smooth normals from the brick's gradient plane,
-    /// no gradient opacity): the unit vector to the eye.
+    /// Shaded samples (smooth normals from the brick's gradient plane):
+    /// the unit vector to the eye.
     pub shade: Option<Vec3A>,
+    /// Gradient opacity ([`CompositeLook::gradient_factor`] of the
+    /// smooth gradient's length), when the look has any.
+    pub gradient_opacity: Option<&'a CompositeLook>,
     pub stop: f32,
 }
 
@@ -222,12 +228,13 @@ pub(super) fn run(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End)
     select(x, b, k, acc, true)
 }
 
-/// [`run`] by one of four kernels, shaded or not, on a uniform or a
-/// rectilinear grid: compiled for AVX2 when `avx2` asks for it and the
-/// CPU has it (four functions, so none's code is laid out around
-/// another's), else for the baseline CPU.
+/// [`run`] by one of four kernels, with gradients (shading or gradient
+/// opacity) or without, on a uniform or a rectilinear grid: compiled for
+/// AVX2 when `avx2` asks for it and the CPU has it (four functions, so
+/// none's code is laid out around another's), else for the baseline CPU.
 fn select(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4, avx2: bool) -> (u64, End) {
-    match (x.shade.is_some(), x.map.rect.is_some()) {
+    let grads = x.shade.is_some() || x.gradient_opacity.is_some();
+    match (grads, x.map.rect.is_some()) {
         (false, false) => kernel::<false, false>(x, b, k, acc, avx2),
         (false, true) => kernel::<false, true>(x, b, k, acc, avx2),
         (true, false) => kernel::<true, false>(x, b, k, acc, avx2),
@@ -237,7 +244,7 @@ fn select(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4, avx2: bool) -> (u64, 
 
 /// See [`select`].
 #[inline(always)]
-fn kernel<const SHADE: bool, const RECT: bool>(
+fn kernel<const GRAD: bool, const RECT: bool>(
     x: &Batches,
     b: &RBrick,
     k: f64,
@@ -247,29 +254,29 @@ fn kernel<const SHADE: bool, const RECT: bool>(
     #[cfg(target_arch = "x86_64")]
     if avx2 && std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { run_avx2::<SHADE, RECT>(x, b, k, acc) };
+        return unsafe { run_avx2::<GRAD, RECT>(x, b, k, acc) };
     }
     let _ = avx2;
-    values::<SHADE, RECT>(x, b, k, acc)
+    values::<GRAD, RECT>(x, b, k, acc)
 }
 
 /// [`values`] compiled for AVX2: the same code, the same results (no
 /// fused multiply-add: Rust does not contract `a + b * c`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn run_avx2<const SHADE: bool, const RECT: bool>(
+fn run_avx2<const GRAD: bool, const RECT: bool>(
     x: &Batches,
     b: &RBrick,
     k: f64,
     acc: &mut Vec4,
 ) -> (u64, End) {
-    values::<SHADE, RECT>(x, b, k, acc)
+    values::<GRAD, RECT>(x, b, k, acc)
 }
 
 /// [`lanes`] with the brick's kind of values, shaded or not, on a
 /// rectilinear grid or not.
 #[inline(always)]
-fn values<const SHADE: bool, const RECT: bool>(
+fn values<const GRAD: bool, const RECT: bool>(
     x: &Batches,
     b: &RBrick,
     k: f64,
@@ -278,17 +285,17 @@ fn values<const SHADE: bool, const RECT: bool>(
     let Codes::Plane(codes) = &b.codes else {
         return (0, End::Brick);
     };
-    // Shaded samples read the brick's gradient plane.
-    if SHADE && b.grads.is_empty() {
+    // Gradients come from the brick's gradient plane.
+    if GRAD && b.grads.is_empty() {
         return (0, End::Brick);
     }
     match &b.values {
-        Samples::F32(v) => lanes::<SHADE, RECT>(x, b, codes, k, acc, |c| gather8(v, c, |x| x)),
+        Samples::F32(v) => lanes::<GRAD, RECT>(x, b, codes, k, acc, |c| gather8(v, c, |x| x)),
         Samples::Words16(w, t, _) => {
-            lanes::<SHADE, RECT>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
+            lanes::<GRAD, RECT>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
         }
         Samples::Words8(w, t, _) => {
-            lanes::<SHADE, RECT>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
+            lanes::<GRAD, RECT>(x, b, codes, k, acc, |c| gather8(w, c, |x| t[x as usize]))
         }
         Samples::Empty => (0, End::Brick),
     }
@@ -296,11 +303,11 @@ fn values<const SHADE: bool, const RECT: bool>(
 
 /// [`run`] on brick `b` with code plane `codes`, whose cells' vertex
 /// values `vertices` reads (x fastest, as [`RBrick::vertices`]); with
-/// `SHADE`, lit by [`light`] with the gradients of the brick's gradient
-/// plane; with `RECT`, each lane's cells from the map's [`RectAxis`]
+/// `GRAD`, weighted by the gradient opacity and lit by [`light`] with the
+/// gradients of the brick's gradient plane ([`shaded`]); with `RECT`, each lane's cells from the map's [`RectAxis`]
 /// tables.
 #[inline(always)]
-fn lanes<const SHADE: bool, const RECT: bool>(
+fn lanes<const GRAD: bool, const RECT: bool>(
     x: &Batches,
     b: &RBrick,
     codes: &[u8],
@@ -422,9 +429,9 @@ fn lanes<const SHADE: bool, const RECT: bool>(
         }
         // Front to back, in order, by transmittance: one multiplication
         // carries from sample to sample (`a + (1 - a) s` would be three).
-        // Shaded, the samples are lit first ([`shaded`]); that may end
-        // the batch early.
-        let lit = if SHADE {
+        // With gradients, the samples are weighted and lit first
+        // ([`shaded`]); that may end the batch early.
+        let lit = if GRAD {
             let (lit, upto) = shaded(x, b, &object, &value, &u, &local, &code_at, n);
             if upto < n {
                 (n, end) = (upto, End::Brick);
@@ -434,7 +441,7 @@ fn lanes<const SHADE: bool, const RECT: bool>(
             [Vec4::ZERO; LANES]
         };
         for j in 0..n {
-            let s = if SHADE {
+            let s = if GRAD {
                 lit[j]
             } else if object[j] {
                 x.lut.sample32(value[j])
@@ -460,12 +467,12 @@ fn lanes<const SHADE: bool, const RECT: bool>(
 }
 
 /// The first `n` samples of a batch lit: per lane the table's colour and
-/// opacity at `value` where `object`, shaded by [`light`] with the
-/// gradient interpolated at `u` from the gradient plane of brick `b`
-/// (`local`: the cell in the brick, `code_at`: its index in the code
-/// plane). Also how many lanes it lit: fewer than `n` when a sample's
-/// cell is one the plane has not set (the marcher computes its
-/// gradients).
+/// opacity at `value` where `object`, with the gradient interpolated at
+/// `u` from the gradient plane of brick `b` (`local`: the cell in the
+/// brick, `code_at`: its index in the code plane) scaled by the gradient
+/// opacity and shaded by [`light`], as `Look::apply` does each. Also how
+/// many lanes it lit: fewer than `n` when a sample's cell is one the
+/// plane has not set (the marcher computes its gradients).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn shaded(
@@ -506,10 +513,22 @@ fn shaded(
         let g = trilinear_vec(&grads, Vec3A::new(u[0][j], u[1][j], u[2][j]));
         (len2[j], dot[j]) = (g.dot(g), g.dot(to_eye));
     }
-    let (k, spec) = light(&len2, &dot);
-    for j in 0..upto {
-        let s = lit[j];
-        lit[j] = (s * k[j] + Vec4::splat(spec[j] * s.w)).with_w(s.w);
+    // The gradient opacity scales the sample before it is lit, by the
+    // gradient's length as `Look::apply` takes it (`length` is the square
+    // root of `dot`).
+    if let Some(look) = x.gradient_opacity {
+        for j in 0..upto {
+            if lit[j].w != 0.0 {
+                lit[j] *= look.gradient_factor(len2[j].sqrt() as f64) as f32;
+            }
+        }
+    }
+    if x.shade.is_some() {
+        let (k, spec) = light(&len2, &dot);
+        for j in 0..upto {
+            let s = lit[j];
+            lit[j] = (s * k[j] + Vec4::splat(spec[j] * s.w)).with_w(s.w);
+        }
     }
     (lit, upto)
 }

@@ -1,10 +1,12 @@
 //! Tests of batch.rs: the kernel against a sample-by-sample f64 walk
-//! (unshaded and shaded, uniform and rectilinear grids), and the index
+//! (unshaded, shaded and with gradient opacity, uniform and rectilinear
+//! grids), and the index
 //! maps' cells against the planes.
 
 use super::*;
 use crate::classify::{TfPoint, TransferFunction};
 use crate::render::cache::GradPlane;
+use crate::render::options::{CompositeLook, GradientPoint};
 use crate::render::samples::Order;
 use proptest::prelude::*;
 
@@ -125,9 +127,9 @@ fn rng(seed: u64) -> impl FnMut() -> u32 {
 
 /// What [`run`] should do, sample by sample in f64: the cell by
 /// `floor` of the index coordinate, the code, the trilinear value, the
-/// f64 table, with `grads` (per vertex, x fastest) the headlight
-/// shading of `Look::apply` from the trilinear gradient, front-to-back
-/// compositing. A shaded sample in a cell the brick's gradient plane
+/// f64 table, with `grads` (per vertex, x fastest) the gradient opacity
+/// and the headlight shading of `Look::apply` from the trilinear
+/// gradient, front-to-back compositing. A shaded sample in a cell the brick's gradient plane
 /// has not set ends the run at it (`End::Brick`). `None` when a
 /// sample lies within 1e-4 of a cell face, where f32 and f64 may pick
 /// different cells, has a value within 1e-3 of the table's
@@ -203,14 +205,19 @@ fn reference(
             if len < 0.01 {
                 return None;
             }
-            let e = bx.shade.unwrap();
-            let dot = g[0] * e.x as f64 + g[1] * e.y as f64 + g[2] * e.z as f64;
-            let ndl = (dot.abs() / len).min(1.0);
-            let spec = (2.0 * ndl * ndl - 1.0).max(0.0).powi(32);
-            let kd = 0.12 + 0.75 * ndl;
-            let a = s[3];
-            s = [s[0] * kd, s[1] * kd, s[2] * kd, 0.0].map(|v| v + 0.25 * spec * a);
-            s[3] = a;
+            if let Some(look) = bx.gradient_opacity {
+                let f = look.gradient_factor(len);
+                s = s.map(|v| v * f);
+            }
+            if let Some(e) = bx.shade {
+                let dot = g[0] * e.x as f64 + g[1] * e.y as f64 + g[2] * e.z as f64;
+                let ndl = (dot.abs() / len).min(1.0);
+                let spec = (2.0 * ndl * ndl - 1.0).max(0.0).powi(32);
+                let kd = 0.12 + 0.75 * ndl;
+                let a = s[3];
+                s = [s[0] * kd, s[1] * kd, s[2] * kd, 0.0].map(|v| v + 0.25 * spec * a);
+                s[3] = a;
+            }
         }
         let w = 1.0 - acc[3];
         for ch in 0..4 {
@@ -247,7 +254,7 @@ proptest! {
         let (vals, codes) = (&sc.vals, &sc.codes);
         let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
         let lut = TfLut::new(&tf(), step);
-        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None };
+        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, None) else {
             return Err(TestCaseError::reject("a sample on a cell face"));
         };
@@ -280,11 +287,12 @@ proptest! {
         }
     }
 
-    /// Shaded, [`run`] lights each sample as `Look::apply` does with
-    /// the trilinear gradient of the brick's gradient plane (to f32
-    /// accuracy against f64), and hands the ray back at the first
-    /// sample that needs a cell the plane has not set; its AVX2 build
-    /// gives the baseline build's bits.
+    /// Shaded, with gradient opacity or both, [`run`] weights and
+    /// lights each sample as `Look::apply` does with the trilinear
+    /// gradient of the brick's gradient plane (to f32 accuracy against
+    /// f64), and hands the ray back at the first sample that needs a
+    /// cell the plane has not set; its AVX2 build gives the baseline
+    /// build's bits.
     #[test]
     fn shaded_batches_light_samples_as_one_at_a_time_would(
         cells in proptest::array::uniform3(1u32..9),
@@ -298,6 +306,8 @@ proptest! {
         step in prop_oneof![Just(0.07), Just(0.37), Just(1.3)],
         stop in prop_oneof![Just(0.6), Just(1.0)],
         unset in 0u32..4,
+        // 0: shaded; 1: gradient opacity; 2: both.
+        look in 0u8..3,
         seed in any::<u64>(),
     ) {
         prop_assume!(dir.iter().map(|d| d * d).sum::<f64>() > 1e-3);
@@ -335,9 +345,17 @@ proptest! {
         let len = eye.iter().map(|d| d * d).sum::<f64>().sqrt();
         let to_eye = Vec3A::from_array(eye.map(|e| (e / len) as f32));
         let lut = TfLut::new(&tf(), step);
+        // Gradient lengths here reach about 60: opacity from 0.1 at 2 up to
+        // 1 at 15 and down to 0.4 at 40.
+        let p = |gradient: f64, opacity: f64| GradientPoint { gradient, opacity };
+        let go = CompositeLook {
+            shade: look != 1,
+            gradient_opacity: vec![p(2.0, 0.1), p(15.0, 1.0), p(40.0, 0.4)],
+        };
         let x = Batches {
             map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32,
-            shade: Some(to_eye),
+            shade: (look != 1).then_some(to_eye),
+            gradient_opacity: (look != 0).then_some(&go),
         };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, Some(&grads)) else {
             return Err(TestCaseError::reject("a sample on a face, or ill-conditioned"));

@@ -10,8 +10,8 @@
 //! the cells is f64 either way, so every exact traversal gives the same
 //! image with either sampler. The f32 sampler takes a run's samples
 //! eight at a time, their cells by position (batch.rs,
-//! `--sample-batches`; shaded only with smooth normals and no gradient
-//! opacity); the runs still start where the
+//! `--sample-batches`; shaded or with gradient opacity only with smooth
+//! normals); the runs still start where the
 //! traversal finds them, so every traversal gives the same image there
 //! too.
 
@@ -97,9 +97,9 @@ fn march32<T: Real, const LOOK: bool>(
     px: &mut Px,
 ) -> StepCounts {
     debug_assert_eq!(look.on, LOOK);
-    // Shaded, the batches light their samples with smooth normals (the
-    // brick's gradient plane); gradient opacity and the cell
-    // interpolant's normals take one sample at a time.
+    // With a look, the batches weight and light their samples by smooth
+    // normals (the brick's gradient plane); the cell interpolant's
+    // normals take one sample at a time.
     let batches = ctx.index_map.as_ref().filter(|_| !LOOK || look.batches());
     let mut s = Sampler32::<LOOK> {
         coords: ctx.coords,
@@ -536,7 +536,9 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
             lut: self.lut,
             resume: RESUME_CODE,
             stop: self.stop,
-            shade: LOOK.then_some(self.look.to_eye),
+            shade: (LOOK && self.look.look.shade).then_some(self.look.to_eye),
+            gradient_opacity: (LOOK && !self.look.look.gradient_opacity.is_empty())
+                .then_some(self.look.look),
         };
         batch::run(&x, b, k, &mut self.acc)
     }
@@ -632,11 +634,11 @@ impl<'a> Look<'a> {
         }
     }
 
-    /// Whether the batches can take this look's samples: shading by
-    /// smooth normals alone ([`batch::run`] lights them as
-    /// [`Look::apply`] does).
+    /// Whether the batches can take this look's samples: shading and
+    /// gradient opacity by smooth normals ([`batch::run`] weights and
+    /// lights them as [`Look::apply`] does).
     fn batches(&self) -> bool {
-        self.look.shade && self.look.gradient_opacity.is_empty() && self.smooth
+        self.on && self.smooth
     }
 
     /// Sample `s` (premultiplied colour, opacity) with gradient `g` (per
