@@ -15,9 +15,9 @@
 //! is interpolated from its cell's vertex gradients in the brick's
 //! gradient plane, the gradient opacity scales the sample by the
 //! gradient's length, and the headlight's square roots and divisions go
-//! in lanes ([`light`]); a
-//! sample whose cell the plane has not set yet hands the ray back to the
-//! marcher, which computes the cell's outer gradients.
+//! in lanes ([`light`]); a sample whose cell the plane has not set yet
+//! hands the ray back to the marcher, which computes the cell's outer
+//! gradients.
 //!
 //! What changes against the sampler one sample at a time: a sample on or
 //! within rounding of a cell face may be given the neighbouring cell.
@@ -273,7 +273,7 @@ fn run_avx2<const GRAD: bool, const RECT: bool>(
     values::<GRAD, RECT>(x, b, k, acc)
 }
 
-/// [`lanes`] with the brick's kind of values, shaded or not, on a
+/// [`lanes`] with the brick's kind of values, with gradients or not, on a
 /// rectilinear grid or not.
 #[inline(always)]
 fn values<const GRAD: bool, const RECT: bool>(
@@ -304,8 +304,8 @@ fn values<const GRAD: bool, const RECT: bool>(
 /// [`run`] on brick `b` with code plane `codes`, whose cells' vertex
 /// values `vertices` reads (x fastest, as [`RBrick::vertices`]); with
 /// `GRAD`, weighted by the gradient opacity and lit by [`light`] with the
-/// gradients of the brick's gradient plane ([`shaded`]); with `RECT`, each lane's cells from the map's [`RectAxis`]
-/// tables.
+/// gradients of the brick's gradient plane ([`shaded`]); with `RECT`,
+/// each lane's cells from the map's [`RectAxis`] tables.
 #[inline(always)]
 fn lanes<const GRAD: bool, const RECT: bool>(
     x: &Batches,

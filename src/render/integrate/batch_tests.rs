@@ -1,7 +1,6 @@
 //! Tests of batch.rs: the kernel against a sample-by-sample f64 walk
 //! (unshaded, shaded and with gradient opacity, uniform and rectilinear
-//! grids), and the index
-//! maps' cells against the planes.
+//! grids), and the index maps' cells against the planes.
 
 use super::*;
 use crate::classify::{TfPoint, TransferFunction};
@@ -129,8 +128,9 @@ fn rng(seed: u64) -> impl FnMut() -> u32 {
 /// `floor` of the index coordinate, the code, the trilinear value, the
 /// f64 table, with `grads` (per vertex, x fastest) the gradient opacity
 /// and the headlight shading of `Look::apply` from the trilinear
-/// gradient, front-to-back compositing. A shaded sample in a cell the brick's gradient plane
-/// has not set ends the run at it (`End::Brick`). `None` when a
+/// gradient, front-to-back compositing. A sample with gradients in a
+/// cell the brick's gradient plane has not set ends the run at it
+/// (`End::Brick`). `None` when a
 /// sample lies within 1e-4 of a cell face, where f32 and f64 may pick
 /// different cells, has a value within 1e-3 of the table's
 /// transparent end, or a gradient shorter than 0.01, where f32 and
@@ -345,7 +345,7 @@ proptest! {
         let len = eye.iter().map(|d| d * d).sum::<f64>().sqrt();
         let to_eye = Vec3A::from_array(eye.map(|e| (e / len) as f32));
         let lut = TfLut::new(&tf(), step);
-        // Gradient lengths here reach about 60: opacity from 0.1 at 2 up to
+        // Gradient lengths here reach about 35: opacity from 0.1 at 2 up to
         // 1 at 15 and down to 0.4 at 40.
         let p = |gradient: f64, opacity: f64| GradientPoint { gradient, opacity };
         let go = CompositeLook {
