@@ -196,7 +196,10 @@ impl Info {
             self.uniform_bricks
         );
         if let Some(g) = self.aniso_block {
-            let _ = writeln!(o, "aniso codes  8 octants per {g}^3 block");
+            let _ = writeln!(
+                o,
+                "aniso codes  8 octants per {g}^3 block (render's default traversal: cd-aniso)"
+            );
         }
         if self.dda {
             let _ = writeln!(
