@@ -120,6 +120,21 @@ proptest! {
         prop_assert_eq!(octant_cells(&obj, dims, o), brute(&obj, dims, Some(o)));
     }
 
+    /// Rows of up to 69 cells, few of them: long runs for the row scan
+    /// between 1-cells and the volume's ends.
+    #[test]
+    fn octant_slices_of_long_rows_equal_brute_force(
+        (obj, dims) in (1usize..70, 1usize..4, 1usize..4, 0u32..=100).prop_flat_map(|(x, y, z, pct)| {
+            (
+                proptest::collection::vec((0u32..100).prop_map(move |r| (r < pct / 8) as u8), x * y * z),
+                Just([x, y, z]),
+            )
+        }),
+        o in 0usize..8,
+    ) {
+        prop_assert_eq!(octant_cells(&obj, dims, o), brute(&obj, dims, Some(o)));
+    }
+
     #[test]
     fn octant_blocks_equal_brute_force((obj, dims) in volume()) {
         let got = octant_blocks_3d(&obj, dims);
