@@ -18,9 +18,25 @@
 //! of one pixel, is marked in a bitmap of the image. A pixel outside every
 //! rectangle is culled. The cost map ([`Mode::Cost`]) traces every ray: it
 //! shows what the traversal costs.
+//!
+//! Later frames on one cache (turntables, `cdvol serve`) know more than
+//! the index: when such a cache ([`BrickCache::with_occupancy`]) first
+//! decodes a brick, it notes which of the brick's [`SUB`]^3 sub-blocks (4
+//! cells per edge on 32-cell bricks) hold a 1-cell of the scene
+//! ([`BrickCache::occupied`]), and later covers project each run along x
+//! of such sub-blocks instead of the whole brick. A 1-cell lies in its
+//! sub-block's box, so the argument above holds box for box. A brick no
+//! frame has decoded yet is projected whole. The bricks earlier frames
+//! decoded are those their rays entered, whatever the threads and the
+//! cache budget (an evicted brick keeps its mask), so a frame's cover,
+//! like its image, does not depend on them. On the real CT at 1024^2 a
+//! later frame traces about 110,000 fewer of the 350,000 rays the brick
+//! boxes leave, most of those that pass the skull without meeting it
+//! (docs/BENCHMARKS.md, "Later frames cull by sub-blocks").
 
 use glam::DVec3;
 
+use super::cache::{BrickCache, SUB};
 use super::camera::{Camera, Projection};
 use super::options::{Mode, RenderOptions};
 use crate::format::reader::PackedVolume;
@@ -34,11 +50,17 @@ pub(crate) struct Cover {
 }
 
 impl Cover {
-    /// The cover of `vol`'s object bricks seen by `camera`, or `None` when
+    /// The cover of `vol`'s object bricks seen by `camera` (of the
+    /// sub-blocks `cache` knows, [`BrickCache::occupied`]), or `None` when
     /// every ray is to be traced: culling off, the cost map, or a camera
     /// inside or behind some object brick (perspective only), where the
     /// projection of its box is unbounded.
-    pub(crate) fn of(vol: &PackedVolume, camera: &Camera, opts: &RenderOptions) -> Option<Cover> {
+    pub(crate) fn of(
+        vol: &PackedVolume,
+        cache: &BrickCache,
+        camera: &Camera,
+        opts: &RenderOptions,
+    ) -> Option<Cover> {
         if !opts.cull || matches!(opts.mode, Mode::Cost) {
             return None;
         }
@@ -65,10 +87,38 @@ impl Cover {
             }
             let b = h.brick_coords(id as u64);
             let range: [(u64, u64); 3] = std::array::from_fn(|k| h.brick_cells(k, b[k]));
-            let lo = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].0 as usize]));
-            let hi = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].1 as usize]));
-            let rect = proj.rect(lo, hi)?;
-            cover.fill(rect);
+            let Some(mask) = cache.occupied(id as u64) else {
+                let lo = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].0 as usize]));
+                let hi = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].1 as usize]));
+                cover.fill(proj.rect(lo, hi)?);
+                continue;
+            };
+            // Each run along x of sub-blocks with a 1-cell: its cells' box.
+            let e = h.brick_size.div_ceil(SUB) as u64;
+            let at = |k: usize, s: u64| coords[k][(range[k].0 + s * e).min(range[k].1) as usize];
+            let n = SUB as u64;
+            for z in 0..n {
+                for y in 0..n {
+                    let mut x = 0;
+                    while x < n {
+                        let bit = |x: u64| {
+                            let i = ((z * n + y) * n + x) as usize;
+                            mask[i / 64] >> (i % 64) & 1 == 1
+                        };
+                        if !bit(x) {
+                            x += 1;
+                            continue;
+                        }
+                        let x0 = x;
+                        while x < n && bit(x) {
+                            x += 1;
+                        }
+                        let lo = DVec3::new(at(0, x0), at(1, y), at(2, z));
+                        let hi = DVec3::new(at(0, x), at(1, y + 1), at(2, z + 1));
+                        cover.fill(proj.rect(lo, hi)?);
+                    }
+                }
+            }
         }
         Some(cover)
     }

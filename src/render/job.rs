@@ -490,7 +490,9 @@ fn turntable(
     progress: &dyn Progress,
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
     let (mut set, mut total, mut per_frame) = (FileSet::new(), Stats::default(), Vec::new());
-    let cache = super::policy::cache_for(vol, &job.options);
+    // Later frames cull by the sub-blocks of the bricks earlier ones
+    // decoded (render/cull.rs).
+    let cache = super::policy::cache_for(vol, &job.options).with_occupancy();
     for f in 0..job.frames {
         if job.shard.is_some_and(|s| f % s.n != s.k) {
             continue;

@@ -314,7 +314,7 @@ fn render_tiles<T: Real>(
         .map(|(_, t)| t)
         .collect();
     let ctx = Ctx::new(&grid, h, camera, opts);
-    let cover = super::cull::Cover::of(vol, camera, opts);
+    let cover = super::cull::Cover::of(vol, cache, camera, opts);
     progress.begin("render tiles", tiles.len() as u64);
     // One tile per rayon leaf. rayon splits an indexed range adaptively:
     // a few halvings up front and more only when a thread steals, and a

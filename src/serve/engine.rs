@@ -214,7 +214,12 @@ impl<'v> Engine<'v> {
         if new_cache {
             // Free the old scene's bricks before the new ones come in.
             *slot = None;
-            *slot = Some((key, crate::render::policy::cache_for(vol, opts)));
+            // Later views cull by the sub-blocks of the bricks earlier
+            // ones decoded (render/cull.rs).
+            *slot = Some((
+                key,
+                crate::render::policy::cache_for(vol, opts).with_occupancy(),
+            ));
         }
         let Some((_, cache)) = slot.as_ref() else {
             return Err(cancelled());

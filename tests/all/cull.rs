@@ -5,7 +5,9 @@
 //! zoomed in and out, every mode that culls, and every exact traversal.
 //! The oracle is the same render with culling off, which traces every
 //! pixel's ray; a test with one small object checks that most pixels are
-//! in fact culled, so the comparison is not vacuous.
+//! in fact culled, so the comparison is not vacuous. A second frame on the
+//! same cache (a turntable's later frames) culls by the decoded bricks'
+//! sub-blocks, more finely than the index can: checked the same way.
 
 use proptest::prelude::*;
 
@@ -16,7 +18,7 @@ use cdvol::progress::NoProgress;
 use cdvol::render::camera::{Camera, Projection};
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::{Method, TGrid};
-use cdvol::render::{render, Frame, Mode, Stats};
+use cdvol::render::{render, render_in, Frame, Mode, Stats};
 
 fn tf() -> TransferFunction {
     let p = |value: f64, opacity: f64| TfPoint {
@@ -74,6 +76,30 @@ fn draw_at(
     render(vol, cam, &o, &NoProgress).unwrap_or_else(|e| panic!("{mode:?} {method:?}: {e}"))
 }
 
+/// [`draw_at`] culled, as the second frame of one cache: the first frame
+/// decodes the bricks, the second culls by their sub-blocks. Both frames'
+/// stats.
+fn draw_twice(
+    vol: &PackedVolume,
+    cam: &Camera,
+    mode: &Mode,
+    method: Method,
+    iso: Option<f64>,
+) -> (Frame, Stats, Stats) {
+    let o = cdvol::render::RenderOptions {
+        iso,
+        ..common::test_opts(mode.clone(), method)
+    };
+    let cache = cdvol::render::policy::cache_for(vol, &o).with_occupancy();
+    let run = || {
+        render_in(vol, &cache, cam, &o, &NoProgress)
+            .unwrap_or_else(|e| panic!("{mode:?} {method:?}: {e}"))
+    };
+    let (_, first) = run();
+    let (f, second) = run();
+    (f, first, second)
+}
+
 /// Culled against traced, every mode and traversal; the culled rays.
 fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
     let mut culled = None;
@@ -108,8 +134,19 @@ fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
             }
             prop_assert!(sc.steps <= st.steps);
             prop_assert!(sc.bricks_read <= st.bricks_read);
-            // The cover depends on the file and camera only.
+            // A first frame's cover depends on the file and camera only.
             prop_assert_eq!(*culled.get_or_insert(sc.rays_culled), sc.rays_culled);
+            // A second frame culls by the decoded bricks' sub-blocks: the
+            // same image, at least the rays the first frame culled.
+            let (fw, s1, s2) = draw_twice(vol, cam, &mode, method, None);
+            prop_assert!(
+                common::same_frame(&fw, &ft),
+                "{mode:?} {method:?}: second frame differs"
+            );
+            prop_assert_eq!(bits(&fw), bits(&ft), "{:?} {:?}", mode, method);
+            prop_assert_eq!(s1.rays_culled, sc.rays_culled);
+            prop_assert!(s2.rays_culled >= s1.rays_culled);
+            prop_assert_eq!(s2.hits, st.hits);
         }
     }
     // A narrowed scene (render/scene.rs) culls also the bricks whose
@@ -129,6 +166,13 @@ fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
         );
         prop_assert_eq!(sc.hits, st.hits);
         prop_assert!(sc.rays_culled >= culled.unwrap_or(0));
+        // The narrowed scene's sub-blocks are its own 1-cells'.
+        let (fw, _, s2) = draw_twice(vol, cam, &mode, method, Some(150.0));
+        prop_assert!(
+            common::same_frame(&fw, &ft),
+            "{mode:?} at 150: second frame differs"
+        );
+        prop_assert!(s2.rays_culled >= sc.rays_culled);
     }
     // The cost map traces every ray.
     let (_, s) = draw(vol, cam, &Mode::Cost, Method::Cd { min_leap: 1 }, true);
@@ -276,5 +320,15 @@ fn a_small_object_culls_most_pixels() {
         assert!(sc.hits > 0, "the object is in view");
         assert!(fc.rgb.iter().any(|&c| c > 0));
         assert!(sc.steps < st.steps, "{} against {}", sc.steps, st.steps);
+        // The second frame's cover is the object's own cells, not its
+        // brick: it culls more.
+        let (fw, s1, s2) = draw_twice(&vol, &cam, &mode, Method::Cd { min_leap: 1 }, None);
+        assert!(common::same_frame(&fw, &fc));
+        assert!(
+            s2.rays_culled > s1.rays_culled,
+            "{fov:?}: {} against {}",
+            s2.rays_culled,
+            s1.rays_culled
+        );
     }
 }

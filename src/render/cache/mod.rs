@@ -27,10 +27,12 @@ use super::samples::Samples;
 mod brick;
 mod grads;
 mod lru;
+mod occupancy;
 
 pub use brick::{block_maxima, max_pyramid, octree_levels, Codes, RBrick, BLOCK};
 pub use grads::GradPlane;
 use lru::Lru;
+pub use occupancy::{occupancy, Occupancy, SUB};
 
 /// A sample value as the renderer holds it: rounded to f32 and saturated
 /// to the finite f32 range (+-inf and values beyond it become +-f32::MAX,
@@ -211,6 +213,10 @@ pub struct BrickCache<'v> {
     /// Unique in the process: what memos of derived data (render/
     /// gradient.rs) key on, so no two caches' bricks are ever confused.
     id: u64,
+    /// With [`BrickCache::with_occupancy`], per brick which of its
+    /// sub-blocks hold a 1-cell of the scene, taken when the brick is
+    /// first decoded ([`BrickCache::occupied`]).
+    occupied: Option<Box<[std::sync::OnceLock<Occupancy>]>>,
 }
 
 /// The next [`BrickCache`]'s id.
@@ -239,7 +245,27 @@ impl<'v> BrickCache<'v> {
             planes,
             pyramid: (planes.octree && bs.is_power_of_two()).then(|| BrickPyramid::new(vol)),
             id: NEXT_CACHE_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            occupied: None,
         }
+    }
+
+    /// This cache, also taking each decoded brick's [`Occupancy`] for the
+    /// culling of later frames (render/cull.rs): for caches that serve
+    /// more than one frame (turntables, `cdvol serve`). About 4 µs a
+    /// brick with 1-cells, on its first decoding.
+    pub fn with_occupancy(mut self) -> BrickCache<'v> {
+        let n = self.vol.header().brick_count();
+        self.occupied = Some((0..n).map(|_| std::sync::OnceLock::new()).collect());
+        self
+    }
+
+    /// Which sub-blocks of brick `id` hold a 1-cell of the scene, from
+    /// its codes when it was first decoded; `None` when this cache does
+    /// not take them or has not decoded the brick. The mask is the
+    /// scene's: a brick is decoded for this cache's scene only
+    /// (narrowing, transfer-function cells).
+    pub fn occupied(&self, id: u64) -> Option<&Occupancy> {
+        self.occupied.as_ref()?.get(id as usize)?.get()
     }
 
     /// This cache, also building the octree ([`Planes::octree`]).
@@ -304,6 +330,15 @@ impl<'v> BrickCache<'v> {
         })?;
         if inserted && !lazy {
             c.bricks_read += 1;
+            // Once per brick with 1-cells, whichever frame decodes it
+            // (an evicted brick keeps its mask): the bricks a frame knows
+            // are those earlier frames' rays entered, whatever the
+            // threads and the budget.
+            if let Some(slot) = self.occupied.as_ref().and_then(|o| o.get(id as usize)) {
+                if !e.has_no_object() {
+                    slot.get_or_init(|| occupancy(&b, self.vol.header().brick_size));
+                }
+            }
         }
         Ok(b)
     }
