@@ -48,7 +48,7 @@ pub fn occupancy(b: &RBrick, brick_size: u32) -> Occupancy {
             }
             let base = (zb * SUB as usize + yb) * SUB as usize;
             for (xb, seg) in top.chunks(e).enumerate() {
-                if seg.iter().any(|&c| c == OBJECT) {
+                if seg.contains(&OBJECT) {
                     let bit = base + xb;
                     mask[bit / 64] |= 1 << (bit % 64);
                 }
