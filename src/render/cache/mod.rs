@@ -251,8 +251,10 @@ impl<'v> BrickCache<'v> {
 
     /// This cache, also taking each decoded brick's [`Occupancy`] for the
     /// culling of later frames (render/cull.rs): for caches that serve
-    /// more than one frame (turntables, `cdvol serve`). About 4 µs a
-    /// brick with 1-cells, on its first decoding.
+    /// more than one frame (turntables, `cdvol serve`). It scans each
+    /// brick with 1-cells once, on its first decoding: about 60,000
+    /// instructions a 32^3 brick (docs/BENCHMARKS.md, "Later frames cull
+    /// by sub-blocks").
     pub fn with_occupancy(mut self) -> BrickCache<'v> {
         let n = self.vol.header().brick_count();
         self.occupied = Some((0..n).map(|_| std::sync::OnceLock::new()).collect());
