@@ -708,5 +708,25 @@ thread_local! {
 }
 
 #[cfg(test)]
+impl RBrick {
+    /// A brick of `cells` at `first` with these codes and values and no
+    /// other plane, for unit tests of what reads bricks.
+    pub(crate) fn bare(first: [u32; 3], cells: [u32; 3], codes: Codes, values: Samples) -> RBrick {
+        RBrick {
+            first,
+            cells,
+            codes,
+            values,
+            octants: Vec::new(),
+            levels: Vec::new(),
+            bytes: 0,
+            dda: [Vec::new(), Vec::new()],
+            block_max: Vec::new(),
+            grads: GradPlane::EMPTY,
+        }
+    }
+}
+
+#[cfg(test)]
 #[path = "brick_tests.rs"]
 mod tests;

@@ -25,18 +25,7 @@ fn tf() -> TransferFunction {
 }
 
 fn brick(first: [u32; 3], cells: [u32; 3], values: Samples, codes: Vec<u8>) -> RBrick {
-    RBrick {
-        first,
-        cells,
-        codes: Codes::Plane(codes),
-        values,
-        octants: Vec::new(),
-        levels: Vec::new(),
-        bytes: 0,
-        dda: [Vec::new(), Vec::new()],
-        block_max: Vec::new(),
-        grads: GradPlane::EMPTY,
-    }
+    RBrick::bare(first, cells, Codes::Plane(codes), values)
 }
 
 /// A brick of `cells` at `first` with random whole values below 200
