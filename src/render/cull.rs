@@ -99,12 +99,12 @@ impl Cover {
             let n = SUB as u64;
             for z in 0..n {
                 for y in 0..n {
+                    let bit = |x: u64| {
+                        let i = ((z * n + y) * n + x) as usize;
+                        mask[i / 64] >> (i % 64) & 1 == 1
+                    };
                     let mut x = 0;
                     while x < n {
-                        let bit = |x: u64| {
-                            let i = ((z * n + y) * n + x) as usize;
-                            mask[i / 64] >> (i % 64) & 1 == 1
-                        };
                         if !bit(x) {
                             x += 1;
                             continue;

@@ -707,11 +707,15 @@ thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
-#[cfg(test)]
 impl RBrick {
     /// A brick of `cells` at `first` with these codes and values and no
-    /// other plane, for unit tests of what reads bricks.
-    pub(crate) fn bare(first: [u32; 3], cells: [u32; 3], codes: Codes, values: Samples) -> RBrick {
+    /// other plane (the accessor's stand-in after an error; unit tests).
+    pub(crate) const fn bare(
+        first: [u32; 3],
+        cells: [u32; 3],
+        codes: Codes,
+        values: Samples,
+    ) -> RBrick {
         RBrick {
             first,
             cells,

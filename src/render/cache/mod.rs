@@ -672,15 +672,4 @@ impl Accessor<'_, '_> {
     }
 }
 
-static EMPTY: RBrick = RBrick {
-    first: [0; 3],
-    cells: [1; 3],
-    codes: Codes::Uniform(0),
-    values: Samples::Empty,
-    octants: Vec::new(),
-    levels: Vec::new(),
-    bytes: 0,
-    dda: [Vec::new(), Vec::new()],
-    block_max: Vec::new(),
-    grads: GradPlane::EMPTY,
-};
+static EMPTY: RBrick = RBrick::bare([0; 3], [1; 3], Codes::Uniform(0), Samples::Empty);
