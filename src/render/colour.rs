@@ -93,14 +93,28 @@ pub fn auto_window(mut v: Vec<f32>) -> [f64; 2] {
     }
 }
 
-/// A rectangle of an image's pixels before colouring: rows of `w` pixels
-/// whose first pixel is at `(x0, y0)` (a tile, or a whole image).
+/// A rectangle of an image's pixels before colouring: `h` rows of `w`
+/// pixels whose first pixel is at `(x0, y0)` (a tile, or a whole image).
+/// `pixels` holds them row by row, or is empty when every one is
+/// [`Px::MISS`] (a tile the cover leaves out whole,
+/// [`TilePx`](super::TilePx)).
 #[derive(Clone, Copy)]
 pub(crate) struct PxBlock<'a> {
     pub(crate) x0: u32,
     pub(crate) y0: u32,
     pub(crate) w: u32,
+    pub(crate) h: u32,
     pub(crate) pixels: &'a [Px],
+}
+
+impl PxBlock<'_> {
+    /// Pixels left out of `pixels` as misses.
+    fn misses(&self) -> usize {
+        match self.pixels.is_empty() {
+            true => self.w as usize * self.h as usize,
+            false => 0,
+        }
+    }
 }
 
 /// What colouring a pixel needs from the whole image.
@@ -125,10 +139,15 @@ impl<'a> Rows<'a> {
     fn new(w: u32, blocks: &[PxBlock<'a>]) -> Rows<'a> {
         debug_assert!(
             blocks.iter().all(|b| b.w == 0
-                || (b.pixels.len() % b.w as usize == 0 && b.x0 as u64 + b.w as u64 <= w as u64)),
+                || ((b.pixels.is_empty() || b.pixels.len() == b.w as usize * b.h as usize)
+                    && b.x0 as u64 + b.w as u64 <= w as u64)),
             "blocks must hold whole rows inside the image"
         );
-        let mut blocks: Vec<PxBlock> = blocks.iter().copied().filter(|b| b.w > 0).collect();
+        let mut blocks: Vec<PxBlock> = blocks
+            .iter()
+            .copied()
+            .filter(|b| b.w > 0 && b.h > 0)
+            .collect();
         blocks.sort_by_key(|b| (b.y0, b.x0));
         let mut bands: Vec<(u32, std::ops::Range<usize>)> = Vec::new();
         for (i, b) in blocks.iter().enumerate() {
@@ -145,7 +164,7 @@ impl<'a> Rows<'a> {
     fn has_gaps(&self, h: u32) -> bool {
         let mut covered = 0u64;
         for b in &self.blocks {
-            let rows = (b.pixels.len() / b.w as usize) as u64;
+            let rows = b.h as u64;
             let cols = (b.x0.saturating_add(b.w)).min(self.w).saturating_sub(b.x0) as u64;
             covered += rows.min(h.saturating_sub(b.y0) as u64) * cols;
         }
@@ -153,9 +172,10 @@ impl<'a> Rows<'a> {
     }
 
     /// Calls `f(x, pixel)` for every pixel of row `y`, left to right
-    /// ([`Px::default`] where no block covers it).
+    /// ([`Px::default`] where no block covers it), but for the misses of
+    /// blocks without pixels when `skip_left_out`.
     #[inline]
-    fn each(&self, y: u32, mut f: impl FnMut(usize, &Px)) {
+    fn each(&self, y: u32, skip_left_out: bool, mut f: impl FnMut(usize, &Px)) {
         let empty = Px::default();
         let mut x = 0u32;
         let band = self.bands.partition_point(|(y0, _)| *y0 <= y);
@@ -164,19 +184,25 @@ impl<'a> Rows<'a> {
             let ly = (y - y0) as usize;
             for b in &self.blocks[r.clone()] {
                 let bw = b.w as usize;
-                let Some(row) = b.pixels.get(ly * bw..(ly + 1) * bw) else {
+                if ly >= b.h as usize {
                     continue;
+                }
+                let row = match b.pixels.is_empty() {
+                    true => None,
+                    false => match b.pixels.get(ly * bw..(ly + 1) * bw) {
+                        Some(row) => Some(row),
+                        None => continue,
+                    },
                 };
                 while x < b.x0.min(self.w) {
                     f(x as usize, &empty);
                     x += 1;
                 }
-                for (lx, p) in row.iter().enumerate() {
-                    let px = b.x0 as usize + lx;
-                    if px >= self.w as usize {
-                        break;
-                    }
-                    f(px, p);
+                let xs = b.x0 as usize..(b.x0 as usize + bw).min(self.w as usize);
+                match row {
+                    Some(row) => xs.zip(row).for_each(|(px, p)| f(px, p)),
+                    None if skip_left_out => {}
+                    None => xs.for_each(|px| f(px, &Px::MISS)),
                 }
                 x = x.max(b.x0.saturating_add(b.w).min(self.w));
             }
@@ -194,6 +220,11 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px], unrounded: boo
         x0: 0,
         y0: 0,
         w,
+        h: if w == 0 {
+            0
+        } else {
+            (px.len() / w as usize) as u32
+        },
         pixels: px,
     };
     colour_blocks(kind, w, h, &[whole], unrounded)
@@ -225,12 +256,14 @@ pub(crate) fn colour_blocks(
     use rayon::prelude::*;
     let rows = Rows::new(w, blocks);
     let gaps = rows.has_gaps(h);
+    let left_out: usize = rows.blocks.iter().map(PxBlock::misses).sum();
     let empty = Px::default();
     let all = || {
         rows.blocks
             .par_iter()
             .flat_map_iter(|b| b.pixels.iter())
             .chain(rayon::iter::repeat_n(&empty, gaps as usize))
+            .chain(rayon::iter::repeat_n(&Px::MISS, left_out))
     };
     let scale = match kind {
         Colouring::Rgb => Scale::Rgb,
@@ -278,7 +311,7 @@ pub(crate) fn colour_blocks(
                alpha: &mut [u8],
                steps: &mut [u32],
                mut linear: Option<&mut [f32]>| {
-        rows.each(y as u32, |x, p| {
+        rows.each(y as u32, skip_misses, |x, p| {
             if skip_misses && p.is_miss() {
                 return;
             }
@@ -315,7 +348,7 @@ pub(crate) fn colour_blocks(
         if wu > 0 {
             v.par_chunks_mut(wu)
                 .enumerate()
-                .for_each(|(y, row)| rows.each(y as u32, |x, p| row[x] = f(p)));
+                .for_each(|(y, row)| rows.each(y as u32, false, |x, p| row[x] = f(p)));
         }
         v
     };
@@ -648,11 +681,13 @@ mod tests {
             ts in 1u32..12,
             pool in proptest::collection::vec(pixel(), 64),
             keep in proptest::collection::vec(prop::bool::weighted(0.9), 64),
+            left_out in proptest::collection::vec(prop::bool::weighted(0.2), 64),
             seed in any::<u64>(),
             window in prop_oneof![Just(None), (-2.0f64..2.0, 0.0f64..3.0).prop_map(|(l, d)| Some([l, l + d]))],
         ) {
-            // Tiles of `ts` (clipped at the edges), some missing; pixels
-            // drawn from `pool` so values repeat (ties in the window).
+            // Tiles of `ts` (clipped at the edges), some missing, some
+            // left out (all misses, no pixels); pixels drawn from `pool`
+            // so values repeat (ties in the window).
             let mut tiles = Vec::new();
             let mut k = seed;
             for (i, (ty, tx)) in (0..h.div_ceil(ts))
@@ -664,18 +699,21 @@ mod tests {
                 }
                 let (x0, y0) = (tx * ts, ty * ts);
                 let (tw, th) = (ts.min(w - x0), ts.min(h - y0));
-                let pixels = (0..tw * th)
-                    .map(|_| {
-                        k = k.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                        pool[(k >> 33) as usize % pool.len()]
-                    })
-                    .collect();
-                tiles.push(crate::render::TilePx { x0, y0, w: tw, pixels });
+                let pixels = match left_out[(i * 7) % left_out.len()] {
+                    true => Vec::new(),
+                    false => (0..tw * th)
+                        .map(|_| {
+                            k = k.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                            pool[(k >> 33) as usize % pool.len()]
+                        })
+                        .collect(),
+                };
+                tiles.push(crate::render::TilePx { x0, y0, w: tw, h: th, pixels });
             }
             // The old placement: default pixels, tiles copied in.
             let mut px = vec![Px::default(); (w * h) as usize];
             for t in &tiles {
-                for (i, p) in t.pixels.iter().enumerate() {
+                for (i, p) in t.px().enumerate() {
                     let (lx, ly) = (i as u32 % t.w, i as u32 / t.w);
                     px[((t.y0 + ly) * w + t.x0 + lx) as usize] = *p;
                 }
@@ -683,7 +721,7 @@ mod tests {
             // Blocks in a scrambled order: the colouring must not depend on it.
             let mut blocks: Vec<PxBlock> = tiles
                 .iter()
-                .map(|t| PxBlock { x0: t.x0, y0: t.y0, w: t.w, pixels: &t.pixels })
+                .map(|t| PxBlock { x0: t.x0, y0: t.y0, w: t.w, h: t.h, pixels: &t.pixels })
                 .collect();
             blocks.reverse();
             for kind in [

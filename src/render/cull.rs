@@ -130,6 +130,27 @@ impl Cover {
         self.bits[i] >> (x % 64) & 1 == 1
     }
 
+    /// Whether some pixel of the `w` x `h` rectangle at `(x0, y0)` (inside
+    /// the image) is covered: a tile none of whose pixels is covered is a
+    /// miss as a whole.
+    pub(crate) fn any_in(&self, x0: u32, y0: u32, w: u32, h: u32) -> bool {
+        if w == 0 {
+            return false;
+        }
+        let (w0, w1, first, last) = row_words(x0, x0 + w - 1);
+        (y0..y0 + h).any(|y| {
+            let row = &self.bits[y as usize * self.stride..][..self.stride];
+            match w0 == w1 {
+                true => row[w0] & first & last != 0,
+                false => {
+                    row[w0] & first != 0
+                        || row[w0 + 1..w1].iter().any(|&x| x != 0)
+                        || row[w1] & last != 0
+                }
+            }
+        })
+    }
+
     /// Pixels covered.
     #[cfg(test)]
     fn count(&self) -> u64 {
@@ -142,11 +163,9 @@ impl Cover {
             return;
         };
         debug_assert!(x1 < self.width);
+        let (w0, w1, first, last) = row_words(x0, x1);
         for y in y0..=y1 {
             let row = &mut self.bits[y as usize * self.stride..][..self.stride];
-            let (w0, w1) = ((x0 / 64) as usize, (x1 / 64) as usize);
-            let first = !0u64 << (x0 % 64);
-            let last = !0u64 >> (63 - x1 % 64);
             if w0 == w1 {
                 row[w0] |= first & last;
             } else {
@@ -158,6 +177,13 @@ impl Cover {
             }
         }
     }
+}
+
+/// The words of a row that hold pixels `x0..=x1`, and the masks of those
+/// pixels in the first and the last of them.
+fn row_words(x0: u32, x1: u32) -> (usize, usize, u64, u64) {
+    let (w0, w1) = ((x0 / 64) as usize, (x1 / 64) as usize);
+    (w0, w1, !0u64 << (x0 % 64), !0u64 >> (63 - x1 % 64))
 }
 
 /// A point's pixel position under a camera: the inverse of
@@ -279,6 +305,30 @@ mod tests {
                     }
                 }
                 assert_eq!(c.count(), 3 * (x1 - x0 + 1) as u64);
+                // Every rectangle: covered somewhere exactly when it
+                // meets the filled one.
+                for (rx0, rw) in [
+                    (0u32, 1u32),
+                    (0, 150),
+                    (x0, 1),
+                    (x1, 1),
+                    (63, 2),
+                    (64, 64),
+                    (x1 + 1, 149 - x1),
+                ] {
+                    for (ry0, rh) in [(0u32, 1u32), (0, 5), (1, 1), (3, 2), (4, 1)] {
+                        let want =
+                            (rw > 0 && rx0 <= x1 && x0 < rx0 + rw) && (ry0 <= 3 && 1 < ry0 + rh);
+                        let brute =
+                            (ry0..ry0 + rh).any(|y| (rx0..rx0 + rw).any(|x| c.covered(x, y)));
+                        assert_eq!(
+                            c.any_in(rx0, ry0, rw, rh),
+                            want,
+                            "{x0}..={x1}: {rx0}+{rw}, {ry0}+{rh}"
+                        );
+                        assert_eq!(brute, want);
+                    }
+                }
             }
         }
     }

@@ -342,11 +342,7 @@ impl Part {
             key: self.key.clone(),
             shard: self.shard,
             stats: self.stats.clone(),
-            tiles: self
-                .tiles
-                .iter()
-                .map(|t| [t.x0, t.y0, t.w, t.pixels.len() as u32 / t.w.max(1)])
-                .collect(),
+            tiles: self.tiles.iter().map(|t| [t.x0, t.y0, t.w, t.h]).collect(),
         };
         let json = serde_json::to_vec(&header).map_err(|source| PartError::Header {
             path: path.to_path_buf(),
@@ -357,7 +353,7 @@ impl Part {
         b.extend_from_slice(&(json.len() as u64).to_le_bytes());
         b.extend_from_slice(&json);
         for t in &self.tiles {
-            for p in &t.pixels {
+            for p in t.px() {
                 for c in p.rgb {
                     b.extend_from_slice(&c.to_le_bytes());
                 }
@@ -439,7 +435,13 @@ impl Part {
                 })
                 .collect();
             rest = &rest[n * PX_BYTES..];
-            tiles.push(TilePx { x0, y0, w, pixels });
+            tiles.push(TilePx {
+                x0,
+                y0,
+                w,
+                h: th,
+                pixels,
+            });
         }
         if !rest.is_empty() {
             return Err(PartError::Trailing {
@@ -552,7 +554,7 @@ pub fn assemble(parts: &[Part], names: &[PathBuf]) -> Result<(Frame, Stats), Ass
     let mut tiles = Vec::new();
     for (i, p) in parts.iter().enumerate() {
         for t in &p.tiles {
-            let th = t.pixels.len() as u32 / t.w.max(1);
+            let th = t.h;
             let aligned = t.x0 % ts == 0
                 && t.y0 % ts == 0
                 && t.w == ts.min(key.width - t.x0)

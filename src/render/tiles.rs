@@ -155,12 +155,13 @@ fn render_shard_until(
         cc.add(&r.cache);
         hits += r.hits;
         culled += r.culled;
-        rays += r.pixels.len() as u64;
+        rays += r.w as u64 * r.h as u64;
         times.push(r.time);
         tiles.push(TilePx {
             x0: r.x0,
             y0: r.y0,
             w: r.w,
+            h: r.h,
             pixels: r.pixels,
         });
     }
@@ -248,7 +249,26 @@ pub struct TilePx {
     pub x0: u32,
     pub y0: u32,
     pub w: u32,
+    /// Rows.
+    pub h: u32,
+    /// The `w * h` pixels row by row, or none when every pixel is a miss
+    /// ([`Px::MISS`]): a tile the cover leaves out whole (render/cull.rs)
+    /// is neither written nor coloured pixel by pixel.
     pub(crate) pixels: Vec<Px>,
+}
+
+impl TilePx {
+    /// The `w * h` pixels row by row, a left-out tile's as misses.
+    pub(crate) fn px(&self) -> impl Iterator<Item = &Px> {
+        let missing = if self.pixels.is_empty() {
+            self.w as usize * self.h as usize
+        } else {
+            0
+        };
+        self.pixels
+            .iter()
+            .chain(std::iter::repeat_n(&Px::MISS, missing))
+    }
 }
 
 /// Colours the tiles as one `w` x `h` image; `stats` are the summed
@@ -276,6 +296,7 @@ pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
                 x0: t.x0,
                 y0: t.y0,
                 w: t.w,
+                h: t.h,
                 pixels: &t.pixels,
             }
         })
@@ -359,6 +380,8 @@ struct TileOut {
     x0: u32,
     y0: u32,
     w: u32,
+    h: u32,
+    /// As [`TilePx::pixels`]: none when the cover leaves the tile out.
     pixels: Vec<Px>,
     steps: StepCounts,
     cache: CacheCounters,
@@ -376,6 +399,7 @@ impl TileOut {
             x0,
             y0,
             w: 1,
+            h: 0,
             pixels: Vec::new(),
             steps: StepCounts::default(),
             cache: CacheCounters::default(),
@@ -389,7 +413,8 @@ impl TileOut {
 
 /// Renders the tile at `(x0, y0)`, at most `ts` pixels square, with one
 /// accessor in front of the shared cache; a pixel `cover` leaves out is a
-/// miss without a ray (render/cull.rs).
+/// miss without a ray (render/cull.rs), and a tile it leaves out whole
+/// has no pixels to write.
 fn render_tile<T: Real>(
     ctx: &Ctx<T>,
     cover: Option<&Cover>,
@@ -401,6 +426,14 @@ fn render_tile<T: Real>(
     let cam = ctx.camera;
     let w = ts.min(cam.width - x0);
     let hh = ts.min(cam.height - y0);
+    if cover.is_some_and(|c| !c.any_in(x0, y0, w, hh)) {
+        return TileOut {
+            w,
+            h: hh,
+            culled: w as u64 * hh as u64,
+            ..TileOut::skipped(x0, y0)
+        };
+    }
     let policy = super::policy::brick_policy(ctx.opts.method, ctx.opts.cd_lazy_min);
     let mut acc = Accessor::for_policy(cache, &policy);
     acc.remember_gradients(ctx.memo_gradients);
@@ -430,6 +463,7 @@ fn render_tile<T: Real>(
         x0,
         y0,
         w,
+        h: hh,
         pixels,
         steps,
         cache: acc.counters,

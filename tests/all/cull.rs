@@ -76,6 +76,21 @@ fn draw_at(
     render(vol, cam, &o, &NoProgress).unwrap_or_else(|e| panic!("{mode:?} {method:?}: {e}"))
 }
 
+/// [`draw`] culled, in tiles of `tile` pixels.
+fn draw_tiled(
+    vol: &PackedVolume,
+    cam: &Camera,
+    mode: &Mode,
+    method: Method,
+    tile: u32,
+) -> (Frame, Stats) {
+    let o = cdvol::render::RenderOptions {
+        tile,
+        ..common::test_opts(mode.clone(), method)
+    };
+    render(vol, cam, &o, &NoProgress).unwrap_or_else(|e| panic!("{mode:?} {method:?}: {e}"))
+}
+
 /// [`draw_at`] culled, as the second frame of one cache: the first frame
 /// decodes the bricks, the second culls by their sub-blocks. Both frames'
 /// stats.
@@ -134,6 +149,25 @@ fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
             }
             prop_assert!(sc.steps <= st.steps);
             prop_assert!(sc.bricks_read <= st.bricks_read);
+            // Small tiles: many wholly culled, drawn without pixels; the
+            // same frame, planes and counts.
+            for tile in [1, 3] {
+                let (fs, ss) = draw_tiled(vol, cam, &mode, method, tile);
+                prop_assert!(
+                    common::same_frame(&fs, &ft),
+                    "{:?} {:?} tile {}",
+                    mode,
+                    method,
+                    tile
+                );
+                prop_assert_eq!(&fs.alpha, &ft.alpha);
+                prop_assert_eq!(&fs.steps, &fc.steps);
+                prop_assert_eq!(bits(&fs), bits(&ft));
+                prop_assert_eq!(
+                    (ss.rays, ss.rays_culled, ss.hits),
+                    (sc.rays, sc.rays_culled, sc.hits)
+                );
+            }
             // A first frame's cover depends on the file and camera only.
             prop_assert_eq!(*culled.get_or_insert(sc.rays_culled), sc.rays_culled);
             // A second frame culls by the decoded bricks' sub-blocks: the

@@ -127,8 +127,13 @@ fn assembled_parts_equal_the_single_render_in_every_mode() {
     for (view, persp) in [([30.0, 20.0], false), ([-100.0, -35.0], true)] {
         // 50x37 with 16-pixel tiles: ragged edge tiles on both axes.
         let cam = orbit(&vol, view, persp.then_some(40.0), 50, 37);
-        for mode in modes(iso) {
-            let opts = options(mode.clone(), 16);
+        // Tiles of 4 as well: many wholly culled, drawn without pixels
+        // (written to the parts as misses).
+        for (mode, tile) in modes(iso)
+            .into_iter()
+            .flat_map(|m| [(m.clone(), 16), (m, 4)])
+        {
+            let opts = options(mode.clone(), tile);
             let (want, ws) = render(&vol, &cam, &opts, &NoProgress).unwrap();
             // More shards than the 12 tiles leaves some parts empty.
             for n in [1, 2, 3, 5, 16] {
@@ -136,7 +141,7 @@ fn assembled_parts_equal_the_single_render_in_every_mode() {
                     let (got, gs) = sharded(&vol, &cam, &opts, n, layout, dir.path()).unwrap();
                     assert!(
                         same_frame(&got, &want),
-                        "{mode:?} view {view:?}: N = {n} {layout:?} differs"
+                        "{mode:?} view {view:?} tile {tile}: N = {n} {layout:?} differs"
                     );
                     assert_counters_equal(&gs, &ws);
                 }
