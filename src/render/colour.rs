@@ -44,6 +44,18 @@ impl Colouring {
             Mode::Depth { .. } => Colouring::Depth,
         }
     }
+
+    /// The scale when it does not depend on the image: colours as they
+    /// are, or a MIP's given window ([`Planes`](super::canvas::Planes)).
+    pub(super) fn fixed_scale(&self) -> Option<Scale> {
+        match *self {
+            Colouring::Rgb => Some(Scale::Rgb),
+            Colouring::Mip {
+                window: Some([lo, hi]),
+            } => Some(Scale::Mip { lo, hi }),
+            Colouring::Mip { window: None } | Colouring::Cost | Colouring::Depth => None,
+        }
+    }
 }
 
 /// The file's rescaled raw range ([`Window::Full`]).
@@ -119,7 +131,7 @@ impl PxBlock<'_> {
 
 /// What colouring a pixel needs from the whole image.
 #[derive(Clone, Copy)]
-enum Scale {
+pub(super) enum Scale {
     Rgb,
     Mip { lo: f64, hi: f64 },
     Cost { max: f32 },
@@ -315,15 +327,7 @@ pub(crate) fn colour_blocks(
             if skip_misses && p.is_miss() {
                 return;
             }
-            let c = colour_px(scale, p);
-            if let Some(l) = linear.as_deref_mut() {
-                l[4 * x..4 * x + 4].copy_from_slice(&c);
-            }
-            for k in 0..3 {
-                rgb[3 * x + k] = to8(c[k]);
-            }
-            alpha[x] = to8(c[3]);
-            steps[x] = p.steps;
+            put(scale, p, x, rgb, alpha, steps, linear.as_deref_mut());
         });
     };
     if wu > 0 {
@@ -371,6 +375,31 @@ pub(crate) fn colour_blocks(
         values,
         steps,
     }
+}
+
+/// Writes pixel `p`, coloured by `scale`, at `x` of the planes (and of
+/// `linear` when kept): where a pixel becomes bytes, for
+/// [`colour_blocks`] and for tiles that colour their own pixels
+/// ([`Canvas`](super::canvas::Canvas)).
+#[inline]
+pub(super) fn put(
+    scale: Scale,
+    p: &Px,
+    x: usize,
+    rgb: &mut [u8],
+    alpha: &mut [u8],
+    steps: &mut [u32],
+    linear: Option<&mut [f32]>,
+) {
+    let c = colour_px(scale, p);
+    if let Some(l) = linear {
+        l[4 * x..4 * x + 4].copy_from_slice(&c);
+    }
+    for k in 0..3 {
+        rgb[3 * x + k] = to8(c[k]);
+    }
+    alpha[x] = to8(c[3]);
+    steps[x] = p.steps;
 }
 
 /// One pixel's colour and coverage in [0, 1] (NaN colour channels as 0).

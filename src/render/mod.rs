@@ -29,6 +29,7 @@
 
 pub mod cache;
 pub mod camera;
+mod canvas;
 mod clock;
 mod colour;
 mod cull;

@@ -4,7 +4,10 @@
 //! one rayon task with its own [`Accessor`] in front of the shared
 //! [`BrickCache`], and each pixel is computed on its own (integrate/), so
 //! the output is the same whatever the thread count, tile size or cache
-//! budget. Tiles are then placed and coloured (output.rs).
+//! budget. Each tile colours its pixels as it finishes when the colours
+//! do not depend on the whole image (canvas.rs); otherwise, and for the
+//! parts of a sharded render, the tiles are placed and coloured together
+//! (colour.rs).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -13,6 +16,7 @@ use rayon::prelude::*;
 
 use super::cache::{Accessor, BrickCache, CacheCounters};
 use super::camera::Camera;
+use super::canvas::{Canvas, Planes};
 use super::clock::{self, Clock, KernelUse, TileTime};
 use super::colour::{colour_blocks, Colouring, PxBlock};
 use super::cull::Cover;
@@ -54,27 +58,52 @@ pub fn render_in(
     opts: &RenderOptions,
     progress: &dyn Progress,
 ) -> Result<(Frame, Stats), RenderError> {
-    let (t0, k0) = (Instant::now(), KernelUse::now());
-    let (tiles, stats) = render_shard(vol, cache, camera, opts, Shard::WHOLE, progress)?;
-    Ok(whole_frame(vol, camera, opts, tiles, stats, (t0, k0)))
+    let done = render_whole(vol, cache, camera, opts, progress, None)?;
+    Ok(done.expect("a render without a stop flag is never stopped"))
 }
 
-/// The frame of a whole render's tiles, coloured ([`finish`]), with the
-/// render's time and kernel use since `start`.
-fn whole_frame(
+/// A whole render's frame and counters, with the render's time and kernel
+/// use; `None` when `stop` was set. The tiles colour their own pixels
+/// when the colouring allows it ([`Planes`]); otherwise they are coloured
+/// together ([`finish`]).
+fn render_whole(
     vol: &PackedVolume,
+    cache: &BrickCache,
     camera: &Camera,
     opts: &RenderOptions,
-    tiles: Vec<TilePx>,
-    stats: Stats,
-    (t0, k0): (Instant, KernelUse),
-) -> (Frame, Stats) {
+    progress: &dyn Progress,
+    stop: Option<&AtomicBool>,
+) -> Result<Option<(Frame, Stats)>, RenderError> {
+    let (t0, k0) = (Instant::now(), KernelUse::now());
+    check_shard(vol, camera, opts, Shard::WHOLE)?;
     let colouring = Colouring::of(vol, opts);
     let (w, h) = (camera.width, camera.height);
-    let (frame, mut stats) = finish(&colouring, w, h, tiles, stats, opts.unrounded);
+    let mut planes = Planes::new(&colouring, w, h, opts.unrounded);
+    let canvas = planes.as_mut().map(|p| p.canvas(opts.tile));
+    let tiles = render_checked(
+        vol,
+        cache,
+        camera,
+        opts,
+        Shard::WHOLE,
+        progress,
+        stop,
+        canvas.as_ref(),
+    );
+    drop(canvas);
+    let (tiles, stats) = tiles?;
+    if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+        return Ok(None);
+    }
+    let (frame, mut stats) = match planes {
+        // The tiles' pixels are in the planes already.
+        Some(p) => (p.into_frame(), stats),
+        None => finish(&colouring, w, h, tiles, stats, opts.unrounded),
+    };
+    stats.rays = w as u64 * h as u64;
     stats.seconds_total = t0.elapsed().as_secs_f64();
     stats.set_kernel(k0);
-    (frame, stats)
+    Ok(Some((frame, stats)))
 }
 
 /// [`render_in`] that gives up when `stop` is set: tiles not yet started
@@ -90,13 +119,7 @@ pub fn render_in_until(
     progress: &dyn Progress,
     stop: &AtomicBool,
 ) -> Result<Option<(Frame, Stats)>, RenderError> {
-    let (t0, k0) = (Instant::now(), KernelUse::now());
-    let (tiles, stats) =
-        render_shard_until(vol, cache, camera, opts, Shard::WHOLE, progress, Some(stop))?;
-    if stop.load(Ordering::Relaxed) {
-        return Ok(None);
-    }
-    Ok(Some(whole_frame(vol, camera, opts, tiles, stats, (t0, k0))))
+    render_whole(vol, cache, camera, opts, progress, Some(stop))
 }
 
 /// Renders the tiles of `shard` after checking the options: their pixels
@@ -111,20 +134,17 @@ pub(crate) fn render_shard(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<(Vec<TilePx>, Stats), RenderError> {
-    render_shard_until(vol, cache, camera, opts, shard, progress, None)
+    check_shard(vol, camera, opts, shard)?;
+    render_checked(vol, cache, camera, opts, shard, progress, None, None)
 }
 
-/// [`render_shard`], skipping the tiles not yet started once `stop` is set.
-fn render_shard_until(
+/// Checks the options ([`check_render`]) and the shard.
+fn check_shard(
     vol: &PackedVolume,
-    cache: &BrickCache,
     camera: &Camera,
     opts: &RenderOptions,
     shard: Shard,
-    progress: &dyn Progress,
-    stop: Option<&AtomicBool>,
-) -> Result<(Vec<TilePx>, Stats), RenderError> {
-    let (t0, k0) = (Instant::now(), KernelUse::now());
+) -> Result<(), RenderError> {
     check_render(vol, camera, opts)?;
     if shard.n == 0 || shard.k >= shard.n {
         return Err(RenderError::Option {
@@ -133,10 +153,32 @@ fn render_shard_until(
             expected: "K/N with 0 <= K < N".into(),
         });
     }
+    Ok(())
+}
+
+/// [`render_shard`] after [`check_shard`], skipping the tiles not yet
+/// started once `stop` is set. With a `canvas` each tile colours its
+/// pixels into it and returns none.
+#[allow(clippy::too_many_arguments)]
+fn render_checked(
+    vol: &PackedVolume,
+    cache: &BrickCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+    stop: Option<&AtomicBool>,
+    canvas: Option<&Canvas>,
+) -> Result<(Vec<TilePx>, Stats), RenderError> {
+    let (t0, k0) = (Instant::now(), KernelUse::now());
     let (w, hgt) = (camera.width, camera.height);
     let results = match opts.precision {
-        Precision::F64 => render_tiles::<f64>(vol, cache, camera, opts, shard, progress, stop),
-        Precision::F32 => render_tiles::<f32>(vol, cache, camera, opts, shard, progress, stop),
+        Precision::F64 => {
+            render_tiles::<f64>(vol, cache, camera, opts, shard, progress, stop, canvas)
+        }
+        Precision::F32 => {
+            render_tiles::<f32>(vol, cache, camera, opts, shard, progress, stop, canvas)
+        }
     };
 
     // Merge counters; keep the tiles' pixels for colouring.
@@ -306,7 +348,9 @@ pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
     (frame, stats)
 }
 
-/// Renders the tiles of `shard` in the traversal arithmetic `T`.
+/// Renders the tiles of `shard` in the traversal arithmetic `T` (into
+/// `canvas` when given).
+#[allow(clippy::too_many_arguments)]
 fn render_tiles<T: Real>(
     vol: &PackedVolume,
     cache: &BrickCache,
@@ -315,6 +359,7 @@ fn render_tiles<T: Real>(
     shard: Shard,
     progress: &dyn Progress,
     stop: Option<&AtomicBool>,
+    canvas: Option<&Canvas>,
 ) -> Vec<TileOut> {
     let h = vol.header();
     let grid = TGrid::<T>::new(&h.axes);
@@ -353,7 +398,7 @@ fn render_tiles<T: Real>(
             if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
                 return TileOut::skipped(tx * ts, ty * ts);
             }
-            let r = render_tile(&ctx, cover.as_ref(), cache, tx * ts, ty * ts, ts);
+            let r = render_tile(&ctx, cover.as_ref(), canvas, cache, tx * ts, ty * ts, ts);
             progress.advance(1);
             r
         })
@@ -414,10 +459,12 @@ impl TileOut {
 /// Renders the tile at `(x0, y0)`, at most `ts` pixels square, with one
 /// accessor in front of the shared cache; a pixel `cover` leaves out is a
 /// miss without a ray (render/cull.rs), and a tile it leaves out whole
-/// has no pixels to write.
+/// has no pixels to write. With a `canvas` the tile colours its pixels
+/// into it and returns none.
 fn render_tile<T: Real>(
     ctx: &Ctx<T>,
     cover: Option<&Cover>,
+    canvas: Option<&Canvas>,
     cache: &BrickCache,
     x0: u32,
     y0: u32,
@@ -457,6 +504,10 @@ fn render_tile<T: Real>(
             hits += p.hit as u64;
             pixels.push(p);
         }
+    }
+    if let Some(c) = canvas {
+        c.paint(x0, y0, w, &pixels);
+        pixels = Vec::new();
     }
     TileOut {
         time: clock.stop(),

@@ -16,7 +16,9 @@ use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::shard::{assemble, Part};
 use cdvol::render::traverse::Method;
-use cdvol::render::{render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats};
+use cdvol::render::{
+    render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats, Window,
+};
 use cdvol::tools::phantom;
 use proptest::prelude::*;
 
@@ -111,6 +113,22 @@ fn sharded(
     assemble(&parts, &names).map_err(|e| e.to_string())
 }
 
+/// Every plane of an assembled frame and a whole one, floats by their
+/// bits (an assembly always keeps the unrounded colour; the whole render
+/// when asked).
+fn assert_planes_equal(got: &Frame, want: &Frame) {
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(got.alpha, want.alpha);
+    assert_eq!(got.steps, want.steps);
+    if !want.linear.is_empty() {
+        assert_eq!(bits(&got.linear), bits(&want.linear));
+    }
+    assert_eq!(
+        got.values.as_deref().map(bits),
+        want.values.as_deref().map(bits)
+    );
+}
+
 fn assert_counters_equal(got: &Stats, want: &Stats) {
     assert_eq!(got.rays, want.rays);
     assert_eq!(got.steps, want.steps);
@@ -128,12 +146,49 @@ fn assembled_parts_equal_the_single_render_in_every_mode() {
         // 50x37 with 16-pixel tiles: ragged edge tiles on both axes.
         let cam = orbit(&vol, view, persp.then_some(40.0), 50, 37);
         // Tiles of 4 as well: many wholly culled, drawn without pixels
-        // (written to the parts as misses).
-        for (mode, tile) in modes(iso)
+        // (written to the parts as misses). A whole render's tiles colour
+        // their own pixels where the colours do not depend on the whole
+        // image (surface, composite, MIP with a given window; render/
+        // canvas.rs), parts are coloured together: every plane agrees.
+        let variants = |mode: Mode, tile: u32| {
+            let o = options(mode.clone(), tile);
+            match mode {
+                Mode::Mip => vec![
+                    o.clone(),
+                    RenderOptions {
+                        window: Window::Full,
+                        ..o.clone()
+                    },
+                    RenderOptions {
+                        window: Window::Fixed {
+                            width: 300.0,
+                            level: iso,
+                        },
+                        ..o
+                    },
+                ],
+                Mode::Surface { .. } | Mode::Composite { .. } => {
+                    vec![
+                        o.clone(),
+                        RenderOptions {
+                            unrounded: true,
+                            ..o
+                        },
+                    ]
+                }
+                _ => vec![o],
+            }
+        };
+        for (mode, opts) in modes(iso)
             .into_iter()
             .flat_map(|m| [(m.clone(), 16), (m, 4)])
+            .flat_map(|(m, tile)| {
+                variants(m.clone(), tile)
+                    .into_iter()
+                    .map(move |o| (m.clone(), o))
+            })
         {
-            let opts = options(mode.clone(), tile);
+            let tile = opts.tile;
             let (want, ws) = render(&vol, &cam, &opts, &NoProgress).unwrap();
             // More shards than the 12 tiles leaves some parts empty.
             for n in [1, 2, 3, 5, 16] {
@@ -143,6 +198,7 @@ fn assembled_parts_equal_the_single_render_in_every_mode() {
                         same_frame(&got, &want),
                         "{mode:?} view {view:?} tile {tile}: N = {n} {layout:?} differs"
                     );
+                    assert_planes_equal(&got, &want);
                     assert_counters_equal(&gs, &ws);
                 }
             }
