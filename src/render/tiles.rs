@@ -80,16 +80,16 @@ fn render_whole(
     let (w, h) = (camera.width, camera.height);
     let mut planes = Planes::new(&colouring, w, h, opts.unrounded);
     let canvas = planes.as_mut().map(|p| p.canvas(opts.tile));
-    let tiles = render_checked(
+    let tiles = render_checked(&TileJob {
         vol,
         cache,
         camera,
         opts,
-        Shard::WHOLE,
+        shard: Shard::WHOLE,
         progress,
         stop,
-        canvas.as_ref(),
-    );
+        canvas: canvas.as_ref(),
+    });
     drop(canvas);
     let (tiles, stats) = tiles?;
     if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
@@ -135,7 +135,31 @@ pub(crate) fn render_shard(
     progress: &dyn Progress,
 ) -> Result<(Vec<TilePx>, Stats), RenderError> {
     check_shard(vol, camera, opts, shard)?;
-    render_checked(vol, cache, camera, opts, shard, progress, None, None)
+    render_checked(&TileJob {
+        vol,
+        cache,
+        camera,
+        opts,
+        shard,
+        progress,
+        stop: None,
+        canvas: None,
+    })
+}
+
+/// What the tiles of one render need: the file and its cache, the view
+/// and options, which tiles ([`Shard`]), progress, a flag that skips the
+/// tiles not yet started once set, and where the tiles colour their
+/// pixels (none: they return them).
+struct TileJob<'a, 'v, 'c> {
+    vol: &'a PackedVolume,
+    cache: &'a BrickCache<'v>,
+    camera: &'a Camera,
+    opts: &'a RenderOptions,
+    shard: Shard,
+    progress: &'a dyn Progress,
+    stop: Option<&'a AtomicBool>,
+    canvas: Option<&'a Canvas<'c>>,
 }
 
 /// Checks the options ([`check_render`]) and the shard.
@@ -156,29 +180,15 @@ fn check_shard(
     Ok(())
 }
 
-/// [`render_shard`] after [`check_shard`], skipping the tiles not yet
-/// started once `stop` is set. With a `canvas` each tile colours its
-/// pixels into it and returns none.
-#[allow(clippy::too_many_arguments)]
-fn render_checked(
-    vol: &PackedVolume,
-    cache: &BrickCache,
-    camera: &Camera,
-    opts: &RenderOptions,
-    shard: Shard,
-    progress: &dyn Progress,
-    stop: Option<&AtomicBool>,
-    canvas: Option<&Canvas>,
-) -> Result<(Vec<TilePx>, Stats), RenderError> {
+/// The tiles of `job` after [`check_shard`]: their pixels (none where
+/// they coloured them into the job's canvas) and the summed counters.
+fn render_checked(job: &TileJob) -> Result<(Vec<TilePx>, Stats), RenderError> {
     let (t0, k0) = (Instant::now(), KernelUse::now());
-    let (w, hgt) = (camera.width, camera.height);
+    let (cache, opts) = (job.cache, job.opts);
+    let (w, hgt) = (job.camera.width, job.camera.height);
     let results = match opts.precision {
-        Precision::F64 => {
-            render_tiles::<f64>(vol, cache, camera, opts, shard, progress, stop, canvas)
-        }
-        Precision::F32 => {
-            render_tiles::<f32>(vol, cache, camera, opts, shard, progress, stop, canvas)
-        }
+        Precision::F64 => render_tiles::<f64>(job),
+        Precision::F32 => render_tiles::<f32>(job),
     };
 
     // Merge counters; keep the tiles' pixels for colouring.
@@ -348,19 +358,18 @@ pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
     (frame, stats)
 }
 
-/// Renders the tiles of `shard` in the traversal arithmetic `T` (into
-/// `canvas` when given).
-#[allow(clippy::too_many_arguments)]
-fn render_tiles<T: Real>(
-    vol: &PackedVolume,
-    cache: &BrickCache,
-    camera: &Camera,
-    opts: &RenderOptions,
-    shard: Shard,
-    progress: &dyn Progress,
-    stop: Option<&AtomicBool>,
-    canvas: Option<&Canvas>,
-) -> Vec<TileOut> {
+/// Renders the tiles of `job` in the traversal arithmetic `T`.
+fn render_tiles<T: Real>(job: &TileJob) -> Vec<TileOut> {
+    let TileJob {
+        vol,
+        cache,
+        camera,
+        opts,
+        shard,
+        progress,
+        stop,
+        canvas,
+    } = *job;
     let h = vol.header();
     let grid = TGrid::<T>::new(&h.axes);
     let (w, hgt) = (camera.width, camera.height);
