@@ -45,6 +45,13 @@ impl Colouring {
         }
     }
 
+    /// Whether a whole render's tiles colour their own pixels with this
+    /// colouring ([`Planes`](super::canvas::Planes)): its scale does not
+    /// depend on the image.
+    pub(crate) fn paints(&self) -> bool {
+        self.fixed_scale().is_some()
+    }
+
     /// The scale when it does not depend on the image: colours as they
     /// are, or a MIP's given window ([`Planes`](super::canvas::Planes)).
     pub(super) fn fixed_scale(&self) -> Option<Scale> {

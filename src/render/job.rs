@@ -212,7 +212,7 @@ pub enum JobError {
     /// The planned memory ([`render_memory`]) is above the limit.
     #[error(
         "the render needs about {} (cache {} + {width} x {height} pixels x \
-         {RENDER_BYTES_PER_PIXEL} bytes + {} fixed), above the memory limit of {limit}",
+         {per_pixel} bytes + {} fixed), above the memory limit of {limit}",
         crate::memory::human(*needed),
         crate::memory::human(*cache as u64),
         crate::memory::human(RENDER_FIXED_BYTES)
@@ -222,6 +222,8 @@ pub enum JobError {
         cache: usize,
         width: u32,
         height: u32,
+        /// Bytes a pixel ([`render_bytes_per_pixel`]).
+        per_pixel: u64,
         limit: String,
     },
     /// A job field out of its range (`threads`, `orbit_deg`).
@@ -233,12 +235,37 @@ pub enum JobError {
     },
 }
 
-/// Bytes a pixel of one frame costs at most in [`render_memory`]: the
-/// tiles' pixels before colouring (24), the placed pixels (24), the RGB
-/// bytes, the depth and step counts (3 + 4 + 4) and the encoder's copy (3
-/// and rounding). Measured: 48.6 bytes a pixel for a 4096^2 surface
-/// render, 51 for a depth render (docs/RELIABILITY.md, "Memory").
+/// Bytes a pixel of one frame costs at most in [`render_memory`] when the
+/// pixels are kept until the whole image is made (cost and depth maps,
+/// the automatic MIP window, 16-bit and float outputs, parts, the
+/// template renderer): the tiles' pixels before colouring (28), the RGB
+/// bytes, coverage, depth or values and step counts (3 + 1 + 4 + 4), the
+/// unrounded colour when kept (16), and the encoder's copy. Measured:
+/// 20.5 bytes a pixel for a 4096^2 depth render of the head CT, 23.0 for
+/// a 16-bit surface render (docs/RELIABILITY.md, "Memory").
 pub const RENDER_BYTES_PER_PIXEL: u64 = 64;
+
+/// Bytes a pixel of one frame costs at most in [`render_memory`] when the
+/// tiles colour their own pixels into 8-bit planes (render/canvas.rs:
+/// surface, composite, MIP with a given window) and keep none: the RGB
+/// bytes, coverage and step counts (3 + 1 + 4), a MIP's values (4), the
+/// encoder's copy (4) and the PNG's bytes (at most about 4). Measured: 7.1
+/// (surface), 6.6 (composite) and 11.2 (MIP) bytes a pixel for 4096^2
+/// renders of the head CT.
+pub const PAINTED_BYTES_PER_PIXEL: u64 = 24;
+
+/// [`PAINTED_BYTES_PER_PIXEL`] when a render of `vol` with `opts` (to an
+/// 8-bit image: `opts.unrounded` not set) colours its pixels in its tiles,
+/// else [`RENDER_BYTES_PER_PIXEL`]. `painted`: whether the job renders
+/// whole images by tiles at all (not the template renderer, not the part
+/// file of a shard).
+pub fn render_bytes_per_pixel(vol: &PackedVolume, opts: &RenderOptions, painted: bool) -> u64 {
+    let paints = painted && !opts.unrounded && super::colour::Colouring::of(vol, opts).paints();
+    match paints {
+        true => PAINTED_BYTES_PER_PIXEL,
+        false => RENDER_BYTES_PER_PIXEL,
+    }
+}
 
 /// Bytes of a render's fixed overhead in [`render_memory`].
 pub const RENDER_FIXED_BYTES: u64 = 64 << 20;
@@ -249,12 +276,12 @@ pub const CACHE_BYTES_PER_SAMPLE: u64 = 16;
 
 /// A render's planned peak memory: the brick cache (its budget, or the
 /// whole volume decoded at [`CACHE_BYTES_PER_SAMPLE`] if that is less:
-/// `cache_bytes` here is that smaller figure), plus
-/// [`RENDER_BYTES_PER_PIXEL`] per pixel of one frame (turntables render
+/// `cache_bytes` here is that smaller figure), plus `per_pixel` bytes
+/// ([`render_bytes_per_pixel`]) per pixel of one frame (turntables render
 /// one frame at a time), plus [`RENDER_FIXED_BYTES`].
-pub fn render_memory(cache_bytes: usize, width: u32, height: u32) -> u64 {
+pub fn render_memory(cache_bytes: usize, width: u32, height: u32, per_pixel: u64) -> u64 {
     (cache_bytes as u64)
-        .saturating_add(RENDER_BYTES_PER_PIXEL.saturating_mul(width as u64 * height as u64))
+        .saturating_add(per_pixel.saturating_mul(width as u64 * height as u64))
         .saturating_add(RENDER_FIXED_BYTES)
 }
 
@@ -327,7 +354,15 @@ pub fn run(
     let cache =
         (job.options.cache_bytes as u64).min(CACHE_BYTES_PER_SAMPLE.saturating_mul(samples));
     let cache = usize::try_from(cache).unwrap_or(usize::MAX);
-    let needed = render_memory(cache, width, height);
+    let opts = RenderOptions {
+        unrounded: job.options.unrounded || job.image.bits != Bits::Eight,
+        ..job.options.clone()
+    };
+    // A shard of one image writes its pixels to a part file; a shard of
+    // a turntable renders whole frames.
+    let whole = job.shard.is_none() || job.frames > 1;
+    let per_pixel = render_bytes_per_pixel(vol, &opts, !job.template && whole);
+    let needed = render_memory(cache, width, height, per_pixel);
     let limit = job.mem_limit.unwrap_or_else(crate::memory::default_limit);
     if needed > limit {
         return Err(JobError::Memory {
@@ -335,6 +370,7 @@ pub fn run(
             cache,
             width,
             height,
+            per_pixel,
             limit: crate::memory::describe_limit(limit, job.mem_limit.is_some()),
         });
     }

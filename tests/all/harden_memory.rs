@@ -94,20 +94,34 @@ fn a_render_past_the_memory_limit_is_refused_with_the_figure() {
     ok(Command::new(env!("CARGO_BIN_EXE_cdvol"))
         .current_dir(d.path())
         .args(["prep", "-q", "s.json", "-o", "s.cdv", "--iso", "1"]));
-    let render = |side: &str, limit: &str| {
+    let render = |side: &str, limit: &str, extra: &[&str]| {
         let mut c = Command::new(env!("CARGO_BIN_EXE_cdvol"));
         c.current_dir(d.path())
             .args(["render", "-q", "s.cdv", "-o", "r.png"])
-            .args(["--width", side, "--height", side, "--mem-limit", limit]);
+            .args(["--width", side, "--height", side, "--mem-limit", limit])
+            .args(extra);
         c
     };
-    // 16384^2 pixels at 64 bytes: 16 GiB, refused before any ray.
-    let e = fails(&mut render("16384", "4096"));
-    for w in ["--mem-limit", "16384 x 16384", "64 bytes", "4.0 GiB"] {
+    // 16384^2 pixels of a surface in 8 bits, which the tiles colour
+    // themselves, at 24 bytes: 6 GiB, refused before any ray.
+    let e = fails(&mut render("16384", "4096", &[]));
+    for w in ["--mem-limit", "16384 x 16384", "24 bytes", "4.0 GiB"] {
         assert!(e.contains(w), "{w:?} not in {e}");
     }
+    // A depth map and a 16-bit image keep their pixels until the whole
+    // image is made: 64 bytes.
+    for extra in [&["--mode", "depth"][..], &["--bit-depth", "16"]] {
+        let e = fails(&mut render("16384", "4096", extra));
+        assert!(e.contains("64 bytes"), "{extra:?}: {e}");
+    }
     assert!(!d.path().join("r.png").exists());
+    // 2048^2 pixels under 200 MiB: a surface (96 MiB of pixels + 64 MiB)
+    // fits, a depth map (256 MiB of pixels) does not.
+    ok(&mut render("2048", "200", &[]));
+    assert!(d.path().join("r.png").exists());
+    let e = fails(&mut render("2048", "200", &["--mode", "depth"]));
+    assert!(e.contains("64 bytes"), "{e}");
     // A small render of a small file fits 100 MiB: the cache counts at
     // most the whole volume decoded, not its 512 MiB budget.
-    ok(&mut render("64", "100"));
+    ok(&mut render("64", "100", &[]));
 }
