@@ -239,11 +239,7 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px], unrounded: boo
         x0: 0,
         y0: 0,
         w,
-        h: if w == 0 {
-            0
-        } else {
-            (px.len() / w as usize) as u32
-        },
+        h: px.len().checked_div(w as usize).unwrap_or(0) as u32,
         pixels: px,
     };
     colour_blocks(kind, w, h, &[whole], unrounded)
