@@ -39,20 +39,24 @@ fn first_hit_cell<T: Real>(
 ) -> (Option<(f64, CellEval, [u32; 3])>, StepCounts) {
     let g = ctx.grid;
     let coords = ctx.coords;
+    // The hit's vertex values, not its `CellEval`: a small copy out of the
+    // walk (the cell is evaluated again from them, to the same bits).
     let mut found = None;
     let s = trace(g, ray, t_min, ctx.opts.method, acc, |v, acc| {
         clock.enter(acc);
-        let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+        let f = acc.vertices(v.cell);
+        let c = CellEval::new(coords, v.cell, f);
         let t_hit = find_hit_with(ray, v, &c, ctx.iso, hit, &ctx.opts.hit_params);
         clock.leave(acc);
         match t_hit {
             Some(t) => {
-                found = Some((t, c, v.cell));
+                found = Some((t, v.cell, f));
                 Flow::Stop
             }
             None => Flow::Continue,
         }
     });
+    let found = found.map(|(t, cell, f)| (t, CellEval::new(coords, cell, f), cell));
     (found, s)
 }
 
