@@ -360,16 +360,8 @@ pub(crate) fn finish<T: std::borrow::Borrow<TilePx>>(
 
 /// Renders the tiles of `job` in the traversal arithmetic `T`.
 fn render_tiles<T: Real>(job: &TileJob) -> Vec<TileOut> {
-    let TileJob {
-        vol,
-        cache,
-        camera,
-        opts,
-        shard,
-        progress,
-        stop,
-        canvas,
-    } = *job;
+    let (vol, cache, camera, opts) = (job.vol, job.cache, job.camera, job.opts);
+    let (progress, stop) = (job.progress, job.stop);
     let h = vol.header();
     let grid = TGrid::<T>::new(&h.axes);
     let (w, hgt) = (camera.width, camera.height);
@@ -385,7 +377,7 @@ fn render_tiles<T: Real>(job: &TileJob) -> Vec<TileOut> {
     let tiles: Vec<(u32, u32)> = tiles
         .into_iter()
         .enumerate()
-        .filter(|(i, _)| shard.owns(*i as u64, total))
+        .filter(|(i, _)| job.shard.owns(*i as u64, total))
         .map(|(_, t)| t)
         .collect();
     let ctx = Ctx::new(&grid, h, camera, opts);
@@ -407,7 +399,15 @@ fn render_tiles<T: Real>(job: &TileJob) -> Vec<TileOut> {
             if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
                 return TileOut::skipped(tx * ts, ty * ts);
             }
-            let r = render_tile(&ctx, cover.as_ref(), canvas, cache, tx * ts, ty * ts, ts);
+            let r = render_tile(
+                &ctx,
+                cover.as_ref(),
+                job.canvas,
+                cache,
+                tx * ts,
+                ty * ts,
+                ts,
+            );
             progress.advance(1);
             r
         })

@@ -68,27 +68,20 @@ fn draw_at(
     cull: bool,
     iso: Option<f64>,
 ) -> (Frame, Stats) {
-    let o = cdvol::render::RenderOptions {
-        cull,
-        iso,
-        ..common::test_opts(mode.clone(), method)
-    };
-    render(vol, cam, &o, &NoProgress).unwrap_or_else(|e| panic!("{mode:?} {method:?}: {e}"))
+    draw_opts(
+        vol,
+        cam,
+        &cdvol::render::RenderOptions {
+            cull,
+            iso,
+            ..common::test_opts(mode.clone(), method)
+        },
+    )
 }
 
-/// [`draw`] culled, in tiles of `tile` pixels.
-fn draw_tiled(
-    vol: &PackedVolume,
-    cam: &Camera,
-    mode: &Mode,
-    method: Method,
-    tile: u32,
-) -> (Frame, Stats) {
-    let o = cdvol::render::RenderOptions {
-        tile,
-        ..common::test_opts(mode.clone(), method)
-    };
-    render(vol, cam, &o, &NoProgress).unwrap_or_else(|e| panic!("{mode:?} {method:?}: {e}"))
+/// `vol` by `cam` with the options `o`.
+fn draw_opts(vol: &PackedVolume, cam: &Camera, o: &cdvol::render::RenderOptions) -> (Frame, Stats) {
+    render(vol, cam, o, &NoProgress).unwrap_or_else(|e| panic!("{:?} {:?}: {e}", o.mode, o.method))
 }
 
 /// [`draw_at`] culled, as the second frame of one cache: the first frame
@@ -152,7 +145,11 @@ fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
             // Small tiles: many wholly culled, drawn without pixels; the
             // same frame, planes and counts.
             for tile in [1, 3] {
-                let (fs, ss) = draw_tiled(vol, cam, &mode, method, tile);
+                let o = cdvol::render::RenderOptions {
+                    tile,
+                    ..common::test_opts(mode.clone(), method)
+                };
+                let (fs, ss) = draw_opts(vol, cam, &o);
                 prop_assert!(
                     common::same_frame(&fs, &ft),
                     "{:?} {:?} tile {}",
