@@ -15,9 +15,12 @@
 //! is interpolated from its cell's vertex gradients in the brick's
 //! gradient plane, the gradient opacity scales the sample by the
 //! gradient's length, and the headlight's square roots and divisions go
-//! in lanes ([`light`]); a sample whose cell the plane has not set yet
-//! hands the ray back to the marcher, which computes the cell's outer
-//! gradients.
+//! in lanes ([`light`]). A sample whose cell the plane has not set yet
+//! (a cell on the brick's outer layer, set by the first ray that needs
+//! it) ends its batch before anything of the batch is composited; [`run`]
+//! asks its [`Source`] for the cell's gradients and takes the same batch
+//! again with them, from the same sample and with the same carried
+//! colour, so the image does not depend on which thread set a cell first.
 //!
 //! What changes against the sampler one sample at a time: a sample on or
 //! within rounding of a cell face may be given the neighbouring cell.
@@ -27,6 +30,8 @@
 //! range). docs/TRADEOFFS.md ("Sample batches") measures the image
 //! difference; docs/BENCHMARKS.md ("Composite samples eight at a time")
 //! the time.
+
+use std::cell::Cell;
 
 use glam::{Vec3A, Vec4};
 
@@ -201,9 +206,30 @@ pub(super) enum End {
     Leap,
     /// The ray became opaque.
     Stop,
+    /// Only between [`lanes`] and [`run`]: the batch at the sample
+    /// returned needs the gradients of a cell of the brick
+    /// ([`Batches::missing`]) that its gradient plane has not set (nothing
+    /// of the batch is composited).
+    Gradients,
 }
 
+/// Where [`run`] reads the ray's brick, and the gradients of a cell its
+/// gradient plane has not set.
+pub(super) trait Source {
+    /// The brick the samples lie in.
+    fn brick(&mut self) -> &RBrick;
+    /// The 8 vertex gradients (x fastest) of the brick's cell at global
+    /// cell index `cell`, as the plane would hold them.
+    fn gradients(&mut self, cell: [u32; 3]) -> [Vec3A; 8];
+}
+
+/// The gradients [`run`] was given for cells of the current batch that
+/// the brick's gradient plane had not set: per cell its index in the
+/// code plane and its 8 vertex gradients.
+type Given = Vec<(usize, [Vec3A; 8])>;
+
 /// What one ray's batches need besides the brick.
+#[derive(Clone)]
 pub(super) struct Batches<'a> {
     pub map: &'a IndexMap,
     pub ray: &'a Ray,
@@ -218,20 +244,82 @@ pub(super) struct Batches<'a> {
     /// smooth gradient's length), when the look has any.
     pub gradient_opacity: Option<&'a CompositeLook>,
     pub stop: f32,
+    /// Set by [`run`], empty from its caller: the gradients it was given
+    /// for cells of the batch it takes again that the brick's gradient
+    /// plane has not set, per cell its index in the code plane and its 8
+    /// vertex gradients.
+    pub given: &'a [(usize, [Vec3A; 8])],
+    /// Set by the kernels, for [`run`]: where one ending with
+    /// [`End::Gradients`] leaves the cell (in the brick) whose gradients
+    /// it needs.
+    pub missing: Cell<[u32; 3]>,
 }
 
 /// Composites samples `k, k + 1, ...` (at `t = k * step`) of the ray into
-/// `acc` while they lie in brick `b`, [`LANES`] at a time; returns how
-/// many it took and why it stopped. A sample in a 0-cell with a code
-/// below `resume` adds nothing, as in the marcher.
-pub(super) fn run(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4) -> (u64, End) {
-    select(x, b, k, acc, true)
+/// `acc` while they lie in the brick of `src`, [`LANES`] at a time;
+/// returns how many it took and why it stopped (never
+/// [`End::Gradients`]). A sample in a 0-cell with a code below `resume`
+/// adds nothing, as in the marcher.
+///
+/// With gradients, a batch that needs a cell the brick's plane has not
+/// set is taken again once `src` has given that cell's gradients: from
+/// the same sample index, whose position the lanes derive from it, and
+/// with the same carried colour and transmittance, so that the batch's
+/// bits are those of a plane that had the cell set.
+#[inline(always)]
+pub(super) fn run(x: &Batches, src: &mut impl Source, k: f64, acc: &mut Vec4) -> (u64, End) {
+    run_on(x, src, k, acc, true)
 }
 
-/// [`run`] by one of four kernels, with gradients (shading or gradient
-/// opacity) or without, on a uniform or a rectilinear grid: compiled for
-/// AVX2 when `avx2` asks for it and the CPU has it (four functions, so
-/// none's code is laid out around another's), else for the baseline CPU.
+/// [`run`], by the AVX2 kernels when `avx2` asks for them ([`select`]).
+#[inline(always)]
+fn run_on(x: &Batches, src: &mut impl Source, k: f64, acc: &mut Vec4, avx2: bool) -> (u64, End) {
+    // The kernels carry the transmittance, not the opacity: a batch taken
+    // again starts from the same bits.
+    let mut carry = acc.truncate().extend(1.0 - acc.w);
+    let mut given = Given::new();
+    // The batch start the given gradients are for.
+    let mut given_at = 0;
+    let mut taken = 0;
+    let end = loop {
+        // The caller's batches, or a copy that holds the given gradients.
+        let y;
+        let x = if given.is_empty() {
+            x
+        } else {
+            y = Batches {
+                given: &given,
+                ..x.clone()
+            };
+            &y
+        };
+        let (n, end) = select(x, src.brick(), k + taken as f64, &mut carry, avx2);
+        taken += n;
+        if end != End::Gradients {
+            break end;
+        }
+        let local = x.missing.get();
+        if given_at != taken {
+            given.clear();
+            given_at = taken;
+        }
+        let b = src.brick();
+        let (first, cells) = (b.first, b.cells);
+        let at = (local[2] as usize * cells[1] as usize + local[1] as usize) * cells[0] as usize
+            + local[0] as usize;
+        let g = src.gradients(std::array::from_fn(|a| first[a] + local[a]));
+        given.push((at, g));
+    };
+    *acc = carry.truncate().extend(1.0 - carry.w);
+    (taken, end)
+}
+
+/// One pass of [`run`] (`acc`: the colour and, in `w`, the
+/// transmittance) by one of four kernels, with gradients (shading or
+/// gradient opacity) or without, on a uniform or a rectilinear grid:
+/// compiled for AVX2 when `avx2` asks for it and the CPU has it (four
+/// functions, so none's code is laid out around another's), else for the
+/// baseline CPU.
 fn select(x: &Batches, b: &RBrick, k: f64, acc: &mut Vec4, avx2: bool) -> (u64, End) {
     let grads = x.shade.is_some() || x.gradient_opacity.is_some();
     match (grads, x.map.rect.is_some()) {
@@ -342,10 +430,11 @@ fn lanes<const GRAD: bool, const RECT: bool>(
     // Per lane, the increment of `q` by one step, in f32.
     let dq: [f32; 3] = std::array::from_fn(|a| (x.step * qd[a]) as f32);
     let lane: [f32; LANES] = std::array::from_fn(|j| j as f32);
-    // The ray's colour and transmittance (1 - opacity) so far; it stops
-    // once the transmittance falls below `clear` (opacity above `stop`).
+    // The ray's colour and transmittance (1 - opacity) so far, as [`run`]
+    // carries them in `acc`; it stops once the transmittance falls below
+    // `clear` (opacity above `stop`).
     let mut colour = acc.truncate();
-    let mut through = 1.0 - acc.w;
+    let mut through = acc.w;
     let clear = 1.0 - x.stop;
     let mut taken = 0u64;
     loop {
@@ -434,7 +523,9 @@ fn lanes<const GRAD: bool, const RECT: bool>(
         let lit = if GRAD {
             let (lit, upto) = shaded(x, b, &object, &value, &u, &local, &code_at, n);
             if upto < n {
-                (n, end) = (upto, End::Brick);
+                *acc = colour.extend(through);
+                x.missing.set(local[upto]);
+                return (taken, End::Gradients);
             }
             lit
         } else {
@@ -454,13 +545,13 @@ fn lanes<const GRAD: bool, const RECT: bool>(
             colour += through * s.truncate();
             through *= 1.0 - s.w;
             if through < clear {
-                *acc = colour.extend(1.0 - through);
+                *acc = colour.extend(through);
                 return (taken + j as u64 + 1, End::Stop);
             }
         }
         taken += n as u64;
         if n < LANES {
-            *acc = colour.extend(1.0 - through);
+            *acc = colour.extend(through);
             return (taken, end);
         }
     }
@@ -469,10 +560,11 @@ fn lanes<const GRAD: bool, const RECT: bool>(
 /// The first `n` samples of a batch lit: per lane the table's colour and
 /// opacity at `value` where `object`, with the gradient interpolated at
 /// `u` from the gradient plane of brick `b` (`local`: the cell in the
-/// brick, `code_at`: its index in the code plane) scaled by the gradient
-/// opacity and shaded by [`light`], as `Look::apply` does each. Also how
-/// many lanes it lit: fewer than `n` when a sample's cell is one the
-/// plane has not set (the marcher computes its gradients).
+/// brick, `code_at`: its index in the code plane), or from
+/// [`Batches::given`] for a cell the plane has not set, scaled by the
+/// gradient opacity and shaded by [`light`], as `Look::apply` does each.
+/// Also how many lanes it lit: fewer than `n` when neither holds a
+/// sample's cell's gradients.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn shaded(
@@ -504,7 +596,11 @@ fn shaded(
             continue;
         }
         if held != code_at[j] {
-            let Some(v) = b.grads.cell(local[j]) else {
+            let Some(v) = b
+                .grads
+                .cell(local[j])
+                .or_else(|| given_cell(x.given, code_at[j]))
+            else {
                 upto = j;
                 break;
             };
@@ -531,6 +627,15 @@ fn shaded(
         }
     }
     (lit, upto)
+}
+
+/// The gradients `given` holds for the cell at `code_at` in the code
+/// plane, if any. Cold: only the first rays into a brick's outer cells
+/// come here.
+#[cold]
+#[inline(never)]
+fn given_cell(given: &[(usize, [Vec3A; 8])], code_at: usize) -> Option<[Vec3A; 8]> {
+    given.iter().find(|(at, _)| *at == code_at).map(|(_, g)| *g)
 }
 
 /// Trilinear interpolation of 8 vertex vectors (x fastest) at `u`, as the

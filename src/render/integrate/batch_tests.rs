@@ -28,6 +28,49 @@ fn brick(first: [u32; 3], cells: [u32; 3], values: Samples, codes: Vec<u8>) -> R
     RBrick::bare(first, cells, Codes::Plane(codes), values)
 }
 
+/// A [`Source`] of one brick whose cells' gradients come from `grads`
+/// (per sample of the brick, x fastest; none: no gradients asked for),
+/// counting the cells asked for.
+struct One<'a> {
+    b: &'a RBrick,
+    grads: Option<&'a [glam::Vec3]>,
+    asked: Vec<[u32; 3]>,
+}
+
+impl Source for One<'_> {
+    fn brick(&mut self) -> &RBrick {
+        self.b
+    }
+
+    fn gradients(&mut self, cell: [u32; 3]) -> [Vec3A; 8] {
+        self.asked.push(cell);
+        let g = self.grads.expect("gradients asked for");
+        let s = self.b.cells.map(|c| c as usize + 1);
+        let l: [usize; 3] = std::array::from_fn(|a| (cell[a] - self.b.first[a]) as usize);
+        std::array::from_fn(|v| {
+            let at = [l[0] + (v & 1), l[1] + (v >> 1 & 1), l[2] + (v >> 2)];
+            Vec3A::from(g[(at[2] * s[1] + at[1]) * s[0] + at[0]])
+        })
+    }
+}
+
+/// [`run_on`] of brick `b` from sample 0 with nothing composited yet.
+fn run_one(
+    x: &Batches,
+    b: &RBrick,
+    grads: Option<&[glam::Vec3]>,
+    avx2: bool,
+) -> ((u64, End), Vec4, Vec<[u32; 3]>) {
+    let mut src = One {
+        b,
+        grads,
+        asked: Vec::new(),
+    };
+    let mut acc = Vec4::ZERO;
+    let got = run_on(x, &mut src, 0.0, &mut acc, avx2);
+    (got, acc, src.asked)
+}
+
 /// A brick of `cells` at `first` with random whole values below 200
 /// and random codes (mostly 1-cells; codes 0, 1, 2 and 5), on a grid
 /// from `s0` whose axis `a` is uniform of spacing `h[a]` where
@@ -117,9 +160,7 @@ fn rng(seed: u64) -> impl FnMut() -> u32 {
 /// `floor` of the index coordinate, the code, the trilinear value, the
 /// f64 table, with `grads` (per vertex, x fastest) the gradient opacity
 /// and the headlight shading of `Look::apply` from the trilinear
-/// gradient, front-to-back compositing. A sample with gradients in a
-/// cell the brick's gradient plane has not set ends the run at it
-/// (`End::Brick`). `None` when a
+/// gradient, front-to-back compositing. `None` when a
 /// sample lies within 1e-4 of a cell face, where f32 and f64 may pick
 /// different cells, has a value within 1e-3 of the table's
 /// transparent end, or a gradient shorter than 0.01, where f32 and
@@ -186,9 +227,6 @@ fn reference(
             continue;
         }
         if let Some(grads) = grads {
-            if !b.grads.cell_set(ci) {
-                return Some((k, End::Brick, acc));
-            }
             let g: [f64; 3] = std::array::from_fn(|a| tri(&|i| grads[vertex(i)][a], u));
             let len = g.iter().map(|v| v * v).sum::<f64>().sqrt();
             if len < 0.01 {
@@ -243,12 +281,11 @@ proptest! {
         let (vals, codes) = (&sc.vals, &sc.codes);
         let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
         let lut = TfLut::new(&tf(), step);
-        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None };
+        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None, given: &[], missing: Default::default() };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, None) else {
             return Err(TestCaseError::reject("a sample on a cell face"));
         };
-        let mut acc = Vec4::ZERO;
-        let (got_n, got_end) = select(&x, &b, 0.0, &mut acc, false);
+        let ((got_n, got_end), acc, _) = run_one(&x, &b, None, false);
         prop_assert_eq!((got_n, got_end), (want_n, want_end));
         for ch in 0..4 {
             prop_assert!((acc[ch] as f64 - want[ch]).abs() < 1e-4, "{acc} {want:?}");
@@ -263,14 +300,13 @@ proptest! {
             Samples::Words8(vals.iter().map(|&v| v as u8).collect(), table8, Order::Unsigned),
         ] {
             let w = brick(first, cells, values, codes.clone());
-            let mut acc_w = Vec4::ZERO;
-            prop_assert_eq!(select(&x, &w, 0.0, &mut acc_w, false), (got_n, got_end));
+            let (got_w, acc_w, _) = run_one(&x, &w, None, false);
+            prop_assert_eq!(got_w, (got_n, got_end));
             prop_assert_eq!(acc_w.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
         }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
-            let mut acc2 = Vec4::ZERO;
-            let got2 = select(&x, &b, 0.0, &mut acc2, true);
+            let (got2, acc2, _) = run_one(&x, &b, None, true);
             prop_assert_eq!(got2, (got_n, got_end));
             prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
         }
@@ -279,8 +315,9 @@ proptest! {
     /// Shaded, with gradient opacity or both, [`run`] weights and
     /// lights each sample as `Look::apply` does with the trilinear
     /// gradient of the brick's gradient plane (to f32 accuracy against
-    /// f64), and hands the ray back at the first sample that needs a
-    /// cell the plane has not set; its AVX2 build gives the baseline
+    /// f64). Where the plane has not set a cell, it asks its source for
+    /// that cell's gradients, only for such cells, and gives the bits of
+    /// a plane with every cell set. Its AVX2 build gives the baseline
     /// build's bits.
     #[test]
     fn shaded_batches_light_samples_as_one_at_a_time_would(
@@ -312,25 +349,33 @@ proptest! {
             (0..samples).map(|_| [0, 1, 2].map(|_| (next() % 41) as f64 - 20.0)).collect();
         let g32: Vec<glam::Vec3> =
             grads.iter().map(|g| glam::Vec3::from_array(g.map(|v| v as f32))).collect();
-        let mut b = brick(first, cells, Samples::F32(sc.vals.clone()), sc.codes.clone());
-        b.grads = GradPlane::inner(&g32, c);
-        for z in 0..cells[2] {
-            for y in 0..cells[1] {
-                for x in 0..cells[0] {
-                    if unset > 0 && next().is_multiple_of(unset + 1) {
-                        continue;
+        // The plane with every cell set, and with about one cell in
+        // `unset + 1` not set (none with 0).
+        let plane = |leave: &mut dyn FnMut() -> bool| {
+            let p = GradPlane::inner(&g32, c);
+            for z in 0..cells[2] {
+                for y in 0..cells[1] {
+                    for x in 0..cells[0] {
+                        if leave() {
+                            continue;
+                        }
+                        let i = |dx: u32, dy: u32, dz: u32| {
+                            g32[(((z + dz) as usize * (c[1] + 1)) + (y + dy) as usize) * (c[0] + 1)
+                                + (x + dx) as usize]
+                        };
+                        p.fill([x, y, z], [
+                            i(0, 0, 0), i(1, 0, 0), i(0, 1, 0), i(1, 1, 0),
+                            i(0, 0, 1), i(1, 0, 1), i(0, 1, 1), i(1, 1, 1),
+                        ]);
                     }
-                    let i = |dx: u32, dy: u32, dz: u32| {
-                        g32[(((z + dz) as usize * (c[1] + 1)) + (y + dy) as usize) * (c[0] + 1)
-                            + (x + dx) as usize]
-                    };
-                    b.grads.fill([x, y, z], [
-                        i(0, 0, 0), i(1, 0, 0), i(0, 1, 0), i(1, 1, 0),
-                        i(0, 0, 1), i(1, 0, 1), i(0, 1, 1), i(1, 1, 1),
-                    ]);
                 }
             }
-        }
+            p
+        };
+        let mut b = brick(first, cells, Samples::F32(sc.vals.clone()), sc.codes.clone());
+        b.grads = plane(&mut || false);
+        let mut part = brick(first, cells, Samples::F32(sc.vals.clone()), sc.codes.clone());
+        part.grads = plane(&mut || unset > 0 && next().is_multiple_of(unset + 1));
         let len = eye.iter().map(|d| d * d).sum::<f64>().sqrt();
         let to_eye = Vec3A::from_array(eye.map(|e| (e / len) as f32));
         let lut = TfLut::new(&tf(), step);
@@ -345,22 +390,33 @@ proptest! {
             map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32,
             shade: (look != 1).then_some(to_eye),
             gradient_opacity: (look != 0).then_some(&go),
+            given: &[],
+            missing: Default::default(),
         };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, Some(&grads)) else {
             return Err(TestCaseError::reject("a sample on a face, or ill-conditioned"));
         };
-        let mut acc = Vec4::ZERO;
-        let got = select(&x, &b, 0.0, &mut acc, false);
+        let (got, acc, asked) = run_one(&x, &b, Some(&g32), false);
         prop_assert_eq!(got, (want_n, want_end));
+        prop_assert!(asked.is_empty());
         for ch in 0..4 {
             prop_assert!((acc[ch] as f64 - want[ch]).abs() < 1e-4, "{acc} {want:?}");
         }
+        let bits = acc.to_array().map(f32::to_bits);
+        let (got_part, acc_part, asked) = run_one(&x, &part, Some(&g32), false);
+        prop_assert_eq!(got_part, got);
+        prop_assert_eq!(acc_part.to_array().map(f32::to_bits), bits);
+        for cell in asked {
+            let l: [u32; 3] = std::array::from_fn(|a| cell[a] - first[a]);
+            prop_assert!(part.grads.cell(l).is_none(), "asked for set cell {l:?}");
+        }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
-            let mut acc2 = Vec4::ZERO;
-            let got2 = select(&x, &b, 0.0, &mut acc2, true);
-            prop_assert_eq!(got2, got);
-            prop_assert_eq!(acc2.to_array().map(f32::to_bits), acc.to_array().map(f32::to_bits));
+            for p in [&b, &part] {
+                let (got2, acc2, _) = run_one(&x, p, Some(&g32), true);
+                prop_assert_eq!(got2, got);
+                prop_assert_eq!(acc2.to_array().map(f32::to_bits), bits);
+            }
         }
     }
 }

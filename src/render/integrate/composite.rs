@@ -147,10 +147,11 @@ trait Sampler {
     fn batches(&self) -> bool {
         false
     }
-    /// Composites samples `k, k + 1, ...` while they lie in brick `b`,
-    /// several at a time ([`batch::run`]): how many it took and why it
-    /// stopped. A sampler that takes one sample at a time takes none.
-    fn batch(&mut self, _b: &RBrick, _k: f64) -> (u64, End) {
+    /// Composites samples `k, k + 1, ...` while they lie in the brick of
+    /// cell `cell`, several at a time ([`batch::run`]): how many it took
+    /// and why it stopped. A sampler that takes one sample at a time
+    /// takes none.
+    fn batch(&mut self, _acc: &mut Accessor, _cell: [u32; 3], _k: f64) -> (u64, End) {
         (0, End::Brick)
     }
 }
@@ -335,8 +336,7 @@ fn batched_samples<T: Real, P: Sampler>(
     at: &mut Marched,
     ahead: &impl Fn(usize, u32) -> f64,
 ) -> Batched {
-    let (b, _) = acc.brick(at.cell);
-    let (taken, end) = s.batch(b, at.k);
+    let (taken, end) = s.batch(acc, at.cell, at.k);
     if taken == 0 {
         return Batched::None;
     }
@@ -525,7 +525,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
     }
 
     #[inline(always)]
-    fn batch(&mut self, b: &RBrick, k: f64) -> (u64, End) {
+    fn batch(&mut self, acc: &mut Accessor, cell: [u32; 3], k: f64) -> (u64, End) {
         let Some(map) = self.batches else {
             return (0, End::Brick);
         };
@@ -539,8 +539,37 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
             shade: (LOOK && self.look.look.shade).then_some(self.look.to_eye),
             gradient_opacity: (LOOK && !self.look.look.gradient_opacity.is_empty())
                 .then_some(self.look.look),
+            given: &[],
+            missing: Default::default(),
         };
-        batch::run(&x, b, k, &mut self.acc)
+        let mut src = BatchSource {
+            acc,
+            cell,
+            coords: self.coords,
+        };
+        batch::run(&x, &mut src, k, &mut self.acc)
+    }
+}
+
+/// The batches' [`batch::Source`]: the brick of the marcher's cell, and
+/// the gradients of a cell its plane has not set, computed (and kept in
+/// the plane) as the one-at-a-time sampler computes them
+/// ([`outer_cell_gradients`]).
+struct BatchSource<'a, 'c, 'v> {
+    acc: &'a mut Accessor<'c, 'v>,
+    cell: [u32; 3],
+    coords: [&'a [f64]; 3],
+}
+
+impl batch::Source for BatchSource<'_, '_, '_> {
+    #[inline(always)]
+    fn brick(&mut self) -> &RBrick {
+        self.acc.brick(self.cell).0
+    }
+
+    #[cold]
+    fn gradients(&mut self, cell: [u32; 3]) -> [Vec3A; 8] {
+        outer_cell_gradients(self.acc, self.coords, cell)
     }
 }
 
