@@ -33,7 +33,7 @@
 
 use std::cell::Cell;
 
-use glam::{Vec3A, Vec4};
+use glam::{Vec3, Vec3A, Vec4};
 
 use super::Ctx;
 use crate::render::cache::{Codes, RBrick};
@@ -253,6 +253,11 @@ pub(super) struct Batches<'a> {
     /// [`End::Gradients`] leaves the cell (in the brick) whose gradients
     /// it needs.
     pub missing: Cell<[u32; 3]>,
+    /// ... and the transmittance it carried into that batch.
+    pub carried: Cell<f32>,
+    /// Set by [`run`], `None` from its caller: the transmittance to take
+    /// a batch again from.
+    pub through: Option<f32>,
 }
 
 /// Composites samples `k, k + 1, ...` (at `t = k * step`) of the ray into
@@ -274,30 +279,31 @@ pub(super) fn run(x: &Batches, src: &mut impl Source, k: f64, acc: &mut Vec4) ->
 /// [`run`], by the AVX2 kernels when `avx2` asks for them ([`select`]).
 #[inline(always)]
 fn run_on(x: &Batches, src: &mut impl Source, k: f64, acc: &mut Vec4, avx2: bool) -> (u64, End) {
-    // The kernels carry the transmittance, not the opacity: a batch taken
-    // again starts from the same bits.
-    let mut carry = acc.truncate().extend(1.0 - acc.w);
+    let (taken, end) = select(x, src.brick(), k, acc, avx2);
+    if end == End::Gradients {
+        return retry(x, src, k, acc, taken, avx2);
+    }
+    (taken, end)
+}
+
+/// [`run_on`] after its first pass ended at a cell without gradients
+/// (`taken` samples in): the missing cells' gradients asked of `src`
+/// and the batch taken again, until a pass ends otherwise. Cold: only
+/// the first rays into a brick's outer cells come here.
+#[cold]
+#[inline(never)]
+fn retry(
+    x: &Batches,
+    src: &mut impl Source,
+    k: f64,
+    acc: &mut Vec4,
+    mut taken: u64,
+    avx2: bool,
+) -> (u64, End) {
     let mut given = Given::new();
     // The batch start the given gradients are for.
-    let mut given_at = 0;
-    let mut taken = 0;
-    let end = loop {
-        // The caller's batches, or a copy that holds the given gradients.
-        let y;
-        let x = if given.is_empty() {
-            x
-        } else {
-            y = Batches {
-                given: &given,
-                ..x.clone()
-            };
-            &y
-        };
-        let (n, end) = select(x, src.brick(), k + taken as f64, &mut carry, avx2);
-        taken += n;
-        if end != End::Gradients {
-            break end;
-        }
+    let mut given_at = taken;
+    loop {
         let local = x.missing.get();
         if given_at != taken {
             given.clear();
@@ -308,14 +314,29 @@ fn run_on(x: &Batches, src: &mut impl Source, k: f64, acc: &mut Vec4, avx2: bool
         let at = (local[2] as usize * cells[1] as usize + local[1] as usize) * cells[0] as usize
             + local[0] as usize;
         let g = src.gradients(std::array::from_fn(|a| first[a] + local[a]));
-        given.push((at, g));
-    };
-    *acc = carry.truncate().extend(1.0 - carry.w);
-    (taken, end)
+        // Usually the source kept them in the plane, which the retry reads;
+        // not when another thread is still filling one of the vertices.
+        if src.brick().grads.cell(local).is_none() {
+            given.push((at, g));
+        }
+        // The batch again from the transmittance it started with, not
+        // from `1 - acc.w`, which need not round back to it.
+        let y = Batches {
+            given: &given,
+            through: Some(x.carried.get()),
+            ..x.clone()
+        };
+        let (n, end) = select(&y, src.brick(), k + taken as f64, acc, avx2);
+        taken += n;
+        if end != End::Gradients {
+            return (taken, end);
+        }
+        x.missing.set(y.missing.get());
+        x.carried.set(y.carried.get());
+    }
 }
 
-/// One pass of [`run`] (`acc`: the colour and, in `w`, the
-/// transmittance) by one of four kernels, with gradients (shading or
+/// One pass of [`run`] by one of four kernels, with gradients (shading or
 /// gradient opacity) or without, on a uniform or a rectilinear grid:
 /// compiled for AVX2 when `avx2` asks for it and the CPU has it (four
 /// functions, so none's code is laid out around another's), else for the
@@ -430,11 +451,11 @@ fn lanes<const GRAD: bool, const RECT: bool>(
     // Per lane, the increment of `q` by one step, in f32.
     let dq: [f32; 3] = std::array::from_fn(|a| (x.step * qd[a]) as f32);
     let lane: [f32; LANES] = std::array::from_fn(|j| j as f32);
-    // The ray's colour and transmittance (1 - opacity) so far, as [`run`]
-    // carries them in `acc`; it stops once the transmittance falls below
-    // `clear` (opacity above `stop`).
+    // The ray's colour and transmittance (1 - opacity) so far (a batch
+    // taken again: the transmittance it started with); it stops once the
+    // transmittance falls below `clear` (opacity above `stop`).
     let mut colour = acc.truncate();
-    let mut through = acc.w;
+    let mut through = x.through.unwrap_or(1.0 - acc.w);
     let clear = 1.0 - x.stop;
     let mut taken = 0u64;
     loop {
@@ -523,9 +544,7 @@ fn lanes<const GRAD: bool, const RECT: bool>(
         let lit = if GRAD {
             let (lit, upto) = shaded(x, b, &object, &value, &u, &local, &code_at, n);
             if upto < n {
-                *acc = colour.extend(through);
-                x.missing.set(local[upto]);
-                return (taken, End::Gradients);
+                return missed(x, acc, colour, through, local[upto], taken);
             }
             lit
         } else {
@@ -545,16 +564,36 @@ fn lanes<const GRAD: bool, const RECT: bool>(
             colour += through * s.truncate();
             through *= 1.0 - s.w;
             if through < clear {
-                *acc = colour.extend(through);
+                *acc = colour.extend(1.0 - through);
                 return (taken + j as u64 + 1, End::Stop);
             }
         }
         taken += n as u64;
         if n < LANES {
-            *acc = colour.extend(through);
+            *acc = colour.extend(1.0 - through);
             return (taken, end);
         }
     }
+}
+
+/// A batch's exit at a cell whose gradients neither the plane nor
+/// [`Batches::given`] holds: the colour kept in `acc`, the transmittance
+/// and the cell left for [`run`]. Cold, so that the kernel's layout keeps
+/// its loop on the common path.
+#[cold]
+#[inline(never)]
+fn missed(
+    x: &Batches,
+    acc: &mut Vec4,
+    colour: Vec3,
+    through: f32,
+    cell: [u32; 3],
+    taken: u64,
+) -> (u64, End) {
+    *acc = colour.extend(1.0 - through);
+    x.carried.set(through);
+    x.missing.set(cell);
+    (taken, End::Gradients)
 }
 
 /// The first `n` samples of a batch lit: per lane the table's colour and
@@ -630,10 +669,10 @@ fn shaded(
 }
 
 /// The gradients `given` holds for the cell at `code_at` in the code
-/// plane, if any. Cold: only the first rays into a brick's outer cells
-/// come here.
-#[cold]
-#[inline(never)]
+/// plane, if any. Inline, though only the first rays into a brick's
+/// outer cells come here: a call inside the batch's loop would make the
+/// gradients held in registers live across it.
+#[inline(always)]
 fn given_cell(given: &[(usize, [Vec3A; 8])], code_at: usize) -> Option<[Vec3A; 8]> {
     given.iter().find(|(at, _)| *at == code_at).map(|(_, g)| *g)
 }

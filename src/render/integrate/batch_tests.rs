@@ -281,7 +281,7 @@ proptest! {
         let (vals, codes) = (&sc.vals, &sc.codes);
         let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
         let lut = TfLut::new(&tf(), step);
-        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None, given: &[], missing: Default::default() };
+        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None, given: &[], missing: Default::default(), carried: Default::default(), through: None };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, None) else {
             return Err(TestCaseError::reject("a sample on a cell face"));
         };
@@ -392,6 +392,8 @@ proptest! {
             gradient_opacity: (look != 0).then_some(&go),
             given: &[],
             missing: Default::default(),
+            carried: Default::default(),
+            through: None,
         };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, Some(&grads)) else {
             return Err(TestCaseError::reject("a sample on a face, or ill-conditioned"));
@@ -419,6 +421,80 @@ proptest! {
             }
         }
     }
+}
+
+/// A batch taken again after a miss starts from the transmittance it
+/// started with: long rays through bricks of 1-cells whose gradient plane
+/// has no cell set (a slab 2 cells thick has no inner cell), so that
+/// nearly every cell the ray enters misses, at every transmittance down
+/// the ray. The bits equal those of a plane with every cell set.
+#[test]
+fn batches_taken_again_keep_the_carried_transmittance() {
+    let cells = [8u32, 8, 2];
+    let c = cells.map(|c| c as usize);
+    let samples = (c[0] + 1) * (c[1] + 1) * (c[2] + 1);
+    let mut misses = 0;
+    for seed in 0..48u64 {
+        let mut next = rng(seed);
+        let at = [0.02, 0.03 + 0.01 * (seed % 5) as f64, 0.5];
+        let dir = [1.0, 0.6 + 0.05 * (seed % 7) as f64, 0.01];
+        let mut sc = scene(
+            cells, [0; 3], [true; 3], [1.0; 3], [0.0; 3], at, dir, &mut next,
+        );
+        sc.codes = vec![OBJECT; c[0] * c[1] * c[2]];
+        let g32: Vec<glam::Vec3> = (0..samples)
+            .map(|_| glam::Vec3::from_array([0, 1, 2].map(|_| (next() % 41) as f32 - 20.0)))
+            .collect();
+        let values = || Samples::F32(sc.vals.clone());
+        let mut full = brick([0; 3], cells, values(), sc.codes.clone());
+        full.grads = GradPlane::inner(&g32, c);
+        for z in 0..cells[2] {
+            for y in 0..cells[1] {
+                for x in 0..cells[0] {
+                    let i = |v: usize| {
+                        let at = [
+                            x as usize + (v & 1),
+                            y as usize + (v >> 1 & 1),
+                            z as usize + (v >> 2),
+                        ];
+                        g32[(at[2] * (c[1] + 1) + at[1]) * (c[0] + 1) + at[0]]
+                    };
+                    full.grads.fill([x, y, z], std::array::from_fn(i));
+                }
+            }
+        }
+        let mut none = brick([0; 3], cells, values(), sc.codes.clone());
+        none.grads = GradPlane::inner(&g32, c);
+        let lut = TfLut::new(&tf(), 0.07);
+        let e = Vec3A::new(0.3, -0.5, 0.8).normalize();
+        let x = Batches {
+            map: &sc.map,
+            ray: &sc.ray,
+            step: 0.07,
+            lut: &lut,
+            resume: 2,
+            stop: 1.0,
+            shade: Some(e),
+            gradient_opacity: None,
+            given: &[],
+            missing: Default::default(),
+            carried: Default::default(),
+            through: None,
+        };
+        let (want, acc, _) = run_one(&x, &full, Some(&g32), false);
+        for avx2 in [false, true] {
+            let (got, got_acc, asked) = run_one(&x, &none, Some(&g32), avx2);
+            assert_eq!(got, want, "seed {seed}");
+            assert_eq!(
+                got_acc.to_array().map(f32::to_bits),
+                acc.to_array().map(f32::to_bits),
+                "seed {seed}"
+            );
+            misses += asked.len();
+        }
+    }
+    // The rays cross about 10 cells each.
+    assert!(misses > 48 * 2 * 5, "{misses} misses");
 }
 
 #[test]

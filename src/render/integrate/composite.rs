@@ -541,6 +541,8 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
                 .then_some(self.look.look),
             given: &[],
             missing: Default::default(),
+            carried: Default::default(),
+            through: None,
         };
         let mut src = BatchSource {
             acc,
