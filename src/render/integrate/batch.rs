@@ -314,11 +314,7 @@ fn retry(
         let at = (local[2] as usize * cells[1] as usize + local[1] as usize) * cells[0] as usize
             + local[0] as usize;
         let g = src.gradients(std::array::from_fn(|a| first[a] + local[a]));
-        // Usually the source kept them in the plane, which the retry reads;
-        // not when another thread is still filling one of the vertices.
-        if src.brick().grads.cell(local).is_none() {
-            given.push((at, g));
-        }
+        given.push((at, g));
         // The batch again from the transmittance it started with, not
         // from `1 - acc.w`, which need not round back to it.
         let y = Batches {
