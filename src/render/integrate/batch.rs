@@ -33,7 +33,7 @@
 
 use std::cell::Cell;
 
-use glam::{Vec3, Vec3A, Vec4};
+use glam::{Vec3A, Vec4};
 
 use super::Ctx;
 use crate::render::cache::{Codes, RBrick};
@@ -450,7 +450,10 @@ fn lanes<const GRAD: bool, const RECT: bool>(
     // The ray's colour and transmittance (1 - opacity) so far (a batch
     // taken again: the transmittance it started with); it stops once the
     // transmittance falls below `clear` (opacity above `stop`).
-    let mut colour = acc.truncate();
+    // The colour is kept in a `Vec4` whose `w` is never read: one
+    // register, where a `Vec3`'s three lanes went through the stack on
+    // every sample.
+    let mut colour = *acc;
     let mut through = x.through.unwrap_or(1.0 - acc.w);
     let clear = 1.0 - x.stop;
     let mut taken = 0u64;
@@ -557,16 +560,16 @@ fn lanes<const GRAD: bool, const RECT: bool>(
             if s.w == 0.0 {
                 continue;
             }
-            colour += through * s.truncate();
+            colour += s * through;
             through *= 1.0 - s.w;
             if through < clear {
-                *acc = colour.extend(1.0 - through);
+                *acc = colour.with_w(1.0 - through);
                 return (taken + j as u64 + 1, End::Stop);
             }
         }
         taken += n as u64;
         if n < LANES {
-            *acc = colour.extend(1.0 - through);
+            *acc = colour.with_w(1.0 - through);
             return (taken, end);
         }
     }
@@ -581,12 +584,12 @@ fn lanes<const GRAD: bool, const RECT: bool>(
 fn missed(
     x: &Batches,
     acc: &mut Vec4,
-    colour: Vec3,
+    colour: Vec4,
     through: f32,
     cell: [u32; 3],
     taken: u64,
 ) -> (u64, End) {
-    *acc = colour.extend(1.0 - through);
+    *acc = colour.with_w(1.0 - through);
     x.carried.set(through);
     x.missing.set(cell);
     (taken, End::Gradients)
