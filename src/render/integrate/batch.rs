@@ -244,20 +244,27 @@ pub(super) struct Batches<'a> {
     /// smooth gradient's length), when the look has any.
     pub gradient_opacity: Option<&'a CompositeLook>,
     pub stop: f32,
-    /// Set by [`run`], empty from its caller: the gradients it was given
-    /// for cells of the batch it takes again that the brick's gradient
-    /// plane has not set, per cell its index in the code plane and its 8
-    /// vertex gradients.
+    /// Only [`run`]'s retry sets it; every caller gives the default.
+    pub again: Again<'a>,
+}
+
+/// What [`run`] carries into a batch it takes again, and where a kernel's
+/// pass leaves the batch that needs it; `Default` (nothing given, nothing
+/// missing) from every caller of [`run`].
+#[derive(Clone, Default)]
+pub(super) struct Again<'a> {
+    /// The gradients [`run`] was given for cells of the batch it takes
+    /// again that the brick's gradient plane has not set, per cell its
+    /// index in the code plane and its 8 vertex gradients.
     pub given: &'a [(usize, [Vec3A; 8])],
+    /// The transmittance to take the batch again from.
+    pub through: Option<f32>,
     /// Set by the kernels, for [`run`]: where one ending with
     /// [`End::Gradients`] leaves the cell (in the brick) whose gradients
-    /// it needs.
+    /// it needs ...
     pub missing: Cell<[u32; 3]>,
     /// ... and the transmittance it carried into that batch.
     pub carried: Cell<f32>,
-    /// Set by [`run`], `None` from its caller: the transmittance to take
-    /// a batch again from.
-    pub through: Option<f32>,
 }
 
 /// Composites samples `k, k + 1, ...` (at `t = k * step`) of the ray into
@@ -304,7 +311,7 @@ fn retry(
     // The batch start the given gradients are for.
     let mut given_at = taken;
     loop {
-        let local = x.missing.get();
+        let local = x.again.missing.get();
         if given_at != taken {
             given.clear();
             given_at = taken;
@@ -318,8 +325,11 @@ fn retry(
         // The batch again from the transmittance it started with, not
         // from `1 - acc.w`, which need not round back to it.
         let y = Batches {
-            given: &given,
-            through: Some(x.carried.get()),
+            again: Again {
+                given: &given,
+                through: Some(x.again.carried.get()),
+                ..Again::default()
+            },
             ..x.clone()
         };
         let (n, end) = select(&y, src.brick(), k + taken as f64, acc, avx2);
@@ -327,8 +337,8 @@ fn retry(
         if end != End::Gradients {
             return (taken, end);
         }
-        x.missing.set(y.missing.get());
-        x.carried.set(y.carried.get());
+        x.again.missing.set(y.again.missing.get());
+        x.again.carried.set(y.again.carried.get());
     }
 }
 
@@ -454,7 +464,7 @@ fn lanes<const GRAD: bool, const RECT: bool>(
     // register, where a `Vec3`'s three lanes went through the stack on
     // every sample.
     let mut colour = *acc;
-    let mut through = x.through.unwrap_or(1.0 - acc.w);
+    let mut through = x.again.through.unwrap_or(1.0 - acc.w);
     let clear = 1.0 - x.stop;
     let mut taken = 0u64;
     loop {
@@ -590,8 +600,8 @@ fn missed(
     taken: u64,
 ) -> (u64, End) {
     *acc = colour.with_w(1.0 - through);
-    x.carried.set(through);
-    x.missing.set(cell);
+    x.again.carried.set(through);
+    x.again.missing.set(cell);
     (taken, End::Gradients)
 }
 
@@ -637,7 +647,7 @@ fn shaded(
             let Some(v) = b
                 .grads
                 .cell(local[j])
-                .or_else(|| given_cell(x.given, code_at[j]))
+                .or_else(|| given_cell(x.again.given, code_at[j]))
             else {
                 upto = j;
                 break;

@@ -281,7 +281,7 @@ proptest! {
         let (vals, codes) = (&sc.vals, &sc.codes);
         let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
         let lut = TfLut::new(&tf(), step);
-        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None, given: &[], missing: Default::default(), carried: Default::default(), through: None };
+        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None, again: Default::default() };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, None) else {
             return Err(TestCaseError::reject("a sample on a cell face"));
         };
@@ -390,10 +390,7 @@ proptest! {
             map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32,
             shade: (look != 1).then_some(to_eye),
             gradient_opacity: (look != 0).then_some(&go),
-            given: &[],
-            missing: Default::default(),
-            carried: Default::default(),
-            through: None,
+            again: Default::default(),
         };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, Some(&grads)) else {
             return Err(TestCaseError::reject("a sample on a face, or ill-conditioned"));
@@ -476,10 +473,7 @@ fn batches_taken_again_keep_the_carried_transmittance() {
             stop: 1.0,
             shade: Some(e),
             gradient_opacity: None,
-            given: &[],
-            missing: Default::default(),
-            carried: Default::default(),
-            through: None,
+            again: Default::default(),
         };
         let (want, acc, _) = run_one(&x, &full, Some(&g32), false);
         for avx2 in [false, true] {

@@ -539,10 +539,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
             shade: (LOOK && self.look.look.shade).then_some(self.look.to_eye),
             gradient_opacity: (LOOK && !self.look.look.gradient_opacity.is_empty())
                 .then_some(self.look.look),
-            given: &[],
-            missing: Default::default(),
-            carried: Default::default(),
-            through: None,
+            again: Default::default(),
         };
         let mut src = BatchSource {
             acc,
