@@ -226,7 +226,12 @@ lines = [f"View {a.view} (azimuth, elevation), orthographic, eye {CAM['eye']}, t
          "| mode | peer | threads | cdvol render s | peer render s | ratio render | "
          "cdvol setup+render s | peer setup+render s | ratio incl. setup | target | met? |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
-target = {"surface": 4.0, "composite": 3.0, "composite-shaded": 3.0, "mip": 3.0}
+# Issue 15's targets: warm frames (`cdvol-warm`) and cold ones (`cdvol`, the
+# first frame of a process); MIP has no cold target.
+targets = {
+    "cdvol-warm": {"surface": 4.0, "composite": 3.0, "composite-shaded": 3.0, "mip": 3.0},
+    "cdvol": {"surface": 2.0, "composite": 2.0, "composite-shaded": 2.0, "mip": None},
+}
 for cd in ("cdvol", "cdvol-warm"):
   for mode, peer in pairs:
     for n in threads:
@@ -234,10 +239,11 @@ for cd in ("cdvol", "cdvol-warm"):
         rr = p["render_core_s"] / c["render_core_s"]
         tot_c = c["setup_s"] + c["render_s"]
         tot_p = p["setup_s"] + p["render_s"]
-        ok = "yes" if rr >= target[mode] else "no"
+        t = targets[cd][mode]
+        goal, ok = ("none", "-") if t is None else (f">= {t:.0f} (render)", "yes" if rr >= t else "no")
         lines.append(f"| {mode} | {peer} vs {cd} | {n} | {c['render_core_s']:.3f} | {p['render_core_s']:.3f} | "
                      f"{rr:.2f} | {tot_c:.3f} | {tot_p:.3f} | {tot_p / tot_c:.2f} | "
-                     f">= {target[mode]:.0f} (render) | {ok} |")
+                     f"{goal} | {ok} |")
 lines += ["", "The same from the fastest of the repeats (the least disturbed figure on a shared machine):", "",
           "| mode | peer | threads | cdvol render s | peer render s | ratio render | cdvol setup s | peer setup s |",
           "|---|---|---|---|---|---|---|---|"]
