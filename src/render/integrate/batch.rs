@@ -461,8 +461,9 @@ fn lanes<const GRAD: bool, const RECT: bool>(
     // taken again: the transmittance it started with); it stops once the
     // transmittance falls below `clear` (opacity above `stop`).
     // The colour is kept in a `Vec4` whose `w` is never read: one
-    // register, where a `Vec3`'s three lanes went through the stack on
-    // every sample.
+    // vector, where a `Vec3` was a scalar and a pair, each spilled and
+    // reloaded on every sample (docs/BENCHMARKS.md, "The colour carried
+    // in a `Vec4`").
     let mut colour = *acc;
     let mut through = x.again.through.unwrap_or(1.0 - acc.w);
     let clear = 1.0 - x.stop;
