@@ -208,7 +208,7 @@ pub(super) enum End {
     Stop,
     /// Only between [`lanes`] and [`run`]: the batch at the sample
     /// returned needs the gradients of a cell of the brick
-    /// ([`Batches::missing`]) that its gradient plane has not set (nothing
+    /// ([`Again::missing`]) that its gradient plane has not set (nothing
     /// of the batch is composited).
     Gradients,
 }
@@ -310,8 +310,10 @@ fn retry(
     let mut given = Given::new();
     // The batch start the given gradients are for.
     let mut given_at = taken;
+    // Where the last pass left: the cell it needs and the transmittance
+    // its batch started with.
+    let (mut local, mut carried) = (x.again.missing.get(), x.again.carried.get());
     loop {
-        let local = x.again.missing.get();
         if given_at != taken {
             given.clear();
             given_at = taken;
@@ -327,7 +329,7 @@ fn retry(
         let y = Batches {
             again: Again {
                 given: &given,
-                through: Some(x.again.carried.get()),
+                through: Some(carried),
                 ..Again::default()
             },
             ..x.clone()
@@ -337,8 +339,7 @@ fn retry(
         if end != End::Gradients {
             return (taken, end);
         }
-        x.again.missing.set(y.again.missing.get());
-        x.again.carried.set(y.again.carried.get());
+        (local, carried) = (y.again.missing.get(), y.again.carried.get());
     }
 }
 
@@ -587,7 +588,7 @@ fn lanes<const GRAD: bool, const RECT: bool>(
 }
 
 /// A batch's exit at a cell whose gradients neither the plane nor
-/// [`Batches::given`] holds: the colour kept in `acc`, the transmittance
+/// [`Again::given`] holds: the colour kept in `acc`, the transmittance
 /// and the cell left for [`run`]. Cold, so that the kernel's layout keeps
 /// its loop on the common path.
 #[cold]
@@ -610,7 +611,7 @@ fn missed(
 /// opacity at `value` where `object`, with the gradient interpolated at
 /// `u` from the gradient plane of brick `b` (`local`: the cell in the
 /// brick, `code_at`: its index in the code plane), or from
-/// [`Batches::given`] for a cell the plane has not set, scaled by the
+/// [`Again::given`] for a cell the plane has not set, scaled by the
 /// gradient opacity and shaded by [`light`], as `Look::apply` does each.
 /// Also how many lanes it lit: fewer than `n` when neither holds a
 /// sample's cell's gradients.
