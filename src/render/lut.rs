@@ -146,9 +146,17 @@ impl TfLut {
             .min(self.last_bin32 + 1.0);
         // SAFETY: `x` is finite and in [0, last_bin + 1] (`max` takes 0 for
         // NaN, `min` bounds infinities), so its minimum with `last_bin`
-        // (at most MAX_BINS - 1) truncates to an i32 in [0, last_bin]. One
-        // conversion instruction, where `as` adds the saturation and NaN
-        // checks, and an i32 converts back to f32 in one more.
+        // (at most MAX_BINS - 1) truncates to an i32 in [0, last_bin].
+        // `max` meets a NaN only as the result of this subtraction and
+        // product of run-time operands, which x86-64 returns quiet; LLVM's
+        // `maxnum` may return NaN only for a signalling one (LangRef), so
+        // this holds where the processor, not constant folding, computes
+        // `x`. A comparison in place of `max` is no firmer (LLVM turns it
+        // into `maxnum`, llvm/llvm-project#170486) and `as i32` costs 11 %
+        // more instructions per frame (docs/BENCHMARKS.md, twenty-eighth
+        // session): the unchecked conversion is one instruction, where
+        // `as` adds the saturation and NaN checks, and an i32 converts
+        // back to f32 in one more.
         let i: i32 = unsafe { x.min(self.last_bin32).to_int_unchecked() };
         let f = x - i as f32;
         let [a, d] = self.bins32[i as usize];
@@ -371,6 +379,12 @@ mod tests {
                 assert!((g - last).abs().max_element() < 1e-6, "{v}: {g} vs {last}");
             }
             assert_eq!(lut.sample32(f32::NAN), Vec4::ZERO);
+            // Signalling NaNs of either sign, as code words are (NaN
+            // payloads), hidden from the optimiser as samples are.
+            for bits in [0x7f80_0001, 0x7fbf_ffff, 0xff80_0001, 0x7fc0_0001] {
+                let v = std::hint::black_box(f32::from_bits(bits));
+                assert_eq!(lut.sample32(v), Vec4::ZERO, "{bits:#x}");
+            }
         }
         // A single point: the same entry everywhere.
         let one = TfLut::new(&tf(&[(5.0, 0.3, [0.2, 0.4, 0.6])]), 2.0);

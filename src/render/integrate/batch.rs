@@ -135,7 +135,9 @@ impl RectAxis {
         #[allow(clippy::manual_clamp)]
         let kf = (p * self.inv_w).max(0.0).min(self.last);
         // SAFETY: `kf` is in [0, last] (`max` takes 0 for NaN), and `last`
-        // is below 2^20, so it truncates to an i32.
+        // is below 2^20, so it truncates to an i32. The NaN `max` may meet
+        // is the product of run-time operands, so quiet (`TfLut::sample32`
+        // says why that matters).
         let k = unsafe { kf.to_int_unchecked::<i32>() } as usize;
         // At most the last cell, whose upper plane `s` holds.
         let mut c = self.bucket[k] as usize;
@@ -496,8 +498,9 @@ fn lanes<const GRAD: bool, const RECT: bool>(
                 // Not `clamp`, which keeps NaN.
                 #[allow(clippy::manual_clamp)]
                 let q1 = (q + 1.0).max(0.0).min(TOP);
-                // SAFETY: `q1` is in [0, 2^24] (`max` takes 0 for NaN), so
-                // it truncates to an i32.
+                // SAFETY: `q1` is in [0, 2^24] (`max` takes 0 for NaN, a
+                // quiet one from this sum; `TfLut::sample32`), so it
+                // truncates to an i32.
                 let ci = unsafe { q1.to_int_unchecked::<i32>() } - 1;
                 u[a][j] = (q - ci as f32).clamp(0.0, 1.0);
                 c[a] = ci as u32;
