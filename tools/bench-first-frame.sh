@@ -9,6 +9,12 @@
 # clearing of fresh pages for the decoded bricks, docs/BENCHMARKS.md,
 # "The kernel's share of the first frame"; "-" from builds without it).
 #
+# IDLE=S sleeps S seconds before each run, as a user's first look at a
+# volume follows idle time: on a virtual machine whose host takes back the
+# guest's free memory (free page reporting), fresh huge pages then cost
+# several times more to clear than in back-to-back runs (docs/BENCHMARKS.md,
+# "Huge pages only while they are fast").
+#
 # usage: tools/bench-first-frame.sh WORKDIR BIN... 
 #   env: SIZES="256 512 1024" (phantoms WORKDIR/phN.cdv, made if missing),
 #        TRAV="cd fvt", REPS=5, THREADS=1, EXTRA="" (more render flags,
@@ -46,6 +52,7 @@ for i in "${!bins[@]}"; do
     fi
 done
 run() { # bin file traversal -> "cold warm bricks_read cold_decode cold_system"
+    sleep "${IDLE:-0}"
     "$1" render -q "$2" -o "$work/ff.png" --width "${SIZE:-1024}" --height "${SIZE:-1024}" \
         --view 30,20 --threads "${THREADS:-1}" --frames 2 --orbit 0 --traversal "$3" \
         ${EXTRA:-} --stats "$work/ff.json" > /dev/null

@@ -11,7 +11,10 @@
 //! `MADV_HUGEPAGE`, so where transparent huge pages are enabled (`always`
 //! or `madvise`) a chunk is one fault. A class's first [`SMALL_CHUNKS`]
 //! chunks stay on ordinary pages, so a small render does not clear 2 MiB
-//! for every class it puts a few planes in. A freed slot is reused by the next
+//! for every class it puts a few planes in. A huge page's first touch is
+//! timed: where one took longer than [`SLOW_HUGE`] (on a virtual machine
+//! whose host has taken the memory back), the next [`SMALL_AFTER_SLOW`]
+//! chunks stay on ordinary pages. A freed slot is reused by the next
 //! allocation of its size class without the kernel; a chunk whose slots
 //! are all free is returned to the system unless it is its class's only
 //! chunk with free slots, so memory still follows the brick cache's budget
@@ -29,6 +32,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::ptr::{self, null_mut};
 use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 /// Bytes of a chunk: the size of an x86-64 huge page.
 pub const CHUNK: usize = 2 << 20;
@@ -46,6 +50,26 @@ const CLASSES: usize = MAX / PAGE + 1;
 /// class it barely uses: a third of a 1 x 1 render's CPU time
 /// (docs/BENCHMARKS.md, "Huge pages only for a class's later chunks").
 pub const SMALL_CHUNKS: usize = 4;
+/// A huge page whose first touch took longer than this cost more than the
+/// same chunk on ordinary pages would have (512 faults, about 1 ms on the
+/// machine measured). There a huge page's first touch took about 0.17 ms
+/// where the memory under it was backed, and 4.5 ms on this virtual
+/// machine where its host had taken the guest's free 2 MiB blocks back
+/// (free page reporting), as it does a few seconds after a process frees
+/// them: a 1024^3 first frame after six idle seconds took 0.58-0.74 s with
+/// huge pages and 0.37-0.40 s without (docs/BENCHMARKS.md, "Huge pages
+/// only while they are fast").
+pub const SLOW_HUGE: Duration = Duration::from_millis(1);
+/// After a huge page slower than [`SLOW_HUGE`], the pool's next chunks that
+/// would have asked for one stay on ordinary pages: this many after the
+/// first slow one, twice as many after each further slow one in a row, up
+/// to [`SMALL_AFTER_SLOW_MAX`]; a fast one resets it. So where all huge
+/// pages are slow, about one chunk in 65 pays for a slow one (4.5 ms
+/// against 1 ms), and where one slow block sits among fast ones, few
+/// chunks lose their huge page.
+pub const SMALL_AFTER_SLOW: usize = 8;
+/// The most chunks kept on ordinary pages after a slow huge page.
+pub const SMALL_AFTER_SLOW_MAX: usize = 64;
 
 /// The first page of every chunk.
 #[repr(C)]
@@ -84,6 +108,41 @@ struct State {
     chunks: usize,
     /// Per class, chunks ever mapped (see [`SMALL_CHUNKS`]).
     made: [usize; CLASSES],
+    /// Chunks still to map on ordinary pages after a slow huge page, and
+    /// how many the next slow one sets ([`SMALL_AFTER_SLOW`]).
+    small_for: usize,
+    backoff: usize,
+    /// Chunks mapped onto huge pages, and how many of those were slow.
+    huge: usize,
+    slow: usize,
+}
+
+impl State {
+    /// Whether the next chunk of class `pages` asks for a huge page: not
+    /// for a class's first [`SMALL_CHUNKS`], nor while `small_for` lasts
+    /// (which this counts down).
+    fn wants_huge(&mut self, pages: usize) -> bool {
+        if self.made[pages] < SMALL_CHUNKS {
+            return false;
+        }
+        if self.small_for > 0 {
+            self.small_for -= 1;
+            return false;
+        }
+        true
+    }
+
+    /// A chunk that asked for a huge page took `took` at its first touch.
+    fn touched_huge(&mut self, took: Duration) {
+        self.huge += 1;
+        if took > SLOW_HUGE {
+            self.slow += 1;
+            self.small_for = self.backoff;
+            self.backoff = (2 * self.backoff).min(SMALL_AFTER_SLOW_MAX);
+        } else {
+            self.backoff = SMALL_AFTER_SLOW;
+        }
+    }
 }
 
 // SAFETY: the raw pointers are only touched under the pool's mutex.
@@ -108,6 +167,10 @@ impl PlanePool {
                 partial: [null_mut(); CLASSES],
                 chunks: 0,
                 made: [0; CLASSES],
+                small_for: 0,
+                backoff: SMALL_AFTER_SLOW,
+                huge: 0,
+                slow: 0,
             }),
         }
     }
@@ -123,6 +186,13 @@ impl PlanePool {
         self.lock().chunks
     }
 
+    /// Chunks ever mapped that asked for a huge page, and how many of
+    /// those were slower than [`SLOW_HUGE`] at their first touch.
+    pub fn huge_chunks(&self) -> (usize, usize) {
+        let st = self.lock();
+        (st.huge, st.slow)
+    }
+
     fn lock(&self) -> std::sync::MutexGuard<'_, State> {
         // A panic while the lock is held cannot leave the lists half
         // changed (no code under the lock panics), so a poisoned lock is
@@ -135,13 +205,25 @@ impl PlanePool {
         let mut st = self.lock();
         let mut h = st.partial[pages];
         if h.is_null() {
-            h = new_chunk(pages, st.made[pages] >= SMALL_CHUNKS);
+            let huge = st.wants_huge(pages);
+            // Mapped and first touched without the lock: the kernel's
+            // clearing of a huge page takes 0.17-4.5 ms ([`SLOW_HUGE`]),
+            // which other threads' allocations need not wait for. The
+            // chunk is this thread's until it is pushed.
+            drop(st);
+            let took;
+            (h, took) = new_chunk(pages, huge);
             if h.is_null() {
                 return null_mut();
             }
+            st = self.lock();
+            if huge {
+                st.touched_huge(took);
+            }
             st.chunks += 1;
             st.made[pages] += 1;
-            // SAFETY: `h` is a fresh chunk's header, not in any list.
+            // SAFETY: `h` is a fresh chunk's header, not in any list; it
+            // goes to the head of its class's list, with room.
             unsafe { push(&mut st, h) };
         }
         // SAFETY: `h` is a mapped chunk of this class with room (only such
@@ -239,8 +321,9 @@ unsafe fn unlink(st: &mut State, h: *mut Header) {
 
 /// A new chunk for slots of `pages` pages, aligned to [`CHUNK`] and
 /// advised onto a huge page when `huge`, its header written; null if the
-/// system refuses the mapping.
-fn new_chunk(pages: usize, huge: bool) -> *mut Header {
+/// system refuses the mapping. Also how long the header's write took: the
+/// chunk's first touch, where the kernel maps (and clears) the huge page.
+fn new_chunk(pages: usize, huge: bool) -> (*mut Header, Duration) {
     // Map twice the size and trim to an aligned chunk.
     // SAFETY: an anonymous private mapping at an address of the kernel's
     // choice; the result is checked.
@@ -255,7 +338,7 @@ fn new_chunk(pages: usize, huge: bool) -> *mut Header {
         )
     };
     if raw == libc::MAP_FAILED {
-        return null_mut();
+        return (null_mut(), Duration::ZERO);
     }
     let raw = raw as usize;
     let base = (raw + CHUNK - 1) & !(CHUNK - 1);
@@ -270,6 +353,8 @@ fn new_chunk(pages: usize, huge: bool) -> *mut Header {
             libc::madvise(base as *mut libc::c_void, CHUNK, libc::MADV_HUGEPAGE);
         }
         let h = base as *mut Header;
+        // The clock reads without allocating (a vDSO call on Linux).
+        let start = Instant::now();
         ptr::write(
             h,
             Header {
@@ -282,7 +367,7 @@ fn new_chunk(pages: usize, huge: bool) -> *mut Header {
                 listed: false,
             },
         );
-        h
+        (h, start.elapsed())
     }
 }
 
@@ -457,9 +542,48 @@ mod tests {
             let f = vm_flags(*ps.last().unwrap() as usize);
             assert!(f.split(' ').any(|x| x == "hg"), "the later chunk: {f}");
         }
+        assert_eq!(pool.huge_chunks().0, 1);
         for p in ps {
             unsafe { pool.dealloc(p, l) };
         }
+    }
+
+    /// After a huge page slower than [`SLOW_HUGE`], the next
+    /// [`SMALL_AFTER_SLOW`] chunks that would have asked for one stay on
+    /// ordinary pages and the one after them asks again; each further slow
+    /// one in a row doubles the wait up to [`SMALL_AFTER_SLOW_MAX`], and a
+    /// fast one resets it. A huge page as slow as the limit, or a class's
+    /// first chunks, change nothing.
+    #[test]
+    fn slow_huge_pages_keep_the_next_chunks_on_ordinary_pages() {
+        let pool = PlanePool::new();
+        let mut st = pool.lock();
+        let c = 10;
+        for _ in 0..SMALL_CHUNKS {
+            assert!(!st.wants_huge(c));
+            st.made[c] += 1;
+        }
+        // Chunks on ordinary pages until the next one asks for a huge page.
+        let wait = |st: &mut State| (0..).find(|_| st.wants_huge(c)).unwrap_or(0);
+        assert_eq!(wait(&mut st), 0);
+        st.touched_huge(SLOW_HUGE);
+        assert_eq!(wait(&mut st), 0);
+        let slow = SLOW_HUGE + Duration::from_nanos(1);
+        let mut waits = Vec::new();
+        for _ in 0..5 {
+            st.touched_huge(slow);
+            // Another class's first chunks neither ask nor count down.
+            assert!(!st.wants_huge(c + 1));
+            waits.push(wait(&mut st));
+        }
+        st.touched_huge(Duration::ZERO);
+        waits.push(wait(&mut st));
+        st.touched_huge(slow);
+        waits.push(wait(&mut st));
+        let s = SMALL_AFTER_SLOW;
+        assert_eq!(waits, [s, 2 * s, 4 * s, 8 * s, SMALL_AFTER_SLOW_MAX, 0, s]);
+        assert_eq!(8 * s, SMALL_AFTER_SLOW_MAX);
+        assert_eq!((st.huge, st.slow), (8, 6));
     }
 
     #[test]
