@@ -56,8 +56,8 @@ pub const SMALL_CHUNKS: usize = 4;
 /// where the memory under it was backed, and 4.5 ms on this virtual
 /// machine where its host had taken the guest's free 2 MiB blocks back
 /// (free page reporting), as it does a few seconds after a process frees
-/// them: a 1024^3 first frame after six idle seconds took 0.58-0.74 s with
-/// huge pages and 0.37-0.40 s without (docs/BENCHMARKS.md, "Huge pages
+/// them: a 1024^3 first frame after six idle seconds took 0.61-0.72 s with
+/// huge pages and 0.37-0.41 s without (docs/BENCHMARKS.md, "Huge pages
 /// only while they are fast").
 pub const SLOW_HUGE: Duration = Duration::from_millis(1);
 /// After a huge page slower than [`SLOW_HUGE`], the pool's next chunks that

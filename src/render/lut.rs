@@ -152,9 +152,9 @@ impl TfLut {
         // `maxnum` may return NaN only for a signalling one (LangRef), so
         // this holds where the processor, not constant folding, computes
         // `x`. A comparison in place of `max` is no firmer (LLVM turns it
-        // into `maxnum`, llvm/llvm-project#170486) and `as i32` costs 11 %
-        // more instructions per frame (docs/BENCHMARKS.md, twenty-eighth
-        // session): the unchecked conversion is one instruction, where
+        // into `maxnum`, llvm/llvm-project#170486) and `as i32` costs
+        // 10-13 % more instructions per frame (docs/BENCHMARKS.md,
+        // twenty-eighth session): the unchecked conversion is one instruction, where
         // `as` adds the saturation and NaN checks, and an i32 converts
         // back to f32 in one more.
         let i: i32 = unsafe { x.min(self.last_bin32).to_int_unchecked() };
