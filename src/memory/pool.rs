@@ -13,12 +13,13 @@
 //! chunks stay on ordinary pages, so a small render does not clear 2 MiB
 //! for every class it puts a few planes in. A huge page's first touch is
 //! timed: where one took longer than [`SLOW_HUGE`] (on a virtual machine
-//! whose host has taken the memory back), the next [`SMALL_AFTER_SLOW`]
-//! chunks stay on ordinary pages. A freed slot is reused by the next
-//! allocation of its size class without the kernel; a chunk whose slots
-//! are all free is returned to the system unless it is its class's only
-//! chunk with free slots, so memory still follows the brick cache's budget
-//! (the aim of [`super::bound_heap_fragmentation`]).
+//! whose host has taken the memory back, or where the kernel had to
+//! compact memory for it), the next [`SMALL_AFTER_SLOW`] chunks, or more
+//! after further slow ones, stay on ordinary pages. A freed slot is
+//! reused by the next allocation of its size class without the kernel; a
+//! chunk whose slots are all free is returned to the system unless it is
+//! its class's only chunk with free slots, so memory still follows the
+//! brick cache's budget (the aim of [`super::bound_heap_fragmentation`]).
 //!
 //! The command-line binary installs it as the global allocator
 //! (`src/main.rs`); the library does not, so programs that link cdvol keep
