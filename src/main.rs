@@ -73,6 +73,8 @@ impl Progress for Bars {
 
 fn main() -> ExitCode {
     cdvol::memory::bound_heap_fragmentation();
+    #[cfg(target_os = "linux")]
+    ALLOC.register();
     let cli = Cli::parse();
     let bars = Bars {
         bar: Mutex::new(None),
@@ -208,7 +210,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             }
             println!(
                 "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read ({} reads), {:.2} s \
-                 (thread seconds: decode {:.2}, traverse {:.2}, sample {:.2}; kernel {:.2} s, {} page faults)",
+                 (thread seconds: decode {:.2}, traverse {:.2}, sample {:.2}; kernel {:.2} s, {} page faults{})",
                 stats.rays,
                 stats.steps,
                 stats.steps as f64 / stats.rays.max(1) as f64,
@@ -224,6 +226,11 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 stats.seconds_sample,
                 stats.seconds_system,
                 stats.page_faults,
+                match (stats.huge_pages, stats.huge_pages_slow) {
+                    (0, _) => String::new(),
+                    (n, 0) => format!(", {n} huge pages"),
+                    (n, s) => format!(", {n} huge pages, {s} slow"),
+                },
             );
         }
         Command::Demo(a) => demo::run(&a.dir, progress)?,

@@ -32,7 +32,7 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::ptr::{self, null_mut};
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 /// Bytes of a chunk: the size of an x86-64 huge page.
@@ -71,6 +71,9 @@ pub const SLOW_HUGE: Duration = Duration::from_millis(1);
 pub const SMALL_AFTER_SLOW: usize = 8;
 /// The most chunks kept on ordinary pages after a slow huge page.
 pub const SMALL_AFTER_SLOW_MAX: usize = 64;
+
+/// See [`PlanePool::register`].
+static REGISTERED: OnceLock<&'static PlanePool> = OnceLock::new();
 
 /// The first page of every chunk.
 #[repr(C)]
@@ -192,6 +195,19 @@ impl PlanePool {
     pub fn huge_chunks(&self) -> (usize, usize) {
         let st = self.lock();
         (st.huge, st.slow)
+    }
+
+    /// Makes this pool the one [`PlanePool::registered`] returns: a
+    /// binary that installs it as its global allocator registers it, so
+    /// that a render's statistics can report its huge pages. The first
+    /// registration stands; later ones are ignored.
+    pub fn register(&'static self) {
+        let _ = REGISTERED.set(self);
+    }
+
+    /// The pool [`PlanePool::register`] named, if any.
+    pub fn registered() -> Option<&'static PlanePool> {
+        REGISTERED.get().copied()
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, State> {

@@ -221,11 +221,28 @@ pub(crate) fn split(times: &[TileTime], decode: f64) -> (f64, f64, f64) {
 pub(crate) struct KernelUse {
     pub(crate) seconds_system: f64,
     pub(crate) page_faults: u64,
+    /// Chunks of the registered plane pool that asked for a huge page,
+    /// and how many of those were slow at their first touch
+    /// ([`PlanePool::huge_chunks`](crate::memory::pool::PlanePool::huge_chunks));
+    /// 0 without a registered pool.
+    pub(crate) huge_pages: u64,
+    pub(crate) huge_pages_slow: u64,
 }
 
 impl KernelUse {
     /// The process's kernel use so far.
     pub(crate) fn now() -> KernelUse {
+        let (huge, slow) =
+            crate::memory::pool::PlanePool::registered().map_or((0, 0), |p| p.huge_chunks());
+        KernelUse {
+            huge_pages: huge as u64,
+            huge_pages_slow: slow as u64,
+            ..KernelUse::rusage()
+        }
+    }
+
+    /// The system seconds and page faults so far.
+    fn rusage() -> KernelUse {
         #[cfg(all(target_os = "linux", target_env = "gnu"))]
         {
             // SAFETY: `getrusage` writes one `rusage` into the zeroed
@@ -236,6 +253,7 @@ impl KernelUse {
                 return KernelUse {
                     seconds_system: t.tv_sec as f64 + t.tv_usec as f64 * 1e-6,
                     page_faults: (u.ru_minflt + u.ru_majflt).max(0) as u64,
+                    ..KernelUse::default()
                 };
             }
         }
@@ -248,6 +266,8 @@ impl KernelUse {
         KernelUse {
             seconds_system: (n.seconds_system - earlier.seconds_system).max(0.0),
             page_faults: n.page_faults.saturating_sub(earlier.page_faults),
+            huge_pages: n.huge_pages.saturating_sub(earlier.huge_pages),
+            huge_pages_slow: n.huge_pages_slow.saturating_sub(earlier.huge_pages_slow),
         }
     }
 }
@@ -313,5 +333,36 @@ mod tests {
         // mapping: at least LEN / 2 MiB = 32.
         assert!(d.page_faults >= 32, "{d:?}");
         assert!(d.seconds_system >= 0.0 && d.seconds_system.is_finite());
+    }
+
+    /// The registered plane pool's huge pages show between two readings:
+    /// a size class's chunk after its first `SMALL_CHUNKS` asks for one,
+    /// and it counts as slow or not by its first touch. (The only test
+    /// that registers a pool; the test binary's allocator is the
+    /// system's, so this one is used directly.)
+    #[test]
+    fn kernel_use_counts_the_registered_pools_huge_pages() {
+        use crate::memory::pool::{PlanePool, SMALL_CHUNKS};
+        use std::alloc::{GlobalAlloc, Layout};
+        static POOL: PlanePool = PlanePool::new();
+        POOL.register();
+        assert!(PlanePool::registered().is_some_and(|p| std::ptr::eq(p, &POOL)));
+        let l = Layout::from_size_align(40 << 10, 8).expect("a layout");
+        let k0 = KernelUse::now();
+        let mut slots = Vec::new();
+        while POOL.chunks() <= SMALL_CHUNKS {
+            // SAFETY: a non-zero layout; each slot is freed once below.
+            let p = unsafe { POOL.alloc(l) };
+            assert!(!p.is_null());
+            slots.push(p);
+        }
+        let d = KernelUse::since(k0);
+        assert_eq!(d.huge_pages, 1, "{d:?}");
+        assert!(d.huge_pages_slow <= 1, "{d:?}");
+        assert_eq!(POOL.huge_chunks(), (1, d.huge_pages_slow as usize));
+        for p in slots {
+            // SAFETY: from `alloc` with `l`, freed once.
+            unsafe { POOL.dealloc(p, l) };
+        }
     }
 }

@@ -73,6 +73,15 @@ pub struct Stats {
     /// counted like `seconds_system`.
     #[serde(default)]
     pub page_faults: u64,
+    /// Chunks of brick planes (2 MiB each) that asked for a huge page
+    /// during the render, and how many of those took longer than 1 ms to
+    /// clear, after which the next ones stay on ordinary pages
+    /// (cdvol::memory::pool, "huge pages only while they are fast"); 0
+    /// where the plane pool is not the allocator (the library alone).
+    #[serde(default)]
+    pub huge_pages: u64,
+    #[serde(default)]
+    pub huge_pages_slow: u64,
     /// The traversal's stable name ([`Method::name`](super::traverse::Method::name):
     /// `cd`, `cd min_leap=3`, `fvt`, `dda-chamfer no_switch`, ...; the
     /// template renderer prefixes `template `).
@@ -119,6 +128,8 @@ impl Stats {
             seconds_sample: 0.0,
             seconds_system: 0.0,
             page_faults: 0,
+            huge_pages: 0,
+            huge_pages_slow: 0,
             traversal: opts.method.name(),
             mode: opts.mode.name().into(),
             width: 0,
@@ -131,6 +142,8 @@ impl Stats {
         let k = super::clock::KernelUse::since(k0);
         self.seconds_system = k.seconds_system;
         self.page_faults = k.page_faults;
+        self.huge_pages = k.huge_pages;
+        self.huge_pages_slow = k.huge_pages_slow;
     }
 
     /// Adds the counters of `o` (another part or frame): sums, except
@@ -157,5 +170,7 @@ impl Stats {
         self.seconds_sample += o.seconds_sample;
         self.seconds_system += o.seconds_system;
         self.page_faults += o.page_faults;
+        self.huge_pages += o.huge_pages;
+        self.huge_pages_slow += o.huge_pages_slow;
     }
 }
