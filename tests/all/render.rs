@@ -419,6 +419,56 @@ fn stats_split_the_tiles_time() {
     }
 }
 
+/// `--stats` reports the plane pool's huge pages: a cold frame that fills
+/// more than `SMALL_CHUNKS` chunks of one size class (the 256^3 phantom's
+/// bricks with values: 72 KiB words, 28 to a chunk) asks for at least one;
+/// how many of them are slow is the host's business. A warm frame maps no
+/// chunk.
+#[cfg(target_os = "linux")]
+#[test]
+fn stats_report_the_plane_pools_huge_pages() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let p = |n: &str| d.join(n).to_str().unwrap().to_owned();
+    common::ok(common::cdvol().args([
+        "phantom",
+        "ct",
+        "--dims",
+        "256,256,256",
+        "-o",
+        &p("ct.json"),
+    ]));
+    common::ok(common::cdvol().args(["prep", &p("ct.json"), "-o", &p("ct.cdv"), "--iso", "300"]));
+    let out = common::ok(common::cdvol().args([
+        "render",
+        &p("ct.cdv"),
+        "-o",
+        &p("ct.png"),
+        "--width",
+        "128",
+        "--height",
+        "128",
+        "--threads",
+        "1",
+        "--frames",
+        "2",
+        "--orbit",
+        "0",
+        "--stats",
+        &p("s.json"),
+    ]));
+    let s: Vec<Stats> = serde_json::from_slice(&std::fs::read(p("s.json")).unwrap()).unwrap();
+    assert!(s[0].huge_pages >= 1, "cold frame: {:?}", s[0]);
+    assert!(s[0].huge_pages_slow <= s[0].huge_pages, "{:?}", s[0]);
+    assert_eq!(
+        (s[1].huge_pages, s[1].huge_pages_slow),
+        (0, 0),
+        "warm frame: {:?}",
+        s[1]
+    );
+    assert!(out.contains(" huge page"), "{out}");
+}
+
 /// `--stats` reports the kernel's share of each frame: a cold frame of a
 /// fresh process decodes its bricks into fresh memory, which the kernel
 /// maps in (page faults); a warm frame of the same process decodes
