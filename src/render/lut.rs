@@ -154,9 +154,9 @@ impl TfLut {
         // `x`. A comparison in place of `max` is no firmer (LLVM turns it
         // into `maxnum`, llvm/llvm-project#170486) and `as i32` costs
         // 10-13 % more instructions per frame (docs/BENCHMARKS.md,
-        // twenty-eighth session): the unchecked conversion is one instruction, where
-        // `as` adds the saturation and NaN checks, and an i32 converts
-        // back to f32 in one more.
+        // twenty-eighth session): the unchecked conversion is one
+        // instruction, where `as` adds the saturation and NaN checks, and
+        // an i32 converts back to f32 in one more.
         let i: i32 = unsafe { x.min(self.last_bin32).to_int_unchecked() };
         let f = x - i as f32;
         let [a, d] = self.bins32[i as usize];
