@@ -419,25 +419,16 @@ fn stats_split_the_tiles_time() {
     }
 }
 
-/// `--stats` reports the plane pool's huge pages: a cold frame that fills
-/// more than `SMALL_CHUNKS` chunks of one size class (the 256^3 phantom's
-/// bricks with values: 72 KiB words, 28 to a chunk) asks for at least one;
-/// how many of them are slow is the host's business. A warm frame maps no
-/// chunk.
+/// A CT phantom of `dims` voxels prepared at iso 300 and rendered at
+/// 128^2 on one thread as a two-frame turntable at one view (a cold frame,
+/// then a warm one), in a process of its own: the frames' `--stats` and
+/// the summary line.
 #[cfg(target_os = "linux")]
-#[test]
-fn stats_report_the_plane_pools_huge_pages() {
+fn cold_and_warm_frame(dims: &str) -> (Vec<Stats>, String) {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     let p = |n: &str| d.join(n).to_str().unwrap().to_owned();
-    common::ok(common::cdvol().args([
-        "phantom",
-        "ct",
-        "--dims",
-        "256,256,256",
-        "-o",
-        &p("ct.json"),
-    ]));
+    common::ok(common::cdvol().args(["phantom", "ct", "--dims", dims, "-o", &p("ct.json")]));
     common::ok(common::cdvol().args(["prep", &p("ct.json"), "-o", &p("ct.cdv"), "--iso", "300"]));
     let out = common::ok(common::cdvol().args([
         "render",
@@ -458,6 +449,19 @@ fn stats_report_the_plane_pools_huge_pages() {
         &p("s.json"),
     ]));
     let s: Vec<Stats> = serde_json::from_slice(&std::fs::read(p("s.json")).unwrap()).unwrap();
+    assert_eq!(s.len(), 2);
+    (s, out)
+}
+
+/// `--stats` reports the plane pool's huge pages: a cold frame that fills
+/// more than `SMALL_CHUNKS` chunks of one size class (the 256^3 phantom's
+/// bricks with values: 72 KiB words, 28 to a chunk) asks for at least one;
+/// how many of them are slow is the host's business. A warm frame maps no
+/// chunk.
+#[cfg(target_os = "linux")]
+#[test]
+fn stats_report_the_plane_pools_huge_pages() {
+    let (s, out) = cold_and_warm_frame("256,256,256");
     assert!(s[0].huge_pages >= 1, "cold frame: {:?}", s[0]);
     assert!(s[0].huge_pages_slow <= s[0].huge_pages, "{:?}", s[0]);
     assert_eq!(
@@ -476,29 +480,7 @@ fn stats_report_the_plane_pools_huge_pages() {
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 #[test]
 fn stats_report_the_kernel_share_of_a_cold_frame() {
-    let tmp = tempfile::tempdir().unwrap();
-    let d = tmp.path();
-    let p = |n: &str| d.join(n).to_str().unwrap().to_owned();
-    common::ok(common::cdvol().args(["phantom", "ct", "--dims", "96,96,96", "-o", &p("ct.json")]));
-    common::ok(common::cdvol().args(["prep", &p("ct.json"), "-o", &p("ct.cdv"), "--iso", "300"]));
-    common::ok(common::cdvol().args([
-        "render",
-        &p("ct.cdv"),
-        "-o",
-        &p("ct.png"),
-        "--width",
-        "128",
-        "--height",
-        "128",
-        "--frames",
-        "2",
-        "--orbit",
-        "0",
-        "--stats",
-        &p("s.json"),
-    ]));
-    let s: Vec<Stats> = serde_json::from_slice(&std::fs::read(p("s.json")).unwrap()).unwrap();
-    assert_eq!(s.len(), 2);
+    let (s, _) = cold_and_warm_frame("96,96,96");
     assert!(s[0].bricks_read > 0, "{:?}", s[0]);
     assert!(s[0].page_faults > 0, "cold frame: {:?}", s[0]);
     assert_eq!(s[1].bricks_read, 0, "warm frame: {:?}", s[1]);
