@@ -228,9 +228,11 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 stats.page_faults,
                 match (stats.huge_pages, stats.huge_pages_slow) {
                     (0, _) => String::new(),
-                    (1, 0) => ", 1 huge page".to_string(),
-                    (n, 0) => format!(", {n} huge pages"),
-                    (n, s) => format!(", {n} huge page{}, {s} slow", if n == 1 { "" } else { "s" }),
+                    (n, s) => format!(
+                        ", {n} huge page{}{}",
+                        if n == 1 { "" } else { "s" },
+                        if s > 0 { format!(", {s} slow") } else { String::new() }
+                    ),
                 },
             );
         }
