@@ -21,7 +21,7 @@ use super::clock::{self, Clock, KernelUse, TileTime};
 use super::colour::{colour_blocks, Colouring, PxBlock};
 use super::cull::Cover;
 use super::error::RenderError;
-use super::integrate::{pixel, Ctx, Px, Seeds};
+use super::integrate::{pixel, Ctx, Px};
 use super::options::{check_render, Precision, RenderOptions};
 use super::output::Frame;
 use super::stats::Stats;
@@ -498,7 +498,6 @@ fn render_tile<T: Real>(
     let mut hits = 0;
     let mut culled = 0;
     let mut clock = Clock::start();
-    let mut seeds = Seeds::new(w as usize);
     for y in y0..y0 + hh {
         for x in x0..x0 + w {
             if cover.is_some_and(|c| !c.covered(x, y)) {
@@ -508,14 +507,7 @@ fn render_tile<T: Real>(
             }
             let ray = cam.ray(x, y);
             clock.begin_ray(pixels.len() as u32, &acc);
-            let (p, s) = pixel(
-                ctx,
-                &ray,
-                &mut acc,
-                &mut clock,
-                &mut seeds,
-                (x - x0) as usize,
-            );
+            let (p, s) = pixel(ctx, &ray, &mut acc, &mut clock);
             clock.end_ray(&acc);
             steps.add(&s);
             hits += p.hit as u64;

@@ -104,13 +104,6 @@ proptest! {
         for method in [Method::Fvt, Method::Cd { min_leap: 1 }, Method::Octree] {
             let (frame, _) = render(&vol, &cam, &common::test_opts(Mode::Mip, method), &NoProgress).unwrap();
             let got = frame.values.expect("MIP frames carry their values");
-            // Tiles of one pixel: no ray has a neighbour's maximum to start
-            // from (integrate/mip.rs, seeds), and the maxima are the same
-            // bit for bit.
-            let alone = cdvol::render::RenderOptions { tile: 1, ..common::test_opts(Mode::Mip, method) };
-            let (frame1, _) = render(&vol, &cam, &alone, &NoProgress).unwrap();
-            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            prop_assert_eq!(bits(&got), bits(&frame1.values.expect("values")), "{:?}", method);
             for y in 0..cam.height {
                 for x in 0..cam.width {
                     let want = oracle(&values, dims, &pos, &ones, &cam.ray(x, y));
@@ -190,38 +183,6 @@ fn mip_leaps_out_of_nodes_below_the_rays_maximum_and_keeps_fvts_maxima() {
             };
             let (want, fvt) = run(Method::Fvt);
             assert_eq!(fvt.macro_steps, 0, "FVT does not leap");
-            // Each ray on its own (tiles of one pixel): no neighbour's
-            // maximum to start from, the same maxima bit for bit, and no
-            // fewer steps for CD (integrate/mip.rs, seeds; where they
-            // save steps: the next test).
-            let alone = |method| {
-                let opts = cdvol::render::RenderOptions {
-                    tile: 1,
-                    ..common::test_opts(Mode::Mip, method)
-                };
-                let (frame, stats) = render(&vol, &cam, &opts, &NoProgress).unwrap();
-                (frame.values.expect("MIP frames carry their values"), stats)
-            };
-            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            let (fvt1, _) = alone(Method::Fvt);
-            assert_eq!(
-                bits(&fvt1),
-                bits(&want),
-                "FVT without seeds, bricks of {brick}, view {view:?}"
-            );
-            let (cd1, cd1_stats) = alone(Method::Cd { min_leap: 1 });
-            let (cd, cd_stats) = run(Method::Cd { min_leap: 1 });
-            assert_eq!(
-                bits(&cd1),
-                bits(&cd),
-                "CD without seeds, bricks of {brick}, view {view:?}"
-            );
-            assert!(
-                cd_stats.steps <= cd1_stats.steps,
-                "bricks of {brick}, view {view:?}: CD took {} steps with seeds, {} without",
-                cd_stats.steps,
-                cd1_stats.steps
-            );
             for method in [Method::Cd { min_leap: 1 }, Method::Octree] {
                 let (got, s) = run(method);
                 let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
@@ -237,82 +198,6 @@ fn mip_leaps_out_of_nodes_below_the_rays_maximum_and_keeps_fvts_maxima() {
                     fvt.steps
                 );
             }
-        }
-    }
-}
-
-/// A ray that starts from its neighbours' maximum (integrate/mip.rs,
-/// seeds) leaps over the cells before it that cannot reach it: on a smooth
-/// blob, whose values rise towards its centre, CD takes fewer steps with
-/// seeds than with each ray on its own (tiles of one pixel), and every
-/// traversal draws the same maxima bit for bit either way. Rectilinear
-/// axes, bricks of 4 and 8, orthographic and perspective views.
-#[test]
-fn mip_rays_start_from_their_neighbours_maxima() {
-    let dims = [18usize, 16, 14];
-    let pos: [Vec<f64>; 3] = std::array::from_fn(|k| {
-        (0..dims[k])
-            .map(|i| i as f64 * 0.8 + 0.07 * (i * i % 5) as f64)
-            .collect()
-    });
-    let centre: [f64; 3] = std::array::from_fn(|k| 0.5 * (pos[k][0] + pos[k][dims[k] - 1]));
-    let mut values = Vec::with_capacity(dims.iter().product());
-    for z in 0..dims[2] {
-        for y in 0..dims[1] {
-            for x in 0..dims[0] {
-                let p = [pos[0][x], pos[1][y], pos[2][z]];
-                let r2: f64 = (0..3).map(|k| (p[k] - centre[k]).powi(2)).sum();
-                values.push(60.0 + 40.0 * (-r2 / 20.0).exp());
-            }
-        }
-    }
-    let ax = pos.clone().map(|p| common::axis_json(&p));
-    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    for brick in [8usize, 16] {
-        let dir = tempfile::tempdir().unwrap();
-        let side = write_stack(
-            dir.path(),
-            "v",
-            dims,
-            "f32",
-            &values,
-            [&ax[0], &ax[1], &ax[2]],
-            "",
-        );
-        let vol = common::packed_with(&side, &dir.path().join("v.cdv"), ISO, |o| {
-            o.brick_size = brick
-        });
-        for (view, fov) in [([30.0, 20.0], None), ([-120.0, -45.0], Some(40.0))] {
-            // About 4 pixels per cell, as the real CT at 1024^2: a
-            // neighbour's cell is often on the ray too.
-            let cam = common::orbit(&vol, view, fov, 64, 48);
-            let run = |method, tile| {
-                let opts = cdvol::render::RenderOptions {
-                    tile,
-                    ..common::test_opts(Mode::Mip, method)
-                };
-                let (frame, stats) = render(&vol, &cam, &opts, &NoProgress).unwrap();
-                (frame.values.expect("MIP frames carry their values"), stats)
-            };
-            let (want, _) = run(Method::Fvt, 1);
-            for method in [Method::Fvt, Method::Cd { min_leap: 1 }, Method::Octree] {
-                for tile in [1, 16] {
-                    let (got, _) = run(method, tile);
-                    assert_eq!(
-                        bits(&got),
-                        bits(&want),
-                        "{method:?}, tiles of {tile}, bricks of {brick}, view {view:?}"
-                    );
-                }
-            }
-            let (_, alone) = run(Method::Cd { min_leap: 1 }, 1);
-            let (_, seeded) = run(Method::Cd { min_leap: 1 }, 16);
-            assert!(
-                seeded.steps < alone.steps,
-                "bricks of {brick}, view {view:?}: CD took {} steps with seeds, {} without",
-                seeded.steps,
-                alone.steps
-            );
         }
     }
 }

@@ -9,14 +9,6 @@
 //! with the same `t` (module traverse), so every traversal shares the same
 //! faces and draws the same image.
 //!
-//! A ray starts from its neighbours' maxima ([`Seeds`]): the cell where
-//! the ray to its left and the ray above it found theirs, at 1024^2 often
-//! a cell this ray crosses too. Where it does ([`visit_of`]), the value at
-//! the ray's own exit from that 1-cell is one the walk would take or bound
-//! by `best`, so it is at most the ray's maximum, and starting `best` there
-//! changes nothing but how soon cells stop raising it: more of them are
-//! skipped and leapt over.
-//!
 //! A cell that cannot raise the ray's maximum also tells CD and the octree
 //! to leap out of the largest node around it, up to the brick, whose
 //! vertices cannot either (`Flow::LeapNode`, the bricks' max pyramid): the
@@ -27,7 +19,7 @@ use super::{Ctx, Px};
 use crate::render::cache::{Accessor, BLOCK};
 use crate::render::clock::Clock;
 use crate::render::shade::{at, CellEval};
-use crate::render::traverse::{trace, visit_of, Flow, Method, Ray, Real, StepCounts, Visit};
+use crate::render::traverse::{trace, Flow, Method, Ray, Real, StepCounts, Visit};
 
 /// Writes the largest value along `ray` into `px.rgb` (uncoloured).
 pub(super) fn mip<T: Real>(
@@ -35,17 +27,10 @@ pub(super) fn mip<T: Real>(
     ray: &Ray,
     acc: &mut Accessor,
     clock: &mut Clock,
-    seeds: &mut Seeds,
-    col: usize,
     px: &mut Px,
 ) -> StepCounts {
     let coords = ctx.coords;
     let mut m = Max::default();
-    clock.enter(acc);
-    for cell in seeds.near(col) {
-        m.seed(ctx.grid, coords, ray, cell, acc);
-    }
-    clock.leave(acc);
     let leaps = block_leaps(ctx.opts.method, acc.brick_size());
     let counts = trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |v, acc| {
         clock.enter(acc);
@@ -53,7 +38,6 @@ pub(super) fn mip<T: Real>(
         clock.leave(acc);
         flow
     });
-    seeds.found(col, m.at);
     if m.best > f64::NEG_INFINITY {
         px.hit = true;
         px.rgb = [m.best as f32; 3];
@@ -80,39 +64,9 @@ pub(crate) fn leaps_with(method: Method) -> bool {
     )
 }
 
-/// Per tile, the cell where each column's last ray found its maximum
-/// (`None` where it found none, or where no ray was cast yet): before the
-/// ray at column `i`, entry `i - 1` is the ray to its left and entry `i`
-/// the ray above it.
-pub(crate) struct Seeds {
-    cells: Vec<Option<[u32; 3]>>,
-}
-
-impl Seeds {
-    /// Seeds for a tile `width` pixels wide.
-    pub(crate) fn new(width: usize) -> Seeds {
-        Seeds {
-            cells: vec![None; width],
-        }
-    }
-
-    /// The distinct cells of the rays left of and above column `col`.
-    fn near(&self, col: usize) -> impl Iterator<Item = [u32; 3]> {
-        let left = col.checked_sub(1).and_then(|i| self.cells[i]);
-        let above = self.cells[col].filter(|c| Some(*c) != left);
-        left.into_iter().chain(above)
-    }
-
-    fn found(&mut self, col: usize, at: Option<[u32; 3]>) {
-        self.cells[col] = at;
-    }
-}
-
 /// The ray's maximum so far and the face the last visit left by.
 struct Max {
     best: f64,
-    /// The cell whose value `best` last came from (a seed's or a visit's).
-    at: Option<[u32; 3]>,
     /// `t_exit` of the last visit when the value there is known to be at
     /// most `best` (evaluated and not NaN, or bounded by the cell's
     /// vertices); NaN otherwise, which no `t_enter` equals.
@@ -123,38 +77,12 @@ impl Default for Max {
     fn default() -> Max {
         Max {
             best: f64::NEG_INFINITY,
-            at: None,
             covered_exit: f64::NAN,
         }
     }
 }
 
 impl Max {
-    /// Raises `best` to the value where the ray leaves `cell`, a 1-cell
-    /// a neighbouring ray found its maximum in, if the ray passes it.
-    /// That exit is a face sample the walk takes (the same `t` and cell,
-    /// so the same bits), or one it skips because its cell's vertices are
-    /// at most `best` then: either way it is at most the ray's maximum, so
-    /// the walk ends with the same `best` from this start (module docs).
-    fn seed<T: Real>(
-        &mut self,
-        grid: &crate::render::traverse::TGrid<T>,
-        coords: [&[f64]; 3],
-        ray: &Ray,
-        cell: [u32; 3],
-        acc: &mut Accessor,
-    ) {
-        let Some(v) = visit_of(grid, ray, 0.0, cell) else {
-            return;
-        };
-        let (b, l) = acc.brick(cell);
-        let exit = CellEval::new(coords, cell, b.vertices(l)).value(at(ray, v.t_exit));
-        if exit > self.best {
-            self.best = exit;
-            self.at = Some(cell);
-        }
-    }
-
     /// Raises `best` to the largest value of the interpolant of `v`'s cell
     /// where the ray enters and leaves it; the entry is skipped when it is
     /// the face the last visit left by and that face is covered.
@@ -193,15 +121,11 @@ impl Max {
             return Flow::Continue;
         }
         let c = CellEval::new(coords, v.cell, b.vertices(l));
-        let before = self.best;
         if !shared {
             self.best = self.best.max(c.value(at(ray, v.t_enter)));
         }
         let exit = c.value(at(ray, v.t_exit));
         self.best = self.best.max(exit);
-        if self.best > before {
-            self.at = Some(v.cell);
-        }
         self.covered_exit = if exit.is_nan() { f64::NAN } else { v.t_exit };
         Flow::Continue
     }

@@ -18,7 +18,6 @@ mod mip;
 mod surface;
 
 pub(crate) use mip::leaps_with as mip_leaps_with;
-pub(crate) use mip::Seeds;
 
 use super::cache::Accessor;
 use super::camera::Camera;
@@ -164,16 +163,12 @@ impl<'a, T: Real> Ctx<'a, T> {
     }
 }
 
-/// The pixel of `ray`, at column `col` of its tile: the mode's
-/// integrator, then its step count. `seeds` carries what the tile's rays
-/// so far leave their neighbours (MIP's maxima).
+/// The pixel of `ray`: the mode's integrator, then its step count.
 pub(crate) fn pixel<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     acc: &mut Accessor,
     clock: &mut Clock,
-    seeds: &mut Seeds,
-    col: usize,
 ) -> (Px, StepCounts) {
     let mut px = Px {
         depth: f32::NAN,
@@ -184,7 +179,7 @@ pub(crate) fn pixel<T: Real>(
             surface::surface(ctx, ray, acc, clock, *hit, *shadows, &mut px)
         }
         Mode::Depth { hit } => depth::depth(ctx, ray, acc, clock, *hit, &mut px),
-        Mode::Mip => mip::mip(ctx, ray, acc, clock, seeds, col, &mut px),
+        Mode::Mip => mip::mip(ctx, ray, acc, clock, &mut px),
         Mode::Cost => cost::cost(ctx, ray, acc, clock, &mut px),
         Mode::Composite { step_mm, .. } => {
             let lut = ctx.lut.as_ref().expect("composite renders carry a table");

@@ -108,25 +108,6 @@ impl<'g, T: Real> Frame<'g, T> {
     #[inline(always)]
     pub(super) fn entry(&self, ray: &Ray, t_min: f64) -> Option<Entry<T>> {
         let f = self;
-        let (t_in, t_out) = f.span(ray, t_min)?;
-        let v: [u32; 3] = std::array::from_fn(|k| {
-            if f.d[k] == T::zero() {
-                // Largest sample position <= o, kept inside the last cell.
-                let s = f.s[k];
-                (s.partition_point(|&x| x <= f.o[k]).max(1) - 1).min(f.n[k] as usize - 1) as u32
-            } else {
-                f.locate(k, t_in, 0, f.n[k] - 1)
-            }
-        });
-        Some(Entry { v, t_in, t_out })
-    }
-
-    /// The slab test of [`Frame::entry`]: the frame's parameters where the
-    /// ray enters the volume at or after `t_min` and leaves it, without
-    /// locating the first cell; `None` when it misses.
-    #[inline(always)]
-    pub(super) fn span(&self, ray: &Ray, t_min: f64) -> Option<(T, T)> {
-        let f = self;
         if !f.o.iter().all(|x| x.is_finite()) {
             // Only in f32: an origin beyond its range.
             return None;
@@ -152,7 +133,19 @@ impl<'g, T: Real> Frame<'g, T> {
                 t_out = t_out.min(f.plane_t(k, f.n[k]));
             }
         }
-        (t_in < t_out).then_some((t_in, t_out))
+        if !(t_in < t_out) {
+            return None;
+        }
+        let v: [u32; 3] = std::array::from_fn(|k| {
+            if f.d[k] == T::zero() {
+                // Largest sample position <= o, kept inside the last cell.
+                let s = f.s[k];
+                (s.partition_point(|&x| x <= f.o[k]).max(1) - 1).min(f.n[k] as usize - 1) as u32
+            } else {
+                f.locate(k, t_in, 0, f.n[k] - 1)
+            }
+        });
+        Some(Entry { v, t_in, t_out })
     }
 
     /// The ray's `t` of the frame's parameter `t`.

@@ -380,42 +380,6 @@ where
     }
 }
 
-/// The visit [`trace`] would yield for cell `cell` of `ray` from `t_min`
-/// on, without walking to it: `None` when the ray does not pass the cell
-/// with positive length. A cell-stepping walk enters a cell at its last
-/// lower plane the ray crosses (or at the volume's entry, for the first
-/// cell) and leaves at its first upper plane (or the volume's exit); both
-/// are the same `plane_t` values the walk compares, so the visit is the
-/// walk's bit for bit, whatever the method (the proptest below checks
-/// this against FVT). Whether the cell is a 1-cell is the caller's to
-/// know: this reads no codes.
-#[allow(clippy::needless_range_loop)] // v[k], f.d[k] and plane_t(k, ..) side by side
-pub fn visit_of<T: Real>(grid: &TGrid<T>, ray: &Ray, t_min: f64, cell: [u32; 3]) -> Option<Visit> {
-    if ray.check().is_err() || !t_min.is_finite() || (0..3).any(|k| cell[k] >= grid.ncells[k]) {
-        return None;
-    }
-    let f = frame::Frame::new(grid, ray);
-    let (mut t_enter, mut t_exit) = f.span(ray, t_min)?;
-    let v = f.real(cell);
-    for k in 0..3 {
-        if f.d[k] == T::zero() {
-            // Parallel: the walk stays in its entry cell along k (rare:
-            // only then is that cell located).
-            if v[k] != f.entry(ray, t_min)?.v[k] {
-                return None;
-            }
-        } else {
-            t_enter = t_enter.max(f.plane_t(k, v[k]));
-            t_exit = t_exit.min(f.plane_t(k, v[k] + 1));
-        }
-    }
-    (t_exit > t_enter).then(|| Visit {
-        cell,
-        t_enter: f.to_t(t_enter),
-        t_exit: f.to_t(t_exit),
-    })
-}
-
 /// Runs walker `w` to the end or until `visit` says stop.
 #[inline(always)]
 fn drive<S, W, F>(mut w: W, src: &mut S, visit: F) -> StepCounts
@@ -609,80 +573,6 @@ mod tests {
                 });
                 prop_assert_eq!(part, counts[stop_at]);
             }
-        }
-    }
-
-    /// Every visit of an FVT walk through a volume of 1-cells, and `None`
-    /// for every cell it does not visit: [`visit_of`] against the walk, bit
-    /// for bit, in the walk's arithmetic `T`.
-    fn visit_of_agrees_with_the_walk<T: Real>(
-        axes: &[crate::grid::Axis; 3],
-        ray: &Ray,
-        t_min: f64,
-    ) -> Result<(), TestCaseError> {
-        let g = TGrid::<T>::new(axes);
-        let n = g.ncells;
-        let mut src = Table {
-            n,
-            codes: vec![OBJECT; (n[0] * n[1] * n[2]) as usize],
-        };
-        let mut walked = Vec::new();
-        trace(&g, ray, t_min, Method::Fvt, &mut src, |v, _| {
-            walked.push(*v);
-            Flow::Continue
-        });
-        for z in 0..n[2] {
-            for y in 0..n[1] {
-                for x in 0..n[0] {
-                    let c = [x, y, z];
-                    let want = walked.iter().find(|v| v.cell == c);
-                    let got = visit_of(&g, ray, t_min, c);
-                    prop_assert_eq!(
-                        got.map(|v| (v.cell, v.t_enter.to_bits(), v.t_exit.to_bits())),
-                        want.map(|v| (v.cell, v.t_enter.to_bits(), v.t_exit.to_bits())),
-                        "cell {:?}",
-                        c
-                    );
-                }
-            }
-        }
-        prop_assert_eq!(visit_of(&g, ray, t_min, n), None);
-        Ok(())
-    }
-
-    proptest! {
-        /// [`visit_of`] gives the walk's visit of a cell, or none: uniform
-        /// and rectilinear axes, directions with zero components of both
-        /// signs, origins inside and outside, a `t_min` past the entry, in
-        /// f64 and f32.
-        #[test]
-        fn visit_of_is_the_walks_visit(
-            n in proptest::array::uniform3(1u32..7),
-            gaps in proptest::collection::vec(0.05f64..3.0, 18),
-            uniform in any::<[bool; 3]>(),
-            o in proptest::array::uniform3(-4.0f64..12.0),
-            d in proptest::array::uniform3(prop_oneof![
-                3 => -1.0f64..1.0,
-                1 => Just(0.0),
-                1 => Just(-0.0),
-            ]),
-            t_min in prop_oneof![Just(0.0f64), -5.0f64..20.0],
-        ) {
-            prop_assume!(d.iter().any(|x| x.abs() > 1e-3));
-            let axes: [crate::grid::Axis; 3] = std::array::from_fn(|k| {
-                if uniform[k] {
-                    crate::grid::Axis::uniform(-1.0, gaps[6 * k], n[k] as usize + 1).expect("axis")
-                } else {
-                    let mut p = vec![-1.0];
-                    for i in 0..n[k] as usize {
-                        p.push(p[i] + gaps[6 * k + i]);
-                    }
-                    crate::grid::Axis::from_coords(p).expect("axis")
-                }
-            });
-            let ray = Ray::new(o, d).expect("finite ray");
-            visit_of_agrees_with_the_walk::<f64>(&axes, &ray, t_min)?;
-            visit_of_agrees_with_the_walk::<f32>(&axes, &ray, t_min)?;
         }
     }
 
