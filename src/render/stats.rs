@@ -74,10 +74,10 @@ pub struct Stats {
     #[serde(default)]
     pub page_faults: u64,
     /// Chunks of brick planes (2 MiB each) that asked for a huge page
-    /// during the render, and how many of those took longer than 1 ms to
-    /// clear, after which the next ones stay on ordinary pages
-    /// (cdvol::memory::pool, "huge pages only while they are fast"); 0
-    /// where the plane pool is not the allocator (the library alone).
+    /// during the render, and how many of those took longer than
+    /// [`SLOW_HUGE`](crate::memory::pool::SLOW_HUGE) to clear, after which
+    /// the next ones stay on ordinary pages (cdvol::memory::pool); 0 where
+    /// the plane pool is not the allocator (the library alone).
     #[serde(default)]
     pub huge_pages: u64,
     #[serde(default)]
