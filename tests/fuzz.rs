@@ -897,7 +897,7 @@ fn exercise(path: &Path, bytes: &[u8], must_work: bool) -> Result<(), TestCaseEr
                     method,
                     tile: 4,
                     cache_bytes: 256 << 10,
-                    cd_lazy_min: 4,
+                    cd_lazy_min: Some(4),
                     ..RenderOptions::new(mode.clone(), method)
                 };
                 match render(&vol, &cam, &o, &NoProgress) {

@@ -53,8 +53,10 @@ for name in ct phantom; do
         --mode composite --tf "$tf" --shade "${common[@]}"
     # Traversal cost maps (paper Fig. 17): steps per pixel of CD and of
     # the octree, so a change in any walker's steps shows as a picture.
+    # CD's stand-in threshold is given: by default it follows the rays'
+    # density (16 or 4), and these maps pin the walk at 16.
     "$cdvol" render "$work/$name-iso.cdv" -o "$out/$name-cost-cd.png" \
-        --mode cost --traversal cd "${common[@]}"
+        --mode cost --traversal cd --cd-lazy-min 16 "${common[@]}"
     "$cdvol" render "$work/$name-iso.cdv" -o "$out/$name-cost-octree.png" \
         --mode cost --traversal octree "${common[@]}"
 done

@@ -193,8 +193,10 @@ pub struct RenderArgs {
     pub threads: Option<usize>,
     /// CD leaves a brick without 1-cells unread when the smallest code in
     /// it (from the index) is at least this; 255 reads every brick entered.
-    #[arg(long, default_value_t = 16)]
-    pub cd_lazy_min: u8,
+    /// Default: 16 where a brick spans at least 64 pixels of the image,
+    /// else 4 (docs/BENCHMARKS.md, "The stand-in threshold by ray density").
+    #[arg(long)]
+    pub cd_lazy_min: Option<u8>,
     /// Trace every pixel's ray, also those no brick with 1-cells projects
     /// onto (by default they are drawn as misses without a ray: the same
     /// image; docs/BENCHMARKS.md, "Culling by the brick index").

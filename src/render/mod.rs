@@ -56,6 +56,7 @@ pub mod traverse;
 
 pub use error::RenderError;
 pub use gradient::Normals;
+pub use integrate::{lazy_min_for, LAZY_DENSE_PIXELS, LAZY_MIN_CODE_SPARSE};
 pub use options::{
     default_method, mode_name, CompositeLook, GradientPoint, Mode, Precision, RenderOptions,
     Window, EARLY_STOP, MAX_PIXELS, MIN_STEP_MM,

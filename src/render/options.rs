@@ -62,8 +62,10 @@ pub struct RenderOptions {
     pub tile: u32,
     pub cache_bytes: usize,
     /// CD leaves a brick without 1-cells unread when its smallest code is
-    /// at least this (255: read every brick CD enters).
-    pub cd_lazy_min: u8,
+    /// at least this (255: read every brick CD enters); `None` leaves it
+    /// to each frame, by how densely its rays cross the bricks
+    /// ([`lazy_min_for`](super::lazy_min_for)).
+    pub cd_lazy_min: Option<u8>,
     /// Arithmetic of the traversal (f64 by default; see docs/TRADEOFFS.md).
     pub precision: Precision,
     /// Iterations and tolerance of the bisect and newton hit methods.
@@ -243,7 +245,7 @@ impl RenderOptions {
             method,
             tile: 32,
             cache_bytes: 512 << 20,
-            cd_lazy_min: cache::LAZY_MIN_CODE_CD,
+            cd_lazy_min: None,
             precision: Precision::F64,
             hit_params: HitParams::default(),
             sampling: Precision::F32,

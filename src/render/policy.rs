@@ -3,7 +3,7 @@
 //! to build and when a brick may stand in unread. The cache itself never
 //! sees the method.
 
-use super::cache::{BrickCache, BrickPolicy, Planes};
+use super::cache::{BrickCache, BrickPolicy, Planes, LAZY_MIN_CODE_CD};
 use super::traverse::{DistKind, Method};
 use super::RenderOptions;
 use crate::format::reader::PackedVolume;
@@ -55,7 +55,8 @@ pub fn brick_policy(method: Method, cd_lazy_min: u8) -> BrickPolicy {
 /// A scene narrower than the file's classification (`render --iso`)
 /// rewrites each brick for it ([`Planes::narrow`]).
 pub fn cache_for<'v>(vol: &'v PackedVolume, opts: &RenderOptions) -> BrickCache<'v> {
-    let mut planes = brick_policy(opts.method, opts.cd_lazy_min).planes;
+    // The planes do not depend on the stand-in threshold.
+    let mut planes = brick_policy(opts.method, LAZY_MIN_CODE_CD).planes;
     planes.narrow = super::options::narrowing(vol.header(), opts);
     planes.grads = gradient_plane(opts) && planes.narrow.is_none();
     // MIP leaps out of nodes that cannot raise a ray's maximum, with the

@@ -127,7 +127,7 @@ pub struct OptionsKey {
     /// [`Precision::name`](super::Precision::name).
     pub precision: String,
     pub tile: u32,
-    pub cd_lazy_min: u8,
+    pub cd_lazy_min: Option<u8>,
     /// Composite: the sampler's arithmetic, the early-stop opacity and
     /// the look.
     pub sampling: Option<String>,

@@ -490,7 +490,7 @@ fn render_tile<T: Real>(
             ..TileOut::skipped(x0, y0)
         };
     }
-    let policy = super::policy::brick_policy(ctx.opts.method, ctx.opts.cd_lazy_min);
+    let policy = super::policy::brick_policy(ctx.opts.method, ctx.lazy_min);
     let mut acc = Accessor::for_policy(cache, &policy);
     acc.remember_gradients(ctx.memo_gradients);
     let mut pixels = Vec::with_capacity((w * hh) as usize);

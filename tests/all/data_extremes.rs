@@ -201,7 +201,7 @@ fn opts(mode: &Mode, method: Method) -> RenderOptions {
         method,
         tile: 8,
         cache_bytes: 16 << 20,
-        cd_lazy_min: 4,
+        cd_lazy_min: Some(4),
         ..RenderOptions::new(mode.clone(), method)
     }
 }

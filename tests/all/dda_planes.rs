@@ -239,7 +239,7 @@ fn planes_through_the_cache_with_uniform_bricks() {
                 let o = RenderOptions {
                     tile: 8,
                     cache_bytes: 1 << 20,
-                    cd_lazy_min: 4,
+                    cd_lazy_min: Some(4),
                     ..RenderOptions::new(mode, method)
                 };
                 let (a, sa) = render(&dda, &cam, &o, &NoProgress).unwrap();

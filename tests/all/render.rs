@@ -12,7 +12,9 @@ use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
 use cdvol::render::shade::HitMethod;
 use cdvol::render::traverse::Method;
-use cdvol::render::{render, render_in, Frame, Mode, RenderOptions, Stats};
+use cdvol::render::{
+    lazy_min_for, render, render_in, Frame, Mode, RenderOptions, Stats, LAZY_MIN_CODE_SPARSE,
+};
 use cdvol::tools::phantom;
 
 fn run(vol: &PackedVolume, c: &Camera, mode: &Mode, method: Method) -> (Frame, Stats) {
@@ -241,7 +243,7 @@ fn same_image_whatever_cache_threads_and_tiles() {
     let big = RenderOptions {
         tile: 32,
         cache_bytes: 512 << 20,
-        cd_lazy_min: 16,
+        cd_lazy_min: Some(16),
         ..RenderOptions::new(mode.clone(), Method::Cd { min_leap: 1 })
     };
     let (want, ws) = render(&vol, &c, &big, &NoProgress).unwrap();
@@ -292,6 +294,45 @@ fn same_image_whatever_cache_threads_and_tiles() {
     }
 }
 
+/// Without a threshold given, CD's stand-in threshold follows the rays'
+/// density (`lazy_min_for`): on the real CT packed in bricks of 16 cells
+/// (finest spacing 0.957 mm) a brick spans some 80 pixels of a 2048^2
+/// view and some 3 of a 64^2 one, so the first reads the bricks whose
+/// smallest code is below 16 and the second only those below 4. The
+/// images are the same whichever threshold: a stand-in is exact.
+#[test]
+fn the_stand_in_threshold_follows_the_ray_density() {
+    let dir = tempfile::tempdir().unwrap();
+    let ct = common::real_ct();
+    let vol = packed(&ct, &dir.path().join("ct.cdv"), 300.0);
+    let h = vol.header();
+    assert_eq!(h.brick_size, 16);
+    let dense = orbit(&vol, [30.0, 20.0], None, 2048, 2048);
+    let sparse = orbit(&vol, [30.0, 20.0], None, 64, 64);
+    assert_eq!(lazy_min_for(h, &dense), 16);
+    assert_eq!(lazy_min_for(h, &sparse), LAZY_MIN_CODE_SPARSE);
+    assert_eq!(LAZY_MIN_CODE_SPARSE, 4);
+    let run = |lazy: Option<u8>| {
+        let o = RenderOptions {
+            tile: 16,
+            cd_lazy_min: lazy,
+            ..RenderOptions::new(Mode::Mip, Method::Cd { min_leap: 1 })
+        };
+        render(&vol, &sparse, &o, &NoProgress).unwrap()
+    };
+    let (auto, sa) = run(None);
+    let (four, s4) = run(Some(4));
+    let (sixteen, s16) = run(Some(16));
+    assert!(same_frame(&auto, &four) && same_frame(&auto, &sixteen));
+    assert_eq!((sa.bricks_read, sa.steps), (s4.bricks_read, s4.steps));
+    assert!(
+        s4.bricks_read < s16.bricks_read,
+        "threshold 4 reads {} bricks, 16 reads {}",
+        s4.bricks_read,
+        s16.bricks_read
+    );
+}
+
 #[test]
 fn corrupt_brick_is_an_error_not_pixels() {
     let dir = tempfile::tempdir().unwrap();
@@ -310,7 +351,7 @@ fn corrupt_brick_is_an_error_not_pixels() {
     let o = RenderOptions {
         tile: 16,
         cache_bytes: 1 << 20,
-        cd_lazy_min: 16,
+        cd_lazy_min: Some(16),
         ..RenderOptions::new(Mode::Mip, Method::Cd { min_leap: 1 })
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();
@@ -330,7 +371,7 @@ fn composite_refuses_a_transfer_function_the_file_cannot_honour() {
     let o = RenderOptions {
         tile: 16,
         cache_bytes: 1 << 20,
-        cd_lazy_min: 16,
+        cd_lazy_min: Some(16),
         ..RenderOptions::new(Mode::Composite { tf, step_mm: 1.0 }, Method::Fvt)
     };
     let e = render(&vol, &c, &o, &NoProgress).unwrap_err().to_string();

@@ -51,7 +51,7 @@ fn same_as_own(envelope: &PackedVolume, own: &PackedVolume, v: f64, what: &str) 
                 let base = RenderOptions {
                     tile: 16,
                     cache_bytes: 64 << 20,
-                    cd_lazy_min: 4,
+                    cd_lazy_min: Some(4),
                     normals,
                     ..RenderOptions::new(mode.clone(), method)
                 };

@@ -46,7 +46,7 @@ fn options(mode: Mode, tile: u32) -> RenderOptions {
     RenderOptions {
         tile,
         cache_bytes: 16 << 20,
-        cd_lazy_min: 4,
+        cd_lazy_min: Some(4),
         ..RenderOptions::new(mode, Method::Cd { min_leap: 1 })
     }
 }

@@ -19,7 +19,7 @@ mod surface;
 
 pub(crate) use mip::leaps_with as mip_leaps_with;
 
-use super::cache::Accessor;
+use super::cache::{Accessor, LAZY_MIN_CODE_CD};
 use super::camera::Camera;
 use super::clock::Clock;
 use super::lut::TfLut;
@@ -90,6 +90,9 @@ pub(crate) struct Ctx<'a, T> {
     /// cell ([`Accessor::remember_gradients`]): when rays are dense
     /// enough to meet a cell more than once ([`rays_meet_cells_again`]).
     pub(crate) memo_gradients: bool,
+    /// The stand-in threshold of this frame's CD walks:
+    /// [`RenderOptions::cd_lazy_min`], or [`lazy_min_for`] the camera.
+    pub(crate) lazy_min: u8,
     /// Where the composite takes its samples in batches
     /// ([`RenderOptions::sample_batches`]): the grid's map from positions
     /// to cells (batch.rs).
@@ -104,15 +107,58 @@ pub(crate) struct Ctx<'a, T> {
 /// the memo only adds its lookups and pages (docs/BENCHMARKS.md, "Vertex
 /// gradients remembered").
 pub(crate) fn rays_meet_cells_again(h: &crate::format::Header, camera: &Camera) -> bool {
-    use super::camera::Projection;
-    let spacing = h
-        .axes
+    finest_spacing(h) >= MEMO_MIN_PIXELS * pixel_mm(h, camera)
+}
+
+/// See [`rays_meet_cells_again`].
+pub(crate) const MEMO_MIN_PIXELS: f64 = 1.5;
+
+/// The smallest code from which CD stands a brick without 1-cells in by
+/// that code instead of reading it (`--cd-lazy-min`), when the options
+/// leave it to the render: [`LAZY_MIN_CODE_CD`] where a brick spans at
+/// least [`LAZY_DENSE_PIXELS`] pixels of the image (its edge at the finest
+/// mean spacing, where the rays cross the volume, as for
+/// [`rays_meet_cells_again`]), else [`LAZY_MIN_CODE_SPARSE`].
+///
+/// Reading a brick costs the same whatever the image (about 0.1 ms to
+/// decode 32^3 cells); its own codes, larger than the stand-in's, save
+/// steps on every ray that crosses it, and the rays crossing a brick grow
+/// with the square of its width in pixels. So dense rays (the real CT at
+/// 1024^2: a brick about 80 pixels wide) read the bricks whose smallest
+/// code is below 16, and sparse ones (the 1024^3 phantom at 1024^2: about
+/// 18 pixels) read only those below 4: a third fewer bricks and a fifth
+/// off its first frame, with the warm frame unchanged (docs/BENCHMARKS.md,
+/// "The stand-in threshold by ray density"). The images are the same
+/// either way: a stand-in is exact (traverse tests, `lazy`).
+pub fn lazy_min_for(h: &crate::format::Header, camera: &Camera) -> u8 {
+    let brick_px = h.brick_size as f64 * finest_spacing(h) / pixel_mm(h, camera);
+    if brick_px >= LAZY_DENSE_PIXELS {
+        LAZY_MIN_CODE_CD
+    } else {
+        LAZY_MIN_CODE_SPARSE
+    }
+}
+
+/// See [`lazy_min_for`].
+pub const LAZY_DENSE_PIXELS: f64 = 64.0;
+/// See [`lazy_min_for`].
+pub const LAZY_MIN_CODE_SPARSE: u8 = 4;
+
+/// The finest mean sample spacing of `h`'s axes, in mm.
+fn finest_spacing(h: &crate::format::Header) -> f64 {
+    h.axes
         .iter()
         .map(|a| {
             let c = a.coords();
             (c[c.len() - 1] - c[0]) / (c.len() - 1) as f64
         })
-        .fold(f64::INFINITY, f64::min);
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The width of a pixel of `camera` in mm where its rays cross `h`'s
+/// volume (at the volume's centre, for a perspective view).
+fn pixel_mm(h: &crate::format::Header, camera: &Camera) -> f64 {
+    use super::camera::Projection;
     let centre = glam::DVec3::from_array(std::array::from_fn(|k| {
         let c = h.axes[k].coords();
         0.5 * (c[0] + c[c.len() - 1])
@@ -123,12 +169,8 @@ pub(crate) fn rays_meet_cells_again(h: &crate::format::Header, camera: &Camera) 
             2.0 * (0.5 * fov_deg).to_radians().tan() * (centre - camera.eye).length()
         }
     };
-    let pixel_mm = frame_mm / camera.height.max(1) as f64;
-    spacing >= MEMO_MIN_PIXELS * pixel_mm
+    frame_mm / camera.height.max(1) as f64
 }
-
-/// See [`rays_meet_cells_again`].
-pub(crate) const MEMO_MIN_PIXELS: f64 = 1.5;
 
 impl<'a, T: Real> Ctx<'a, T> {
     /// The context of a render of `h`'s volume: the iso value mapped like
@@ -154,6 +196,7 @@ impl<'a, T: Real> Ctx<'a, T> {
             },
             inv_size: coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect()),
             memo_gradients: rays_meet_cells_again(h, camera),
+            lazy_min: opts.cd_lazy_min.unwrap_or_else(|| lazy_min_for(h, camera)),
             index_map: if opts.sample_batches && matches!(opts.mode, Mode::Composite { .. }) {
                 batch::IndexMap::of(coords, std::array::from_fn(|k| h.axes[k].is_uniform()))
             } else {

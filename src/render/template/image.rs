@@ -278,7 +278,11 @@ pub fn render_template_with(
     let rows: Vec<_> = (0..size[1])
         .into_par_iter()
         .map(|pb| {
-            let policy = crate::render::policy::brick_policy(opts.method, opts.cd_lazy_min);
+            let policy = crate::render::policy::brick_policy(
+                opts.method,
+                opts.cd_lazy_min
+                    .unwrap_or(crate::render::cache::LAZY_MIN_CODE_CD),
+            );
             let mut acc = Accessor::for_policy(&cache, &policy);
             let mut counts = StepCounts::default();
             let mut out = Vec::with_capacity(size[0] as usize);

@@ -296,7 +296,7 @@ pub fn test_opts(
     cdvol::render::RenderOptions {
         tile: 16,
         cache_bytes: 64 << 20,
-        cd_lazy_min: 4,
+        cd_lazy_min: Some(4),
         ..cdvol::render::RenderOptions::new(mode, method)
     }
 }
