@@ -117,8 +117,9 @@ pub(crate) const MEMO_MIN_PIXELS: f64 = 1.5;
 /// that code instead of reading it (`--cd-lazy-min`), when the options
 /// leave it to the render: [`LAZY_MIN_CODE_CD`] where a brick spans at
 /// least [`LAZY_DENSE_PIXELS`] pixels of the image (its edge at the finest
-/// mean spacing, where the rays cross the volume, as for
-/// [`rays_meet_cells_again`]), else [`LAZY_MIN_CODE_SPARSE`].
+/// mean spacing, where the rays cross the volume: at its centre for a
+/// perspective view, as the smooth normals' memo judges density), else
+/// [`LAZY_MIN_CODE_SPARSE`].
 ///
 /// Reading a brick costs the same whatever the image (about 0.1 ms to
 /// decode 32^3 cells); its own codes, larger than the stand-in's, save
