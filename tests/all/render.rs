@@ -296,10 +296,11 @@ fn same_image_whatever_cache_threads_and_tiles() {
 
 /// Without a threshold given, CD's stand-in threshold follows the rays'
 /// density (`lazy_min_for`): on the real CT packed in bricks of 16 cells
-/// (finest spacing 0.957 mm) a brick spans some 80 pixels of a 2048^2
-/// view and some 3 of a 64^2 one, so the first reads the bricks whose
-/// smallest code is below 16 and the second only those below 4. The
-/// images are the same whichever threshold: a stand-in is exact.
+/// (finest spacing 0.957 mm, about 15 mm a brick) a brick spans more than
+/// 64 pixels of a 2048^2 view of the whole head and a few of a 64^2 one,
+/// so the first reads the bricks whose smallest code is below 16 and the
+/// second only those below 4. The images are the same whichever
+/// threshold: a stand-in is exact.
 #[test]
 fn the_stand_in_threshold_follows_the_ray_density() {
     let dir = tempfile::tempdir().unwrap();

@@ -125,12 +125,13 @@ pub(crate) const MEMO_MIN_PIXELS: f64 = 1.5;
 /// decode 32^3 cells); its own codes, larger than the stand-in's, save
 /// steps on every ray that crosses it, and the rays crossing a brick grow
 /// with the square of its width in pixels. So dense rays (the real CT at
-/// 1024^2: a brick about 80 pixels wide) read the bricks whose smallest
-/// code is below 16, and sparse ones (the 1024^3 phantom at 1024^2: about
-/// 18 pixels) read only those below 4: a third fewer bricks and a fifth
-/// off its first frame, with the warm frame unchanged (docs/BENCHMARKS.md,
-/// "The stand-in threshold by ray density"). The images are the same
-/// either way: a stand-in is exact (traverse tests, `lazy`).
+/// 1024^2, where a brick of 32 cells spans more than 64 pixels) read the
+/// bricks whose smallest code is below 16, and sparse ones (the 1024^3
+/// phantom at 1024^2) read only those below 4: there 31 % fewer bricks
+/// and 13-19 % off the first frame, with the warm frame unchanged
+/// (docs/BENCHMARKS.md, "The stand-in threshold by ray density"). The
+/// images are the same either way: a stand-in is exact (traverse tests,
+/// `lazy`).
 pub fn lazy_min_for(h: &crate::format::Header, camera: &Camera) -> u8 {
     let brick_px = h.brick_size as f64 * finest_spacing(h) / pixel_mm(h, camera);
     if brick_px >= LAZY_DENSE_PIXELS {
