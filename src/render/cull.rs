@@ -41,13 +41,28 @@ use super::camera::{Camera, Projection};
 use super::options::{Mode, RenderOptions};
 use crate::format::reader::PackedVolume;
 
-/// The pixels whose rays may meet a 1-cell: one bit a pixel, row by row.
+/// The pixels whose rays may meet a 1-cell: one bit a pixel, row by row;
+/// and per square of [`NEAR_PX`] pixels, where along those rays the first
+/// 1-cell can begin at the earliest.
 pub(crate) struct Cover {
     width: u32,
     /// `u64` words per row.
     stride: usize,
     bits: Vec<u64>,
+    /// Squares per row of `near`.
+    near_w: usize,
+    /// Per square of [`NEAR_PX`]^2 pixels, row by row: the smallest
+    /// [`Projector::rect`] lower bound on the ray parameter `t` of the
+    /// boxes whose rectangles meet the square (`+inf` where none does).
+    /// No 1-cell a ray of the square visits begins before it, so the ray
+    /// can be traced from there ([`Cover::start`]).
+    near: Vec<f64>,
 }
+
+/// The edge in pixels of the squares [`Cover`] keeps a start per: a
+/// rectangle's bound is written once per square it meets rather than
+/// once per pixel.
+const NEAR_PX: u32 = 4;
 
 impl Cover {
     /// The cover of `vol`'s object bricks seen by `camera` (of the
@@ -68,10 +83,13 @@ impl Cover {
         let narrow = super::options::narrowing(h, opts);
         let (w, hh) = (camera.width, camera.height);
         let stride = (w as usize).div_ceil(64);
+        let near_w = w.div_ceil(NEAR_PX) as usize;
         let mut cover = Cover {
             width: w,
             stride,
             bits: vec![0; stride * hh as usize],
+            near_w,
+            near: vec![f64::INFINITY; near_w * hh.div_ceil(NEAR_PX) as usize],
         };
         let coords = [h.axes[0].coords(), h.axes[1].coords(), h.axes[2].coords()];
         let proj = Projector::new(camera);
@@ -130,6 +148,25 @@ impl Cover {
         self.bits[i] >> (x % 64) & 1 == 1
     }
 
+    /// Where pixel `(x, y)`'s ray (covered) can be traced from: a `t` at
+    /// or before the start of every 1-cell it can meet, at least 0. The
+    /// cells before it are 0-cells, so every exact traversal visits the
+    /// same 1-cells with the same `t` from there as from 0 (module
+    /// traverse), and the image is the same; only the leaps up to it are
+    /// saved.
+    #[inline]
+    pub(crate) fn start(&self, x: u32, y: u32) -> f64 {
+        let i = (y / NEAR_PX) as usize * self.near_w + (x / NEAR_PX) as usize;
+        // A covered pixel's square has a bound (the rectangle that covered
+        // the pixel lowered it); 0 for one without, should one be asked.
+        let t = self.near[i];
+        if t.is_finite() {
+            t.max(0.0)
+        } else {
+            0.0
+        }
+    }
+
     /// Whether some pixel of the `w` x `h` rectangle at `(x0, y0)` (inside
     /// the image) is covered: a tile none of whose pixels is covered is a
     /// miss as a whole.
@@ -157,12 +194,19 @@ impl Cover {
         self.bits.iter().map(|w| w.count_ones() as u64).sum()
     }
 
-    /// Marks the pixels of `r` (inclusive, already clipped to the image).
-    fn fill(&mut self, r: Option<[u32; 4]>) {
-        let Some([x0, y0, x1, y1]) = r else {
+    /// Marks the pixels of `r` (inclusive, already clipped to the image)
+    /// and lowers the start of the squares it meets to its bound.
+    fn fill(&mut self, r: Option<([u32; 4], f64)>) {
+        let Some(([x0, y0, x1, y1], near)) = r else {
             return;
         };
         debug_assert!(x1 < self.width);
+        for sy in y0 / NEAR_PX..=y1 / NEAR_PX {
+            let row = &mut self.near[sy as usize * self.near_w..][..self.near_w];
+            for t in &mut row[(x0 / NEAR_PX) as usize..=(x1 / NEAR_PX) as usize] {
+                *t = t.min(near);
+            }
+        }
         let (w0, w1, first, last) = row_words(x0, x1);
         for y in y0..=y1 {
             let row = &mut self.bits[y as usize * self.stride..][..self.stride];
@@ -219,13 +263,25 @@ impl Projector {
     }
 
     /// The pixel rectangle `[x0, y0, x1, y1]` (inclusive, clipped) that
-    /// holds the projection of the box `[lo, hi]`, widened by the margin;
-    /// `Some(None)` when it lies outside the image, `None` when it cannot
-    /// be bounded (perspective: a corner at or behind the eye plane).
-    fn rect(&self, lo: DVec3, hi: DVec3) -> Option<Option<[u32; 4]>> {
+    /// holds the projection of the box `[lo, hi]`, widened by the margin,
+    /// and a lower bound on the `t` at which a ray of [`Camera::ray`]
+    /// meets a point of the box; `Some(None)` when it lies outside the
+    /// image, `None` when it cannot be bounded (perspective: a corner at
+    /// or behind the eye plane).
+    ///
+    /// The bound: a ray's point `p = o + t d` has `t = (p - eye) . d`
+    /// for an orthographic ray (`d` the unit forward vector, `o - eye`
+    /// across it) and `t = |p - eye| >= (p - eye) . forward` for a
+    /// perspective one (`o` the eye, `d` a unit vector). Either way `t`
+    /// is at least `(p - eye) . forward`, linear in `p`, so at least its
+    /// smallest value at the box's corners. Less a margin for the
+    /// rounding of the rays' and the traversal's arithmetic (about 1e-15
+    /// of the distance; here 1e-9 of it).
+    fn rect(&self, lo: DVec3, hi: DVec3) -> Option<Option<([u32; 4], f64)>> {
         let (mut x0, mut y0) = (f64::INFINITY, f64::INFINITY);
         let (mut x1, mut y1) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
         let mut far = 0.0f64;
+        let mut near = f64::INFINITY;
         for i in 0..8 {
             let p = DVec3::new(
                 if i & 1 == 0 { lo.x } else { hi.x },
@@ -234,6 +290,7 @@ impl Projector {
             );
             let d = p - self.eye;
             far = far.max(d.length());
+            near = near.min(d.dot(self.forward));
             let (mut sx, mut sy) = (d.dot(self.right), d.dot(self.up));
             if self.persp {
                 let z = d.dot(self.forward);
@@ -269,7 +326,11 @@ impl Projector {
         if !(x0 <= x1 && y0 <= y1) {
             return Some(None);
         }
-        Some(Some([x0 as u32, y0 as u32, x1 as u32, y1 as u32]))
+        let near = near - 1e-9 * far;
+        if !near.is_finite() {
+            return None;
+        }
+        Some(Some(([x0 as u32, y0 as u32, x1 as u32, y1 as u32], near)))
     }
 }
 
@@ -279,10 +340,13 @@ mod tests {
 
     fn bare(width: u32, height: u32) -> Cover {
         let stride = (width as usize).div_ceil(64);
+        let near_w = width.div_ceil(NEAR_PX) as usize;
         Cover {
             width,
             stride,
             bits: vec![0; stride * height as usize],
+            near_w,
+            near: vec![f64::INFINITY; near_w * height.div_ceil(NEAR_PX) as usize],
         }
     }
 
@@ -297,7 +361,7 @@ mod tests {
                     continue;
                 }
                 let mut c = bare(w, h);
-                c.fill(Some([x0, 1, x1, 3]));
+                c.fill(Some(([x0, 1, x1, 3], 0.0)));
                 for y in 0..h {
                     for x in 0..w {
                         let want = (1..=3).contains(&y) && (x0..=x1).contains(&x);
@@ -363,7 +427,9 @@ mod tests {
                 let r = cam.ray(x, y);
                 for t in [1.0, 200.0, 350.0] {
                     let q = r.origin + t * r.dir;
-                    let rect = p.rect(q, q).unwrap().unwrap();
+                    let (rect, near) = p.rect(q, q).unwrap().unwrap();
+                    // The point's own `t` is at or after the bound.
+                    assert!(near <= t, "{:?} {near} > {t}", cam.projection);
                     assert!(
                         rect[0] <= x && x <= rect[2],
                         "{:?} {x} {rect:?}",
@@ -380,6 +446,88 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The near bound of [`Projector::rect`] against the oracle: for
+    /// random boxes, cameras (orthographic and perspective) and pixels of
+    /// the rectangle, where the pixel's ray enters the box by the slab
+    /// test is at or after the bound; and the bound is not loose by more
+    /// than the box's diagonal for a ray through the box's middle.
+    #[test]
+    fn the_near_bound_is_at_or_before_every_entry() {
+        use proptest::prelude::*;
+        let cfg = ProptestConfig {
+            cases: 256,
+            ..ProptestConfig::default()
+        };
+        let met_box = std::cell::Cell::new(0u32);
+        proptest!(cfg, |(
+            lo in prop::array::uniform3(-50.0f64..50.0),
+            size in prop::array::uniform3(0.01f64..40.0),
+            eye in prop::array::uniform3(-400.0f64..400.0),
+            fov in prop_oneof![Just(None), (10.0f64..120.0).prop_map(Some)],
+            zoom in 0.3f64..3.0,
+            aim in prop::array::uniform3(-0.5f64..0.5),
+            (w, h) in (1u32..48, 1u32..48),
+        )| {
+            let (lo, hi) = (DVec3::from_array(lo), DVec3::from_array(lo) + DVec3::from_array(size));
+            // Looking at a point near the box, which fills about `1 / zoom`
+            // of the frame.
+            let target = 0.5 * (lo + hi) + DVec3::from_array(aim) * (hi - lo);
+            let projection = match fov {
+                None => Projection::Ortho { frame_mm: zoom * (hi - lo).length() },
+                Some(f) => Projection::Persp { fov_deg: f },
+            };
+            let Ok(cam) =
+                Camera::look_at(eye, target.to_array(), [0.1, 0.2, 1.0], projection, w, h)
+            else {
+                return Ok(());
+            };
+            let p = Projector::new(&cam);
+            let Some(Some(([x0, y0, x1, y1], near))) = p.rect(lo, hi) else {
+                return Ok(());
+            };
+            let mut met = false;
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let r = cam.ray(x, y);
+                    // The slab test: the ray's interval inside the box.
+                    let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+                    for k in 0..3 {
+                        let (o, d) = (r.origin[k], r.dir[k]);
+                        if d == 0.0 {
+                            if o < lo[k] || o > hi[k] {
+                                t0 = f64::INFINITY;
+                            }
+                            continue;
+                        }
+                        let (a, b) = ((lo[k] - o) / d, (hi[k] - o) / d);
+                        t0 = t0.max(a.min(b));
+                        t1 = t1.min(a.max(b));
+                    }
+                    if t0 <= t1 && t1 >= 0.0 {
+                        met = true;
+                        prop_assert!(near <= t0.max(0.0) + 1e-9, "{near} > {t0} at ({x}, {y})");
+                    }
+                }
+            }
+            // Orthographic, the bound is the nearest corner's depth: within
+            // the box's diagonal of every entry.
+            if fov.is_none() {
+                let m = 0.5 * (lo + hi);
+                let t_mid = (m - cam.eye).dot(cam.forward);
+                prop_assert!(t_mid - near <= (hi - lo).length() + 1e-6);
+            }
+            if met {
+                met_box.set(met_box.get() + 1);
+            }
+        });
+        // Most cases test some ray, so the test cannot pass vacuously.
+        assert!(
+            met_box.get() > 128,
+            "{} of 256 cases met their box",
+            met_box.get()
+        );
     }
 
     /// Perspective boxes at or behind the eye plane cannot be bounded;

@@ -498,6 +498,10 @@ fn render_tile<T: Real>(
     let mut hits = 0;
     let mut culled = 0;
     let mut clock = Clock::start();
+    // An exact traversal visits the same 1-cells from the cover's start as
+    // from the volume's entry; the others' walks depend on where they
+    // start, so they start at the entry.
+    let exact = ctx.opts.method.is_exact();
     for y in y0..y0 + hh {
         for x in x0..x0 + w {
             if cover.is_some_and(|c| !c.covered(x, y)) {
@@ -507,7 +511,11 @@ fn render_tile<T: Real>(
             }
             let ray = cam.ray(x, y);
             clock.begin_ray(pixels.len() as u32, &acc);
-            let (p, s) = pixel(ctx, &ray, &mut acc, &mut clock);
+            let t0 = match cover {
+                Some(c) if exact => c.start(x, y),
+                _ => 0.0,
+            };
+            let (p, s) = pixel(ctx, &ray, t0, &mut acc, &mut clock);
             clock.end_ray(&acc);
             steps.add(&s);
             hits += p.hit as u64;

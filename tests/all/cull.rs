@@ -129,19 +129,19 @@ fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
             prop_assert_eq!(bits(&fc), bits(&ft), "{:?} {:?}", mode, method);
             prop_assert_eq!(sc.hits, st.hits);
             prop_assert_eq!(st.rays_culled, 0);
-            // A traced pixel takes the steps it takes with culling off.
-            for (c, t) in fc.steps.iter().zip(&ft.steps) {
-                prop_assert!(
-                    *c == 0 || c == t,
-                    "{:?} {:?}: {} steps, {} traced",
-                    mode,
-                    method,
-                    c,
-                    t
-                );
+            // A traced pixel's ray starts where the cover says no 1-cell
+            // can begin before (render/cull.rs, `Cover::start`): FVT, one
+            // cell at a time, takes at most the steps it takes from the
+            // volume's entry. (CD and the octree leap from wherever they
+            // start, so theirs may differ either way by a few; the image
+            // above is what must not.)
+            if method == Method::Fvt {
+                for (c, t) in fc.steps.iter().zip(&ft.steps) {
+                    prop_assert!(c <= t, "{:?}: {} steps, {} traced", mode, c, t);
+                }
+                prop_assert!(sc.steps <= st.steps);
+                prop_assert!(sc.bricks_read <= st.bricks_read);
             }
-            prop_assert!(sc.steps <= st.steps);
-            prop_assert!(sc.bricks_read <= st.bricks_read);
             // Small tiles: many wholly culled, drawn without pixels; the
             // same frame, planes and counts.
             for tile in [1, 3] {

@@ -29,9 +29,11 @@ use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, OBJECT};
 
 /// Composites `ray` into `px.rgb` with f64 samples (the reference
 /// sampler, `--sample-precision f64`); `px.hit` when anything is opaque.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn composite<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
+    t_start: f64,
     acc: &mut Accessor,
     clock: &mut Clock,
     lut: &TfLut,
@@ -50,7 +52,7 @@ pub(super) fn composite<T: Real>(
         col: [0.0; 3],
         alpha: 0.0,
     };
-    let counts = march(ctx, ray, acc, clock, step, &mut s);
+    let counts = march(ctx, ray, t_start, acc, clock, step, &mut s);
     px.hit = s.alpha > 0.0;
     px.alpha = s.alpha as f32;
     px.rgb = s.col.map(|x| x as f32);
@@ -64,9 +66,11 @@ pub(super) fn composite<T: Real>(
 /// lookup. The samples and their cells are [`composite`]'s;
 /// docs/TRADEOFFS.md ("Sampling precision") measures the image
 /// difference.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn composite32<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
+    t_start: f64,
     acc: &mut Accessor,
     clock: &mut Clock,
     lut: &TfLut,
@@ -77,9 +81,9 @@ pub(super) fn composite32<T: Real>(
     // One marcher per look: without shading or gradient opacity, its
     // sample loop holds no gradient code at all.
     if look.on {
-        march32::<T, true>(ctx, ray, acc, clock, lut, step, look, px)
+        march32::<T, true>(ctx, ray, t_start, acc, clock, lut, step, look, px)
     } else {
-        march32::<T, false>(ctx, ray, acc, clock, lut, step, look, px)
+        march32::<T, false>(ctx, ray, t_start, acc, clock, lut, step, look, px)
     }
 }
 
@@ -89,6 +93,7 @@ pub(super) fn composite32<T: Real>(
 fn march32<T: Real, const LOOK: bool>(
     ctx: &Ctx<T>,
     ray: &Ray,
+    t_start: f64,
     acc: &mut Accessor,
     clock: &mut Clock,
     lut: &TfLut,
@@ -117,7 +122,7 @@ fn march32<T: Real, const LOOK: bool>(
         acc: Vec4::ZERO,
         batches,
     };
-    let counts = march(ctx, ray, acc, clock, step, &mut s);
+    let counts = march(ctx, ray, t_start, acc, clock, step, &mut s);
     px.hit = s.acc.w > 0.0;
     px.alpha = s.acc.w;
     px.rgb = s.acc.truncate().to_array();
@@ -182,6 +187,7 @@ const RESUME_CODE: u8 = 2;
 fn march<T: Real, P: Sampler>(
     ctx: &Ctx<T>,
     ray: &Ray,
+    t_start: f64,
     acc: &mut Accessor,
     clock: &mut Clock,
     step: f64,
@@ -203,7 +209,7 @@ fn march<T: Real, P: Sampler>(
     };
     let mut counts = StepCounts::default();
     let batches = s.batches();
-    let mut t_min = 0.0;
+    let mut t_min = t_start;
     // The first sample not yet handled: runs never go back.
     let mut k_next = 0.0f64;
     loop {

@@ -8,16 +8,18 @@ use crate::render::clock::Clock;
 use crate::render::shade::HitMethod;
 use crate::render::traverse::{Ray, Real, StepCounts};
 
-/// Writes the hit distance of `ray` into `px` (NaN stays on a miss).
+/// Writes the distance of `ray`'s first hit after `t_start` into `px`
+/// (NaN stays on a miss).
 pub(super) fn depth<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
+    t_start: f64,
     acc: &mut Accessor,
     clock: &mut Clock,
     hit: HitMethod,
     px: &mut Px,
 ) -> StepCounts {
-    let (found, counts) = first_hit(ctx, ray, 0.0, hit, acc, clock);
+    let (found, counts) = first_hit(ctx, ray, t_start, hit, acc, clock);
     if let Some((t, _)) = found {
         px.hit = true;
         px.depth = t as f32;

@@ -21,10 +21,12 @@ use crate::render::clock::Clock;
 use crate::render::shade::{at, CellEval};
 use crate::render::traverse::{trace, Flow, Method, Ray, Real, StepCounts, Visit};
 
-/// Writes the largest value along `ray` into `px.rgb` (uncoloured).
+/// Writes the largest value along `ray` after `t_start` into `px.rgb`
+/// (uncoloured).
 pub(super) fn mip<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
+    t_start: f64,
     acc: &mut Accessor,
     clock: &mut Clock,
     px: &mut Px,
@@ -32,7 +34,7 @@ pub(super) fn mip<T: Real>(
     let coords = ctx.coords;
     let mut m = Max::default();
     let leaps = block_leaps(ctx.opts.method, acc.brick_size());
-    let counts = trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |v, acc| {
+    let counts = trace(ctx.grid, ray, t_start, ctx.opts.method, acc, |v, acc| {
         clock.enter(acc);
         let flow = m.raise(coords, ray, v, acc, leaps);
         clock.leave(acc);

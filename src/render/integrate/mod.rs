@@ -208,10 +208,14 @@ impl<'a, T: Real> Ctx<'a, T> {
     }
 }
 
-/// The pixel of `ray`: the mode's integrator, then its step count.
+/// The pixel of `ray`: the mode's integrator, then its step count. The
+/// ray is traced from `t_start` (at least 0), before which it meets no
+/// 1-cell ([`Cover::start`](super::cull::Cover::start)); the cost map
+/// traces from 0, as it shows what the whole traversal costs.
 pub(crate) fn pixel<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
+    t_start: f64,
     acc: &mut Accessor,
     clock: &mut Clock,
 ) -> (Px, StepCounts) {
@@ -221,19 +225,19 @@ pub(crate) fn pixel<T: Real>(
     };
     let counts = match &ctx.opts.mode {
         Mode::Surface { hit, shadows } => {
-            surface::surface(ctx, ray, acc, clock, *hit, *shadows, &mut px)
+            surface::surface(ctx, ray, t_start, acc, clock, *hit, *shadows, &mut px)
         }
-        Mode::Depth { hit } => depth::depth(ctx, ray, acc, clock, *hit, &mut px),
-        Mode::Mip => mip::mip(ctx, ray, acc, clock, &mut px),
+        Mode::Depth { hit } => depth::depth(ctx, ray, t_start, acc, clock, *hit, &mut px),
+        Mode::Mip => mip::mip(ctx, ray, t_start, acc, clock, &mut px),
         Mode::Cost => cost::cost(ctx, ray, acc, clock, &mut px),
         Mode::Composite { step_mm, .. } => {
             let lut = ctx.lut.as_ref().expect("composite renders carry a table");
             match ctx.opts.sampling {
                 Precision::F32 => {
-                    composite::composite32(ctx, ray, acc, clock, lut, *step_mm, &mut px)
+                    composite::composite32(ctx, ray, t_start, acc, clock, lut, *step_mm, &mut px)
                 }
                 Precision::F64 => {
-                    composite::composite(ctx, ray, acc, clock, lut, *step_mm, &mut px)
+                    composite::composite(ctx, ray, t_start, acc, clock, lut, *step_mm, &mut px)
                 }
             }
         }

@@ -60,18 +60,20 @@ fn first_hit_cell<T: Real>(
     (found, s)
 }
 
-/// Shades the first hit of `ray` into `px`; with `shadows`, a shadow ray
-/// towards a key light decides whether it is lit.
+/// Shades the first hit of `ray` after `t_start` into `px`; with
+/// `shadows`, a shadow ray towards a key light decides whether it is lit.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn surface<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
+    t_start: f64,
     acc: &mut Accessor,
     clock: &mut Clock,
     hit: HitMethod,
     shadows: bool,
     px: &mut Px,
 ) -> StepCounts {
-    let (found, mut counts) = first_hit_cell(ctx, ray, 0.0, hit, acc, clock);
+    let (found, mut counts) = first_hit_cell(ctx, ray, t_start, hit, acc, clock);
     let Some((t, c, cell)) = found else {
         return counts;
     };
