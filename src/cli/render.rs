@@ -197,9 +197,11 @@ pub struct RenderArgs {
     /// else 4 (docs/BENCHMARKS.md, "The stand-in threshold by ray density").
     #[arg(long)]
     pub cd_lazy_min: Option<u8>,
-    /// Trace every pixel's ray, also those no brick with 1-cells projects
-    /// onto (by default they are drawn as misses without a ray: the same
-    /// image; docs/BENCHMARKS.md, "Culling by the brick index").
+    /// Trace every pixel's ray from the volume's entry, also those no brick
+    /// with 1-cells projects onto (by default they are drawn as misses
+    /// without a ray, and the others start where the nearest such box
+    /// begins: the same image; docs/BENCHMARKS.md, "Culling by the brick
+    /// index" and "Rays start where the cover's boxes begin").
     #[arg(long)]
     pub no_cull: bool,
     /// Brick cache budget in MiB.
