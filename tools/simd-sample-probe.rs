@@ -1,22 +1,32 @@
-//! What SIMD across one ray's samples would buy the composite: a probe,
-//! not cdvol code (docs/BENCHMARKS.md, "SIMD across a ray's samples").
+//! What SIMD across one ray's samples, or across rays, would buy the
+//! composite: a probe, not cdvol code (docs/BENCHMARKS.md, "SIMD across a
+//! ray's samples" and "What stands between the unmet targets and this
+//! design").
 //!
 //! A synthetic 96^3 volume of 16-bit words read through a word -> value
 //! table (as `Samples::Words16` is), a 1024-bin transfer-function table of
-//! (start, slope) pairs (as `TfLut::sample32`'s), 20,000 rays of 80 samples
-//! 0.5 cells apart from the centre. Each sample: its cell and local
-//! coordinates by position (floor), 8 vertex loads, the trilinear value,
-//! the table, front-to-back compositing. Three samplers, the same samples:
+//! (start, slope) pairs (as `TfLut::sample32`'s), 20,000 directions, 8
+//! parallel rays each, 80 samples 0.5 cells apart from around the centre.
+//! Each sample: its cell and local coordinates by position (floor), 8
+//! vertex loads, the trilinear value, the table, front-to-back
+//! compositing. Four samplers, the same samples:
 //! - `scalar`: one sample at a time;
 //! - `simd-loads`: 8 samples of the ray at once in AVX2 lanes, the vertex
 //!   words and values loaded one by one into the lanes, the transfer
 //!   function read by AVX2 gathers;
-//! - `simd-gather`: the same with the vertices read by gathers too.
+//! - `simd-gather`: the same with the vertices read by gathers too;
+//! - `packet`: SIMD across rays instead (thirty-second session): eight
+//!   parallel rays of 2 x 4 neighbouring pixels, one per lane, sample `i`
+//!   of all eight at once; a cell all eight share has its vertices loaded
+//!   once, and the compositing is in lanes (the rays are independent).
 //!
-//! The compositing stays serial in all three (the opacity of one sample
-//! weights the next). Standalone, no dependencies:
+//! The compositing stays serial in the first three (the opacity of one
+//! sample weights the next). All four take the same samples: every
+//! sampler walks the eight rays of each packet. Standalone, no
+//! dependencies (the argument is the pixel spacing in cells, 0.25 by
+//! default: a 1024^2 image of the real CT):
 //!
-//!     rustc -C opt-level=3 tools/simd-sample-probe.rs -o /tmp/simd-probe && taskset -c 1 /tmp/simd-probe
+//!     rustc -C opt-level=3 tools/simd-sample-probe.rs -o /tmp/simd-probe && taskset -c 1 /tmp/simd-probe [0.25]
 use std::time::Instant;
 
 const N: usize = 96;
@@ -37,7 +47,9 @@ fn volume() -> Volume {
     let mut s = 12345u64;
     for (i, w) in words.iter_mut().enumerate() {
         let (x, y, z) = ((i % N) as f32, ((i / N) % N) as f32, (i / (N * N)) as f32);
-        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         let noise = ((s >> 33) % 200) as f32;
         let v = 1000.0 + 500.0 * ((x * 0.1).sin() + (y * 0.13).cos() + (z * 0.07).sin()) + noise;
         *w = v.clamp(0.0, 4095.0) as u16;
@@ -50,10 +62,25 @@ fn volume() -> Volume {
     let tf = (0..BINS)
         .map(|i| {
             let (a, b) = (at(i), at(i + 1));
-            [a[0], a[1], a[2], a[3], b[0] - a[0], b[1] - a[1], b[2] - a[2], b[3] - a[3]]
+            [
+                a[0],
+                a[1],
+                a[2],
+                a[3],
+                b[0] - a[0],
+                b[1] - a[1],
+                b[2] - a[2],
+                b[3] - a[3],
+            ]
         })
         .collect();
-    Volume { words, table, tf, lo: -100.0, inv_bin: (BINS as f32 - 1.0) / 2100.0 }
+    Volume {
+        words,
+        table,
+        tf,
+        lo: -100.0,
+        inv_bin: (BINS as f32 - 1.0) / 2100.0,
+    }
 }
 
 fn lerp(a: f32, b: f32, t: f32) -> f32 {
@@ -74,7 +101,12 @@ fn classify(v: &Volume, value: f32) -> [f32; 4] {
     let bin = pos as usize;
     let fr = pos - bin as f32;
     let e = &v.tf[bin];
-    [e[0] + fr * e[4], e[1] + fr * e[5], e[2] + fr * e[6], e[3] + fr * e[7]]
+    [
+        e[0] + fr * e[4],
+        e[1] + fr * e[5],
+        e[2] + fr * e[6],
+        e[3] + fr * e[7],
+    ]
 }
 
 fn ray_scalar(v: &Volume, p0: [f32; 3], d: [f32; 3], k: usize) -> [f32; 4] {
@@ -109,20 +141,37 @@ mod avx2 {
     /// # Safety
     /// The CPU has AVX2 and FMA; every sample lies inside the volume.
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn ray<const GATHER: bool>(v: &Volume, p0: [f32; 3], d: [f32; 3], k: usize) -> [f32; 4] {
+    pub unsafe fn ray<const GATHER: bool>(
+        v: &Volume,
+        p0: [f32; 3],
+        d: [f32; 3],
+        k: usize,
+    ) -> [f32; 4] {
         let mut acc = [0.0f32; 4];
         let lane = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
-        let (row, slice) = (_mm256_set1_epi32(N as i32), _mm256_set1_epi32((N * N) as i32));
+        let (row, slice) = (
+            _mm256_set1_epi32(N as i32),
+            _mm256_set1_epi32((N * N) as i32),
+        );
         let (lo, inv_bin) = (_mm256_set1_ps(v.lo), _mm256_set1_ps(v.inv_bin));
         let top = _mm256_set1_ps(BINS as f32 - 1.0);
         let lerp = |a: __m256, b: __m256, t: __m256| _mm256_fmadd_ps(t, _mm256_sub_ps(b, a), a);
         let mut i = 0;
         while i < k {
             let fi = _mm256_add_ps(_mm256_set1_ps(i as f32), lane);
-            let p: [__m256; 3] = std::array::from_fn(|a| _mm256_fmadd_ps(fi, _mm256_set1_ps(d[a]), _mm256_set1_ps(p0[a])));
+            let p: [__m256; 3] = std::array::from_fn(|a| {
+                _mm256_fmadd_ps(fi, _mm256_set1_ps(d[a]), _mm256_set1_ps(p0[a]))
+            });
             let c = p.map(|x| _mm256_cvttps_epi32(x));
-            let u: [__m256; 3] = std::array::from_fn(|a| _mm256_sub_ps(p[a], _mm256_cvtepi32_ps(c[a])));
-            let b = _mm256_add_epi32(c[0], _mm256_add_epi32(_mm256_mullo_epi32(c[1], row), _mm256_mullo_epi32(c[2], slice)));
+            let u: [__m256; 3] =
+                std::array::from_fn(|a| _mm256_sub_ps(p[a], _mm256_cvtepi32_ps(c[a])));
+            let b = _mm256_add_epi32(
+                c[0],
+                _mm256_add_epi32(
+                    _mm256_mullo_epi32(c[1], row),
+                    _mm256_mullo_epi32(c[2], slice),
+                ),
+            );
             let mut idx = [0i32; 8];
             _mm256_storeu_si256(idx.as_mut_ptr() as *mut __m256i, b);
             let vertex = |o: i32| -> __m256 {
@@ -134,7 +183,8 @@ mod avx2 {
                 } else {
                     // SAFETY: in the volume (the caller's contract); words index the table.
                     let f = |j: usize| unsafe {
-                        *v.table.get_unchecked(*v.words.get_unchecked((idx[j] + o) as usize) as usize)
+                        *v.table
+                            .get_unchecked(*v.words.get_unchecked((idx[j] + o) as usize) as usize)
                     };
                     _mm256_setr_ps(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7))
                 }
@@ -168,6 +218,112 @@ mod avx2 {
         }
         acc
     }
+    /// Eight parallel rays in lockstep, one per lane (a packet of 2 x 4
+    /// neighbouring pixels): sample `i` of every lane at `p0[lane] + i d`.
+    /// Where all eight lanes are in the same cell, its 8 vertices are
+    /// loaded once and broadcast; elsewhere lane by lane, as `simd-loads`.
+    /// The rays are independent, so the compositing is in lanes too. Adds
+    /// to `shared` the samples whose cell all lanes shared.
+    ///
+    /// # Safety
+    /// The CPU has AVX2 and FMA; every sample lies inside the volume.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn packet(
+        v: &Volume,
+        p0: &[[f32; 3]; 8],
+        d: [f32; 3],
+        k: usize,
+        shared: &mut usize,
+    ) -> [[f32; 4]; 8] {
+        let (row, slice) = (
+            _mm256_set1_epi32(N as i32),
+            _mm256_set1_epi32((N * N) as i32),
+        );
+        let (lo, inv_bin) = (_mm256_set1_ps(v.lo), _mm256_set1_ps(v.inv_bin));
+        let top = _mm256_set1_ps(BINS as f32 - 1.0);
+        let lerp = |a: __m256, b: __m256, t: __m256| _mm256_fmadd_ps(t, _mm256_sub_ps(b, a), a);
+        let start: [__m256; 3] = std::array::from_fn(|a| {
+            _mm256_setr_ps(
+                p0[0][a], p0[1][a], p0[2][a], p0[3][a], p0[4][a], p0[5][a], p0[6][a], p0[7][a],
+            )
+        });
+        let one = _mm256_set1_ps(1.0);
+        let (mut r, mut g, mut bl, mut al) = (
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+        );
+        // Lanes still compositing: all ones until the lane passes 0.99.
+        let mut live = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+        let stop = _mm256_set1_ps(0.99);
+        let (sy, sz) = (N as i32, (N * N) as i32);
+        for i in 0..k {
+            let fi = _mm256_set1_ps(i as f32);
+            let p: [__m256; 3] =
+                std::array::from_fn(|a| _mm256_fmadd_ps(fi, _mm256_set1_ps(d[a]), start[a]));
+            let c = p.map(|x| _mm256_cvttps_epi32(x));
+            let u: [__m256; 3] =
+                std::array::from_fn(|a| _mm256_sub_ps(p[a], _mm256_cvtepi32_ps(c[a])));
+            let b = _mm256_add_epi32(
+                c[0],
+                _mm256_add_epi32(
+                    _mm256_mullo_epi32(c[1], row),
+                    _mm256_mullo_epi32(c[2], slice),
+                ),
+            );
+            let b0 = _mm256_permutevar8x32_epi32(b, _mm256_setzero_si256());
+            let same = _mm256_movemask_epi8(_mm256_cmpeq_epi32(b, b0)) == -1;
+            let vertex = |o: i32, idx: &[i32; 8]| -> __m256 {
+                // SAFETY: in the volume (the caller's contract); words index the table.
+                let f = |j: usize| unsafe {
+                    *v.table
+                        .get_unchecked(*v.words.get_unchecked((idx[j] + o) as usize) as usize)
+                };
+                if same {
+                    _mm256_set1_ps(f(0))
+                } else {
+                    _mm256_setr_ps(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7))
+                }
+            };
+            let mut idx = [0i32; 8];
+            _mm256_storeu_si256(idx.as_mut_ptr() as *mut __m256i, b);
+            *shared += same as usize * 8;
+            let x00 = lerp(vertex(0, &idx), vertex(1, &idx), u[0]);
+            let x10 = lerp(vertex(sy, &idx), vertex(sy + 1, &idx), u[0]);
+            let x01 = lerp(vertex(sz, &idx), vertex(sz + 1, &idx), u[0]);
+            let x11 = lerp(vertex(sz + sy, &idx), vertex(sz + sy + 1, &idx), u[0]);
+            let value = lerp(lerp(x00, x10, u[1]), lerp(x01, x11, u[1]), u[2]);
+            let pos = _mm256_mul_ps(_mm256_sub_ps(value, lo), inv_bin);
+            let pos = _mm256_min_ps(_mm256_max_ps(pos, _mm256_setzero_ps()), top);
+            let bin = _mm256_cvttps_epi32(pos);
+            let fr = _mm256_sub_ps(pos, _mm256_cvtepi32_ps(bin));
+            let base = _mm256_slli_epi32(bin, 3);
+            let tf = v.tf.as_ptr() as *const f32;
+            let ch = |c: i32| {
+                let start =
+                    _mm256_i32gather_ps::<4>(tf, _mm256_add_epi32(base, _mm256_set1_epi32(c)));
+                let slope =
+                    _mm256_i32gather_ps::<4>(tf, _mm256_add_epi32(base, _mm256_set1_epi32(c + 4)));
+                _mm256_fmadd_ps(fr, slope, start)
+            };
+            // `over` in lanes: w = 1 - a, zero in lanes already opaque.
+            let w = _mm256_and_ps(_mm256_sub_ps(one, al), live);
+            r = _mm256_fmadd_ps(w, ch(0), r);
+            g = _mm256_fmadd_ps(w, ch(1), g);
+            bl = _mm256_fmadd_ps(w, ch(2), bl);
+            al = _mm256_fmadd_ps(w, ch(3), al);
+            live = _mm256_andnot_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(al, stop), live);
+            if _mm256_movemask_ps(live) == 0 {
+                break;
+            }
+        }
+        let mut out = [[0f32; 8]; 4];
+        for (o, x) in out.iter_mut().zip([r, g, bl, al]) {
+            _mm256_storeu_ps(o.as_mut_ptr(), x);
+        }
+        std::array::from_fn(|j| [out[0][j], out[1][j], out[2][j], out[3][j]])
+    }
 }
 
 fn main() {
@@ -176,38 +332,106 @@ fn main() {
         eprintln!("this CPU lacks AVX2 or FMA");
         return;
     }
+    // Pixel spacing in cells for the packets (argument 1; 0.25 is a
+    // 1024^2 image of the real CT, whose cells are about 4 pixels wide).
+    let pix: f32 = std::env::args()
+        .nth(1)
+        .and_then(|a| a.parse().ok())
+        .unwrap_or(0.25);
+    // The samplers' loads are unchecked: keep every ray inside.
+    assert!(pix.abs() <= 1.0, "pixel spacing at most 1 cell");
     let v = volume();
     let mut s = 99u64;
     let mut rnd = || {
-        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (s >> 40) as f32 / (1u64 << 24) as f32 - 0.5
     };
-    let rays: Vec<[f32; 3]> = (0..20_000)
+    let dirs: Vec<[f32; 3]> = (0..20_000)
         .map(|_| {
             let d = [rnd(), rnd(), rnd()];
             let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             d.map(|x| 0.5 * x / l)
         })
         .collect();
-    let (p0, k) = ([N as f32 / 2.0; 3], 80);
-    type Sampler<'a> = Box<dyn Fn([f32; 3]) -> [f32; 4] + 'a>;
+    let k = 80;
+    // Per direction, a packet of 2 x 4 parallel rays `pix` apart across
+    // it, around the centre (an orthographic camera's neighbouring pixels).
+    let packets: Vec<[[f32; 3]; 8]> = dirs
+        .iter()
+        .map(|d| {
+            let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let t = d.map(|x| x / n);
+            let a = if t[0].abs() < 0.9 {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.0, 1.0, 0.0]
+            };
+            let cross = |u: [f32; 3], w: [f32; 3]| {
+                [
+                    u[1] * w[2] - u[2] * w[1],
+                    u[2] * w[0] - u[0] * w[2],
+                    u[0] * w[1] - u[1] * w[0],
+                ]
+            };
+            let e1 = cross(t, a);
+            let l1 = (e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]).sqrt();
+            let e1 = e1.map(|x| x / l1);
+            let e2 = cross(t, e1);
+            std::array::from_fn(|j| {
+                let (x, y) = ((j % 4) as f32 * pix, (j / 4) as f32 * pix);
+                std::array::from_fn(|c| N as f32 / 2.0 + x * e1[c] + y * e2[c])
+            })
+        })
+        .collect();
+    type Sampler<'a> = Box<dyn Fn(&[[f32; 3]; 8], [f32; 3], &mut usize) -> f64 + 'a>;
+    let each = |f: &dyn Fn([f32; 3], [f32; 3]) -> [f32; 4], p: &[[f32; 3]; 8], d| {
+        p.iter().map(|&p0| f(p0, d)[3] as f64).sum::<f64>()
+    };
     let samplers: Vec<(&str, Sampler)> = vec![
-        ("scalar", Box::new(|d| ray_scalar(&v, p0, d, k))),
-        // SAFETY: AVX2 and FMA checked above; the rays stay inside (80 x 0.5 < 48).
-        ("simd-loads", Box::new(|d| unsafe { avx2::ray::<false>(&v, p0, d, k) })),
-        ("simd-gather", Box::new(|d| unsafe { avx2::ray::<true>(&v, p0, d, k) })),
+        (
+            "scalar",
+            Box::new(|p, d, _| each(&|p0, d| ray_scalar(&v, p0, d, k), p, d)),
+        ),
+        // SAFETY: AVX2 and FMA checked above; the rays stay inside
+        // (80 x 0.5 + 4 pix < 48).
+        (
+            "simd-loads",
+            Box::new(|p, d, _| each(&|p0, d| unsafe { avx2::ray::<false>(&v, p0, d, k) }, p, d)),
+        ),
+        (
+            "simd-gather",
+            Box::new(|p, d, _| each(&|p0, d| unsafe { avx2::ray::<true>(&v, p0, d, k) }, p, d)),
+        ),
+        // SAFETY: as above.
+        (
+            "packet",
+            Box::new(|p, d, sh| {
+                unsafe { avx2::packet(&v, p, d, k, sh) }
+                    .iter()
+                    .map(|a| a[3] as f64)
+                    .sum()
+            }),
+        ),
     ];
     let mut best = vec![f64::MAX; samplers.len()];
     let mut sums = vec![0.0f64; samplers.len()];
+    let mut shared = 0;
     for _ in 0..7 {
         for (i, (_, f)) in samplers.iter().enumerate() {
+            shared = 0;
             let t = Instant::now();
-            let sum: f64 = rays.iter().map(|&d| f(d)[3] as f64).sum();
+            let sum: f64 = packets
+                .iter()
+                .zip(&dirs)
+                .map(|(p, &d)| f(p, d, &mut shared))
+                .sum();
             best[i] = best[i].min(t.elapsed().as_secs_f64());
             sums[i] = sum;
         }
     }
-    let n = (rays.len() * k) as f64;
+    let n = (packets.len() * 8 * k) as f64;
     for (i, (name, _)) in samplers.iter().enumerate() {
         println!(
             "{name:12} {:6.2} ns/sample  scalar/this {:.2}  (sum of opacities {:.3})",
@@ -216,4 +440,8 @@ fn main() {
             sums[i]
         );
     }
+    println!(
+        "packet: {:.1} % of samples in a cell all 8 lanes share (pixels {pix} cells apart)",
+        100.0 * shared as f64 / n
+    );
 }
