@@ -138,6 +138,69 @@ mod avx2 {
     use super::{over, Volume, BINS, N};
     use std::arch::x86_64::*;
 
+    /// Eight samples' local coordinates in their cells, and each cell's
+    /// first vertex (word index).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn cells(p: [__m256; 3]) -> ([__m256; 3], __m256i) {
+        let c = p.map(|x| _mm256_cvttps_epi32(x));
+        let u = std::array::from_fn(|a| _mm256_sub_ps(p[a], _mm256_cvtepi32_ps(c[a])));
+        let row = _mm256_mullo_epi32(c[1], _mm256_set1_epi32(N as i32));
+        let slice = _mm256_mullo_epi32(c[2], _mm256_set1_epi32((N * N) as i32));
+        (u, _mm256_add_epi32(c[0], _mm256_add_epi32(row, slice)))
+    }
+
+    /// The trilinear value in eight lanes from the vertices `vertex(o)`,
+    /// `o` each vertex's word offset from the cell's first.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn trilinear(u: [__m256; 3], mut vertex: impl FnMut(i32) -> __m256) -> __m256 {
+        let lerp = |a: __m256, b: __m256, t: __m256| _mm256_fmadd_ps(t, _mm256_sub_ps(b, a), a);
+        let (sy, sz) = (N as i32, (N * N) as i32);
+        let x00 = lerp(vertex(0), vertex(1), u[0]);
+        let x10 = lerp(vertex(sy), vertex(sy + 1), u[0]);
+        let x01 = lerp(vertex(sz), vertex(sz + 1), u[0]);
+        let x11 = lerp(vertex(sz + sy), vertex(sz + sy + 1), u[0]);
+        lerp(lerp(x00, x10, u[1]), lerp(x01, x11, u[1]), u[2])
+    }
+
+    /// The vertex at word offset `o` from the cells `idx` of the eight
+    /// lanes, loaded into the lanes one by one.
+    ///
+    /// # Safety
+    /// Every `idx[j] + o` is a word of the volume.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn lane_loads(v: &Volume, idx: &[i32; 8], o: i32) -> __m256 {
+        let f = |j: usize| {
+            *v.table
+                .get_unchecked(*v.words.get_unchecked((idx[j] + o) as usize) as usize)
+        };
+        _mm256_setr_ps(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7))
+    }
+
+    /// The transfer function of eight values, by gathers: r, g, b, a.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn classify(v: &Volume, value: __m256) -> [__m256; 4] {
+        let pos = _mm256_mul_ps(
+            _mm256_sub_ps(value, _mm256_set1_ps(v.lo)),
+            _mm256_set1_ps(v.inv_bin),
+        );
+        let top = _mm256_set1_ps(BINS as f32 - 1.0);
+        let pos = _mm256_min_ps(_mm256_max_ps(pos, _mm256_setzero_ps()), top);
+        let bin = _mm256_cvttps_epi32(pos);
+        let fr = _mm256_sub_ps(pos, _mm256_cvtepi32_ps(bin));
+        let base = _mm256_slli_epi32(bin, 3);
+        let tf = v.tf.as_ptr() as *const f32;
+        std::array::from_fn(|ch| {
+            let at = |o: usize| _mm256_add_epi32(base, _mm256_set1_epi32(o as i32));
+            let start = _mm256_i32gather_ps::<4>(tf, at(ch));
+            let slope = _mm256_i32gather_ps::<4>(tf, at(ch + 4));
+            _mm256_fmadd_ps(fr, slope, start)
+        })
+    }
+
     /// # Safety
     /// The CPU has AVX2 and FMA; every sample lies inside the volume.
     #[target_feature(enable = "avx2,fma")]
@@ -149,65 +212,29 @@ mod avx2 {
     ) -> [f32; 4] {
         let mut acc = [0.0f32; 4];
         let lane = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
-        let (row, slice) = (
-            _mm256_set1_epi32(N as i32),
-            _mm256_set1_epi32((N * N) as i32),
-        );
-        let (lo, inv_bin) = (_mm256_set1_ps(v.lo), _mm256_set1_ps(v.inv_bin));
-        let top = _mm256_set1_ps(BINS as f32 - 1.0);
-        let lerp = |a: __m256, b: __m256, t: __m256| _mm256_fmadd_ps(t, _mm256_sub_ps(b, a), a);
         let mut i = 0;
         while i < k {
             let fi = _mm256_add_ps(_mm256_set1_ps(i as f32), lane);
-            let p: [__m256; 3] = std::array::from_fn(|a| {
+            let (u, b) = cells(std::array::from_fn(|a| {
                 _mm256_fmadd_ps(fi, _mm256_set1_ps(d[a]), _mm256_set1_ps(p0[a]))
-            });
-            let c = p.map(|x| _mm256_cvttps_epi32(x));
-            let u: [__m256; 3] =
-                std::array::from_fn(|a| _mm256_sub_ps(p[a], _mm256_cvtepi32_ps(c[a])));
-            let b = _mm256_add_epi32(
-                c[0],
-                _mm256_add_epi32(
-                    _mm256_mullo_epi32(c[1], row),
-                    _mm256_mullo_epi32(c[2], slice),
-                ),
-            );
+            }));
             let mut idx = [0i32; 8];
             _mm256_storeu_si256(idx.as_mut_ptr() as *mut __m256i, b);
-            let vertex = |o: i32| -> __m256 {
+            let value = trilinear(u, |o| {
                 if GATHER {
                     let off = _mm256_slli_epi32(_mm256_add_epi32(b, _mm256_set1_epi32(o)), 1);
                     let w = _mm256_i32gather_epi32::<1>(v.words.as_ptr() as *const i32, off);
                     let w = _mm256_and_si256(w, _mm256_set1_epi32(0xffff));
                     _mm256_i32gather_ps::<4>(v.table.as_ptr(), w)
                 } else {
-                    // SAFETY: in the volume (the caller's contract); words index the table.
-                    let f = |j: usize| unsafe {
-                        *v.table
-                            .get_unchecked(*v.words.get_unchecked((idx[j] + o) as usize) as usize)
-                    };
-                    _mm256_setr_ps(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7))
+                    // SAFETY: in the volume (the caller's contract).
+                    lane_loads(v, &idx, o)
                 }
-            };
-            let (sy, sz) = (N as i32, (N * N) as i32);
-            let x00 = lerp(vertex(0), vertex(1), u[0]);
-            let x10 = lerp(vertex(sy), vertex(sy + 1), u[0]);
-            let x01 = lerp(vertex(sz), vertex(sz + 1), u[0]);
-            let x11 = lerp(vertex(sz + sy), vertex(sz + sy + 1), u[0]);
-            let value = lerp(lerp(x00, x10, u[1]), lerp(x01, x11, u[1]), u[2]);
-            let pos = _mm256_mul_ps(_mm256_sub_ps(value, lo), inv_bin);
-            let pos = _mm256_min_ps(_mm256_max_ps(pos, _mm256_setzero_ps()), top);
-            let bin = _mm256_cvttps_epi32(pos);
-            let fr = _mm256_sub_ps(pos, _mm256_cvtepi32_ps(bin));
+            });
             // The table by gathers in both variants (one vector per channel).
             let mut rgba = [[0f32; 8]; 4];
-            let base = _mm256_slli_epi32(bin, 3);
-            for (ch, out) in rgba.iter_mut().enumerate() {
-                let at = |o: i32| _mm256_add_epi32(base, _mm256_set1_epi32(o));
-                let tf = v.tf.as_ptr() as *const f32;
-                let start = _mm256_i32gather_ps::<4>(tf, at(ch as i32));
-                let slope = _mm256_i32gather_ps::<4>(tf, at(ch as i32 + 4));
-                _mm256_storeu_ps(out.as_mut_ptr(), _mm256_fmadd_ps(fr, slope, start));
+            for (out, x) in rgba.iter_mut().zip(classify(v, value)) {
+                _mm256_storeu_ps(out.as_mut_ptr(), x);
             }
             for j in 0..(k - i).min(8) {
                 if over(&mut acc, [rgba[0][j], rgba[1][j], rgba[2][j], rgba[3][j]]) {
@@ -218,6 +245,7 @@ mod avx2 {
         }
         acc
     }
+
     /// Eight parallel rays in lockstep, one per lane (a packet of 2 x 4
     /// neighbouring pixels): sample `i` of every lane at `p0[lane] + i d`.
     /// Where all eight lanes are in the same cell, its 8 vertices are
@@ -235,91 +263,49 @@ mod avx2 {
         k: usize,
         shared: &mut usize,
     ) -> [[f32; 4]; 8] {
-        let (row, slice) = (
-            _mm256_set1_epi32(N as i32),
-            _mm256_set1_epi32((N * N) as i32),
-        );
-        let (lo, inv_bin) = (_mm256_set1_ps(v.lo), _mm256_set1_ps(v.inv_bin));
-        let top = _mm256_set1_ps(BINS as f32 - 1.0);
-        let lerp = |a: __m256, b: __m256, t: __m256| _mm256_fmadd_ps(t, _mm256_sub_ps(b, a), a);
         let start: [__m256; 3] = std::array::from_fn(|a| {
             _mm256_setr_ps(
                 p0[0][a], p0[1][a], p0[2][a], p0[3][a], p0[4][a], p0[5][a], p0[6][a], p0[7][a],
             )
         });
         let one = _mm256_set1_ps(1.0);
-        let (mut r, mut g, mut bl, mut al) = (
-            _mm256_setzero_ps(),
-            _mm256_setzero_ps(),
-            _mm256_setzero_ps(),
-            _mm256_setzero_ps(),
-        );
+        // r, g, b, a of the eight rays.
+        let mut acc = [_mm256_setzero_ps(); 4];
         // Lanes still compositing: all ones until the lane passes 0.99.
         let mut live = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
         let stop = _mm256_set1_ps(0.99);
-        let (sy, sz) = (N as i32, (N * N) as i32);
         for i in 0..k {
             let fi = _mm256_set1_ps(i as f32);
-            let p: [__m256; 3] =
-                std::array::from_fn(|a| _mm256_fmadd_ps(fi, _mm256_set1_ps(d[a]), start[a]));
-            let c = p.map(|x| _mm256_cvttps_epi32(x));
-            let u: [__m256; 3] =
-                std::array::from_fn(|a| _mm256_sub_ps(p[a], _mm256_cvtepi32_ps(c[a])));
-            let b = _mm256_add_epi32(
-                c[0],
-                _mm256_add_epi32(
-                    _mm256_mullo_epi32(c[1], row),
-                    _mm256_mullo_epi32(c[2], slice),
-                ),
-            );
+            let (u, b) = cells(std::array::from_fn(|a| {
+                _mm256_fmadd_ps(fi, _mm256_set1_ps(d[a]), start[a])
+            }));
             let b0 = _mm256_permutevar8x32_epi32(b, _mm256_setzero_si256());
             let same = _mm256_movemask_epi8(_mm256_cmpeq_epi32(b, b0)) == -1;
-            let vertex = |o: i32, idx: &[i32; 8]| -> __m256 {
-                // SAFETY: in the volume (the caller's contract); words index the table.
-                let f = |j: usize| unsafe {
-                    *v.table
-                        .get_unchecked(*v.words.get_unchecked((idx[j] + o) as usize) as usize)
-                };
-                if same {
-                    _mm256_set1_ps(f(0))
-                } else {
-                    _mm256_setr_ps(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7))
-                }
-            };
             let mut idx = [0i32; 8];
             _mm256_storeu_si256(idx.as_mut_ptr() as *mut __m256i, b);
             *shared += same as usize * 8;
-            let x00 = lerp(vertex(0, &idx), vertex(1, &idx), u[0]);
-            let x10 = lerp(vertex(sy, &idx), vertex(sy + 1, &idx), u[0]);
-            let x01 = lerp(vertex(sz, &idx), vertex(sz + 1, &idx), u[0]);
-            let x11 = lerp(vertex(sz + sy, &idx), vertex(sz + sy + 1, &idx), u[0]);
-            let value = lerp(lerp(x00, x10, u[1]), lerp(x01, x11, u[1]), u[2]);
-            let pos = _mm256_mul_ps(_mm256_sub_ps(value, lo), inv_bin);
-            let pos = _mm256_min_ps(_mm256_max_ps(pos, _mm256_setzero_ps()), top);
-            let bin = _mm256_cvttps_epi32(pos);
-            let fr = _mm256_sub_ps(pos, _mm256_cvtepi32_ps(bin));
-            let base = _mm256_slli_epi32(bin, 3);
-            let tf = v.tf.as_ptr() as *const f32;
-            let ch = |c: i32| {
-                let start =
-                    _mm256_i32gather_ps::<4>(tf, _mm256_add_epi32(base, _mm256_set1_epi32(c)));
-                let slope =
-                    _mm256_i32gather_ps::<4>(tf, _mm256_add_epi32(base, _mm256_set1_epi32(c + 4)));
-                _mm256_fmadd_ps(fr, slope, start)
-            };
+            let value = trilinear(u, |o| {
+                if same {
+                    // SAFETY: in the volume (the caller's contract).
+                    let w = *v.words.get_unchecked((idx[0] + o) as usize);
+                    _mm256_set1_ps(*v.table.get_unchecked(w as usize))
+                } else {
+                    // SAFETY: as above.
+                    lane_loads(v, &idx, o)
+                }
+            });
             // `over` in lanes: w = 1 - a, zero in lanes already opaque.
-            let w = _mm256_and_ps(_mm256_sub_ps(one, al), live);
-            r = _mm256_fmadd_ps(w, ch(0), r);
-            g = _mm256_fmadd_ps(w, ch(1), g);
-            bl = _mm256_fmadd_ps(w, ch(2), bl);
-            al = _mm256_fmadd_ps(w, ch(3), al);
-            live = _mm256_andnot_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(al, stop), live);
+            let w = _mm256_and_ps(_mm256_sub_ps(one, acc[3]), live);
+            for (a, x) in acc.iter_mut().zip(classify(v, value)) {
+                *a = _mm256_fmadd_ps(w, x, *a);
+            }
+            live = _mm256_andnot_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(acc[3], stop), live);
             if _mm256_movemask_ps(live) == 0 {
                 break;
             }
         }
         let mut out = [[0f32; 8]; 4];
-        for (o, x) in out.iter_mut().zip([r, g, bl, al]) {
+        for (o, x) in out.iter_mut().zip(acc) {
             _mm256_storeu_ps(o.as_mut_ptr(), x);
         }
         std::array::from_fn(|j| [out[0][j], out[1][j], out[2][j], out[3][j]])
