@@ -1,0 +1,1 @@
+//! Issue 57 regression tests (hostile_readers).
