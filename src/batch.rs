@@ -20,6 +20,12 @@
 //! `i % N == K`; `--jobs J` prepares J inputs at once (each bounded as one
 //! prep is, so memory is J times one prep's); every prep uses all cores
 //! either way.
+//!
+//! An output whose input is gone (renamed or deleted) is an orphan: the
+//! previous summary lists it and no current input maps to its name
+//! ([`orphans`]). It is reported, as a row of status `orphan`, and
+//! `--prune` removes it ([`prune`]); nothing else in the output directory
+//! is ever removed.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -415,6 +421,119 @@ pub fn run(
         .into_iter()
         .flatten()
         .collect())
+}
+
+/// Largest summary read back to find orphans (a row is a few hundred
+/// bytes).
+pub const MAX_SUMMARY_BYTES: u64 = 256 << 20;
+
+/// An output an earlier summary listed whose input is gone.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Orphan {
+    /// The input the earlier summary named (relative to the batch
+    /// directory).
+    pub input: String,
+    /// The output file, in the output directory.
+    pub output: PathBuf,
+}
+
+impl Orphan {
+    /// The orphan's row of the summary, of status `orphan`, or `pruned`
+    /// once removed.
+    pub fn row(&self, pruned: bool) -> BatchRow {
+        BatchRow {
+            input: self.input.clone(),
+            output: self.output.display().to_string(),
+            dims: None,
+            slices: None,
+            rectilinear: None,
+            seconds: 0.0,
+            output_bytes: None,
+            status: if pruned { "pruned" } else { "orphan" }.into(),
+            reason: Some(if pruned {
+                "input gone: removed (--prune)".into()
+            } else {
+                "input gone: remove the output, or run again with --prune".into()
+            }),
+            error: None,
+            warning: None,
+            modality: None,
+        }
+    }
+}
+
+/// The orphans of a batch writing into `out_dir`: outputs that the
+/// earlier summary `summary` listed, that still exist there as regular
+/// files, and that no current input maps to (`outs`, every current
+/// output name: [`output_names`] over all inputs, so shards agree).
+/// No summary yet gives none; one that cannot be read gives an error
+/// saying why, for a warning.
+pub fn orphans(summary: &Path, out_dir: &Path, outs: &[PathBuf]) -> Result<Vec<Orphan>, String> {
+    let m = match std::fs::metadata(summary) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(format!("{}: {e}", summary.display())),
+    };
+    if m.len() > MAX_SUMMARY_BYTES {
+        return Err(format!(
+            "{}: {} bytes, expected a summary of at most {} MiB",
+            summary.display(),
+            m.len(),
+            MAX_SUMMARY_BYTES >> 20
+        ));
+    }
+    let bytes =
+        crate::fsutil::read_regular(summary).map_err(|e| format!("{}: {e}", summary.display()))?;
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&bytes).map_err(|e| {
+        format!(
+            "{}: expected the JSON array of rows prep-batch writes: {e}",
+            summary.display()
+        )
+    })?;
+    let current: std::collections::HashSet<&std::ffi::OsStr> =
+        outs.iter().filter_map(|o| o.file_name()).collect();
+    let mut found: Vec<Orphan> = Vec::new();
+    for row in &rows {
+        let Some(listed) = row.get("output").and_then(|o| o.as_str()) else {
+            continue;
+        };
+        // Outputs lie in the output directory itself: take the name only.
+        let Some(name) = Path::new(listed).file_name() else {
+            continue;
+        };
+        if !name.to_string_lossy().ends_with(".cdv") || current.contains(name) {
+            continue;
+        }
+        let output = out_dir.join(name);
+        if found.iter().any(|o| o.output == output) {
+            continue;
+        }
+        if !std::fs::symlink_metadata(&output).is_ok_and(|m| m.is_file()) {
+            continue;
+        }
+        found.push(Orphan {
+            input: row
+                .get("input")
+                .and_then(|i| i.as_str())
+                .unwrap_or_default()
+                .to_string(),
+            output,
+        });
+    }
+    Ok(found)
+}
+
+/// Removes orphan `o` (`--prune`), only if it is still a packed file
+/// cdvol can open: a file put under that name since is never removed.
+pub fn prune(o: &Orphan) -> Result<(), String> {
+    PackedVolume::open(&o.output).map_err(|e| {
+        format!(
+            "{}: not removed, not a packed file any more: {e}",
+            o.output.display()
+        )
+    })?;
+    std::fs::remove_file(&o.output)
+        .map_err(|e| format!("{}: cannot remove: {e}", o.output.display()))
 }
 
 fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {

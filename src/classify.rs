@@ -60,18 +60,51 @@ pub struct TfInvalid {
     pub expected: &'static str,
 }
 
+/// Largest transfer function file read (one is a few KiB).
+pub const MAX_TF_BYTES: u64 = 16 << 20;
+
+/// The text of transfer function file `path`, read once and at most
+/// [`MAX_TF_BYTES`]. The file may be a FIFO (`--tf <(...)`): it is opened
+/// once, read to its end, and never opened again.
+pub fn read_tf_text(path: &Path) -> Result<String, TfError> {
+    use std::io::Read;
+    let e = |msg: String| TfError {
+        path: path.to_path_buf(),
+        msg,
+    };
+    let f = std::fs::File::open(path).map_err(|x| e(format!("cannot read: {x}")))?;
+    let mut bytes = Vec::new();
+    f.take(MAX_TF_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|x| e(format!("cannot read: {x}")))?;
+    if bytes.len() as u64 > MAX_TF_BYTES {
+        return Err(e(format!(
+            "larger than {} MiB, expected a transfer function (a JSON file of a few KiB)",
+            MAX_TF_BYTES >> 20
+        )));
+    }
+    String::from_utf8(bytes)
+        .map_err(|_| e("not UTF-8 text, expected a JSON transfer function".into()))
+}
+
 impl TransferFunction {
     /// Reads and checks a transfer function file.
     pub fn load(path: &Path) -> Result<TransferFunction, TfError> {
+        TransferFunction::from_text(path, &read_tf_text(path)?)
+    }
+
+    /// Parses and checks `text`, the contents of transfer function file
+    /// `path` (read once by [`read_tf_text`]: a FIFO or `<(...)` can be
+    /// read only once).
+    pub fn from_text(path: &Path, text: &str) -> Result<TransferFunction, TfError> {
         let e = |msg: String| TfError {
             path: path.to_path_buf(),
             msg,
         };
-        let text = std::fs::read_to_string(path).map_err(|x| e(format!("cannot read: {x}")))?;
-        if let Some(key) = crate::json::duplicate_key(&text) {
+        if let Some(key) = crate::json::duplicate_key(text) {
             return Err(e(format!("{key}: duplicate key, expected each key once")));
         }
-        let tf: TransferFunction = serde_json::from_str(&text).map_err(|x| {
+        let tf: TransferFunction = serde_json::from_str(text).map_err(|x| {
             e(format!(
                 "expected {{\"points\": [{{\"value\", \"opacity\", \"color\"}}, ...]}}: {x}"
             ))

@@ -48,6 +48,95 @@ pub enum ExportError {
     },
 }
 
+/// Sidecars and NRRD headers larger than this are not read to find the
+/// data files they name (a sidecar is a few KiB; see
+/// [`packed_sources`]).
+const MAX_SOURCE_HEADER_BYTES: u64 = 16 << 20;
+
+/// The files the packed file at `packed` (header `h`) was prepared from,
+/// as far as they can be found cheaply: every file of the input identity
+/// `prep-batch` records, and the header's `source` (as given, so relative
+/// to the working directory, then beside the packed file, then its bare
+/// name beside the packed file) with the data files it names when it is
+/// a sidecar or an NRRD header. A DICOM series' `source` names no file.
+/// Paths that do not exist are left out.
+pub fn packed_sources(packed: &Path, h: &crate::format::Header) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = Vec::new();
+    if let Some(stamp) = &h.input {
+        v.extend(stamp.files.iter().map(|f| f.path.clone()));
+    }
+    if h.source.is_empty() {
+        return v;
+    }
+    let src = Path::new(&h.source);
+    let dir = crate::fsutil::dir_of(packed);
+    let mut candidates = vec![src.to_path_buf()];
+    if !src.is_absolute() {
+        candidates.push(dir.join(src));
+        if let Some(name) = src.file_name() {
+            candidates.push(dir.join(name));
+        }
+    }
+    for c in candidates {
+        if v.contains(&c) {
+            continue;
+        }
+        // By type first: a FIFO or device is never opened.
+        let Ok(m) = std::fs::metadata(&c) else {
+            continue;
+        };
+        if !m.is_file() {
+            continue;
+        }
+        let data = if m.len() <= MAX_SOURCE_HEADER_BYTES {
+            data_files_of(&c)
+        } else {
+            Vec::new()
+        };
+        v.push(c);
+        v.extend(data);
+    }
+    v
+}
+
+/// The data files a sidecar or detached NRRD header names; none for
+/// other files (or any that does not parse).
+fn data_files_of(path: &Path) -> Vec<PathBuf> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
+        match crate::input::nrrd::parse(path) {
+            Ok(h) if h.data != path => vec![h.data],
+            _ => Vec::new(),
+        }
+    } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+        Vec::new()
+    } else {
+        match crate::input::sidecar::parse_sidecar(path) {
+            Ok(s) => match s.data {
+                crate::input::sidecar::DataFiles::One(f) => vec![f],
+                crate::input::sidecar::DataFiles::PerSlice(list) => list,
+            },
+            Err(_) => Vec::new(),
+        }
+    }
+}
+
+/// Checks, before any work, the outputs of a command that reads the
+/// packed file `vol`: none may be the packed file itself, nor the scan it
+/// was prepared from ([`packed_sources`]); each must be writable
+/// ([`crate::fsutil::check_outputs`]).
+pub fn check_packed_outputs(vol: &PackedVolume, outputs: &[PathBuf]) -> Result<(), OutputError> {
+    crate::fsutil::check_outputs(outputs, &[vol.path().to_path_buf()], None)?;
+    crate::fsutil::check_not_sources(
+        outputs,
+        &packed_sources(vol.path(), vol.header()),
+        vol.path(),
+    )
+}
+
 /// Writes `what` of `vol` as `<out_json stem>.raw` plus the sidecar
 /// `out_json`, committed together (fsutil::FileSet). Both are checked
 /// before any work: neither may be the packed file read. Returns the raw
@@ -76,11 +165,7 @@ pub fn export(
             source: std::io::Error::from(std::io::ErrorKind::InvalidInput),
         });
     }
-    crate::fsutil::check_outputs(
-        &[raw_path.clone(), out_json.to_path_buf()],
-        &[vol.path().to_path_buf()],
-        None,
-    )?;
+    check_packed_outputs(vol, &[out_json.to_path_buf(), raw_path.clone()])?;
     let io = |path: &Path, what| {
         let path = path.to_path_buf();
         move |source| ExportError::Io { path, what, source }

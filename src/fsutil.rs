@@ -83,6 +83,21 @@ pub enum OutputError {
         /// named by another (the data file of a sidecar, a DICOM slice).
         reading: Option<String>,
     },
+    /// The output is a file the packed file read was made from (its
+    /// header's `source`, or a file that source names): replacing it would
+    /// lose the scan.
+    #[error(
+        "{}: is {}a file of the scan {} was prepared from; refusing to overwrite it, \
+         choose another output name",
+        output.display(),
+        if output == scan { String::new() } else { format!("{}, ", scan.display()) },
+        packed.display()
+    )]
+    IsSource {
+        output: PathBuf,
+        scan: PathBuf,
+        packed: PathBuf,
+    },
     /// The output is a directory.
     #[error("{}: is a directory, expected a file name", path.display())]
     IsDirectory { path: PathBuf },
@@ -413,6 +428,37 @@ pub fn check_outputs(
                 dir: dir.clone(),
                 source,
             })?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks that none of `outputs` is one of `sources`, the files the
+/// packed file `packed` was prepared from (same device and inode, as
+/// [`check_outputs`] compares). Sources that do not exist are left out.
+pub fn check_not_sources(
+    outputs: &[PathBuf],
+    sources: &[PathBuf],
+    packed: &Path,
+) -> Result<(), OutputError> {
+    let ids: Vec<((u64, u64), &Path)> = sources
+        .iter()
+        .filter_map(|p| {
+            std::fs::metadata(p)
+                .ok()
+                .map(|m| ((m.dev(), m.ino()), p.as_path()))
+        })
+        .collect();
+    for out in outputs {
+        let Ok(m) = std::fs::metadata(out) else {
+            continue;
+        };
+        if let Some((_, scan)) = ids.iter().find(|(id, _)| *id == (m.dev(), m.ino())) {
+            return Err(OutputError::IsSource {
+                output: out.clone(),
+                scan: scan.to_path_buf(),
+                packed: packed.to_path_buf(),
+            });
         }
     }
     Ok(())

@@ -140,6 +140,8 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             // The extension first: a bad one needs no file read.
             cdvol::tools::histplot::PlotFormat::of(&a.output)?;
             let vol = PackedVolume::open(&a.file)?;
+            // Neither the packed file nor the scan it came from.
+            cdvol::export::check_packed_outputs(&vol, std::slice::from_ref(&a.output))?;
             let h = vol.header();
             let min = h.summary.histogram.as_ref().and_then(|x| x.min);
             let opts = cdvol::tools::histplot::PlotOptions {
@@ -186,12 +188,18 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
         Command::Render(a) => {
             let vol = PackedVolume::open(&a.file)?;
             let job = a.job(&vol)?;
-            // The transfer function is an input too (the job checks the
-            // packed file).
+            // The transfer function is an input too, and the scan the
+            // packed file came from is never replaced (the job checks the
+            // packed file itself).
+            let outputs = job.outputs().map_err(cli::render_error)?;
             if let Some(tf) = &a.tf {
-                let outputs = job.outputs().map_err(cli::render_error)?;
                 check_outputs(&outputs, std::slice::from_ref(tf), None)?;
             }
+            cdvol::fsutil::check_not_sources(
+                &outputs,
+                &cdvol::export::packed_sources(vol.path(), vol.header()),
+                vol.path(),
+            )?;
             let (files, stats) =
                 cdvol::render::job::run(&vol, &job, progress).map_err(cli::render_error)?;
             for f in files {
@@ -267,6 +275,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             }
         }
         Command::Experiment(cli::ExperimentCmd::Tradeoffs(a)) => {
+            check_experiment_out(&a.out, a.ct.as_deref())?;
             let rows = cdvol::tools::experiment::tradeoffs(&a.to_options()?, progress)?;
             println!(
                 "{} settings measured; wrote {}",
@@ -275,11 +284,28 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             );
         }
         Command::Experiment(e) => {
-            let path = cdvol::tools::experiment::paper::run(&e.paper_job()?, progress)?;
+            let job = e.paper_job()?;
+            check_experiment_out(&job.out, e.ct())?;
+            let path = cdvol::tools::experiment::paper::run(&job, progress)?;
             println!("wrote {}", path.display());
         }
         Command::Serve(a) => serve(&a.config())?,
     }
+    Ok(())
+}
+
+/// An experiment's report must not replace the `--ct` scan it reads (its
+/// sidecar or data files); checked before the long run.
+fn check_experiment_out(out: &Path, ct: Option<&Path>) -> Result<()> {
+    let Some(ct) = ct else {
+        return Ok(());
+    };
+    // The sidecar alone when it cannot be opened (the experiment says why).
+    let read = match cdvol::input::open(ct) {
+        Ok(src) => src.files(),
+        Err(_) => vec![ct.to_path_buf()],
+    };
+    check_outputs(&[out.to_path_buf()], &read, None)?;
     Ok(())
 }
 
@@ -398,6 +424,19 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
             a.input.display()
         );
     }
+    // Outputs of inputs that are gone, from the summary about to be
+    // replaced (before the run: it is rewritten at the end).
+    let orphans = match cdvol::batch::orphans(
+        &a.summary_path(),
+        &a.output,
+        &cdvol::batch::output_names(&a.output, &inputs),
+    ) {
+        Ok(o) => o,
+        Err(w) => {
+            eprintln!("cdvol: warning: {w}; orphaned outputs are not looked for");
+            Vec::new()
+        }
+    };
     let shard = a.shard();
     let total = inputs
         .iter()
@@ -434,6 +473,40 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
         progress.advance(1);
     })?;
     progress.end();
+    let mut rows = rows;
+    let mut orphan_lines = Vec::new();
+    for o in &orphans {
+        let pruned = if a.prune {
+            match cdvol::batch::prune(o) {
+                Ok(()) => true,
+                Err(e) => {
+                    eprintln!("cdvol: warning: {e}");
+                    false
+                }
+            }
+        } else {
+            false
+        };
+        let why = if inputs.iter().any(|i| i.name == o.input) {
+            format!("{} is now prepared under another name", o.input)
+        } else {
+            format!("its input {} is gone", o.input)
+        };
+        orphan_lines.push(if pruned {
+            format!("pruned: {} ({why})", o.output.display())
+        } else {
+            format!(
+                "orphan: {} ({why}; remove it, or run again with --prune)",
+                o.output.display()
+            )
+        });
+        // A row for an input that is gone; an input still here whose
+        // output name changed (another input now flattens alike) keeps
+        // its one row, and its old output is reported above only.
+        if !inputs.iter().any(|i| i.name == o.input) {
+            rows.push(o.row(pruned));
+        }
+    }
     println!("| input | dims | slices | rectilinear | seconds | output MiB | status |");
     println!("|---|---|---|---|---|---|---|");
     for r in &rows {
@@ -461,6 +534,9 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
         let w = r.warning.as_deref().unwrap_or_default();
         println!("warning: {}: {w}", r.input);
         eprintln!("cdvol: warning: {}: {w}", r.input);
+    }
+    for line in &orphan_lines {
+        println!("{line}");
     }
     let summary = a.summary_path();
     write_json(&summary, &rows)?;

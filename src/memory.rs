@@ -65,6 +65,25 @@ pub fn default_limit() -> u64 {
         .unwrap_or(u64::MAX)
 }
 
+/// The limit of `--mem-limit MIB`, in bytes, at most the machine's RAM
+/// ([`ram_bytes`]): a plan above RAM cannot be kept, and the allocation it
+/// allowed would abort the process instead of failing with a message.
+/// The second value says so when the given limit was lowered.
+pub fn limit_from_mib(mib: u64) -> (u64, Option<String>) {
+    let bytes = mib.saturating_mul(1 << 20);
+    match ram_bytes() {
+        Some(ram) if bytes > ram => (
+            ram,
+            Some(format!(
+                "--mem-limit {mib} MiB is above this machine's {} of RAM; using {}",
+                human(ram),
+                human(ram)
+            )),
+        ),
+        _ => (bytes, None),
+    }
+}
+
 /// How a limit was set, for messages: `--mem-limit` or the default.
 pub fn describe_limit(limit: u64, explicit: bool) -> String {
     if explicit {

@@ -66,3 +66,13 @@ pub enum Command {
     /// renders through one shared brick cache (docs/SERVE.md).
     Serve(ServeArgs),
 }
+
+/// `--mem-limit MIB` in bytes, lowered to the machine's RAM with a
+/// warning on stderr when above it (cdvol::memory::limit_from_mib).
+pub fn mem_limit(mib: u64) -> u64 {
+    let (bytes, warning) = cdvol::memory::limit_from_mib(mib);
+    if let Some(w) = warning {
+        eprintln!("cdvol: warning: {w}");
+    }
+    bytes
+}

@@ -145,7 +145,7 @@ impl PrepSettings {
             temp_dir: self.temp_dir.clone(),
             stamp: None,
             auto_envelope: false,
-            mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
+            mem_limit: self.mem_limit.map(crate::cli::mem_limit),
             format_version: self.format_version,
         };
         opts.check().map_err(prep_error)?;
@@ -201,6 +201,10 @@ pub struct PrepBatchArgs {
     /// Process input i (sorted by path) when i % N == K.
     #[arg(long, value_parser = cdvol::render::Shard::parse)]
     pub shard: Option<cdvol::render::Shard>,
+    /// Remove the orphans: outputs the previous summary listed whose input
+    /// is gone (they are reported either way; nothing else is removed).
+    #[arg(long)]
+    pub prune: bool,
     #[command(flatten)]
     pub settings: PrepSettings,
 }

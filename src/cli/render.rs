@@ -304,9 +304,18 @@ impl From<ShardLayoutArg> for ShardLayout {
 }
 
 impl RenderArgs {
+    /// The text of `--tf`, read once (it may be a FIFO or `<(...)`,
+    /// which cannot be read twice); `None` without `--tf`.
+    pub fn tf_text(&self) -> anyhow::Result<Option<String>> {
+        match &self.tf {
+            Some(tf) => Ok(Some(cdvol::classify::read_tf_text(tf)?)),
+            None => Ok(None),
+        }
+    }
+
     /// The mode, with the hit method, shadows and transfer function it
-    /// takes (the composite mode loads `--tf`).
-    pub fn mode(&self) -> anyhow::Result<Mode> {
+    /// takes (the composite mode parses `tf_text`, the text of `--tf`).
+    pub fn mode(&self, tf_text: Option<&str>) -> anyhow::Result<Mode> {
         let hit = self.hit.into();
         Ok(match self.mode {
             ModeArg::Surface => Mode::Surface {
@@ -317,8 +326,8 @@ impl RenderArgs {
             ModeArg::Cost => Mode::Cost,
             ModeArg::Depth => Mode::Depth { hit },
             ModeArg::Composite => {
-                let tf = match (&self.tf, self.preset()?) {
-                    (Some(tf), _) => TransferFunction::load(tf)?,
+                let tf = match (self.tf.as_deref().zip(tf_text), self.preset()?) {
+                    (Some((tf, text)), _) => TransferFunction::from_text(tf, text)?,
                     (None, Some(p)) => p.tf,
                     (None, None) => {
                         anyhow::bail!("--mode composite needs --tf FILE or --preset NAME")
@@ -398,10 +407,11 @@ impl RenderArgs {
     }
 
     /// The composite look: the --tf file's `shade` and
-    /// `gradient_opacity` keys, `--shade` on top.
-    pub fn look(&self) -> anyhow::Result<CompositeLook> {
-        let mut look = match (&self.tf, self.mode) {
-            (Some(tf), ModeArg::Composite) => CompositeLook::load(tf)?,
+    /// `gradient_opacity` keys (from `tf_text`, its text), `--shade` on
+    /// top.
+    pub fn look(&self, tf_text: Option<&str>) -> anyhow::Result<CompositeLook> {
+        let mut look = match (self.tf.as_deref().zip(tf_text), self.mode) {
+            (Some((tf, text)), ModeArg::Composite) => look_from_text(tf, text)?,
             (None, ModeArg::Composite) => CompositeLook {
                 shade: self.preset()?.is_some_and(|p| p.shade),
                 ..CompositeLook::default()
@@ -455,6 +465,12 @@ impl RenderArgs {
             },
             _ => anyhow::bail!("--eye, --target and --up go together: give all three or none"),
         };
+        // Read once: mode and look both come from this text.
+        let tf_text = match self.mode {
+            ModeArg::Composite => self.tf_text()?,
+            _ => None,
+        };
+        let tf_text = tf_text.as_deref();
         Ok(RenderJob {
             camera: CameraSpec {
                 view,
@@ -464,7 +480,7 @@ impl RenderArgs {
                 height: self.height,
             },
             options: RenderOptions {
-                mode: self.mode()?,
+                mode: self.mode(tf_text)?,
                 method: self.method(vol),
                 tile: self.tile,
                 cache_bytes: self.cache_mb.saturating_mul(1 << 20),
@@ -478,7 +494,7 @@ impl RenderArgs {
                 sampling: self.sample_precision.into(),
                 sample_batches: self.sample_batches == OnOff::On,
                 early_stop: self.early_stop,
-                look: self.look()?,
+                look: self.look(tf_text)?,
                 window: self.window()?,
                 normals: match self.normals {
                     NormalsArg::Smooth => cdvol::render::Normals::Smooth,
@@ -502,10 +518,33 @@ impl RenderArgs {
                 background: self.background,
                 bits: self.bit_depth,
             },
-            mem_limit: self.mem_limit.map(|m| m.saturating_mul(1 << 20)),
+            mem_limit: self.mem_limit.map(crate::cli::mem_limit),
             scale_bar: self.scale_bar,
         })
     }
+}
+
+/// The look keys of transfer function file `path` from its text `text`
+/// (read once), checked as [`CompositeLook::load`] checks them.
+fn look_from_text(
+    path: &std::path::Path,
+    text: &str,
+) -> Result<CompositeLook, cdvol::classify::TfError> {
+    let e = |msg: String| cdvol::classify::TfError {
+        path: path.to_path_buf(),
+        msg,
+    };
+    if let Some(key) = cdvol::json::duplicate_key(text) {
+        return Err(e(format!("{key}: duplicate key, expected each key once")));
+    }
+    let look: CompositeLook = serde_json::from_str(text).map_err(|x| {
+        e(format!(
+            "expected optional \"shade\": true|false and \"gradient_opacity\": \
+             [{{\"gradient\", \"opacity\"}}, ...]: {x}"
+        ))
+    })?;
+    look.check().map_err(|x| e(x.to_string()))?;
+    Ok(look)
 }
 
 /// The `cdvol render` flag of a library field name, for error messages.

@@ -60,6 +60,21 @@ pub enum ExperimentCmd {
 }
 
 impl ExperimentCmd {
+    /// The `--ct` scan the experiment reads, if given.
+    pub fn ct(&self) -> Option<&std::path::Path> {
+        match self {
+            ExperimentCmd::Fig16(a)
+            | ExperimentCmd::Fig17(a)
+            | ExperimentCmd::Fig18(a)
+            | ExperimentCmd::Fig20(a)
+            | ExperimentCmd::Fig22(a)
+            | ExperimentCmd::Table1(a)
+            | ExperimentCmd::Table2(a)
+            | ExperimentCmd::All(a) => a.ct.as_deref(),
+            ExperimentCmd::Tradeoffs(a) => a.ct.as_deref(),
+        }
+    }
+
     /// The paper experiment this command names, with its options. Refuses
     /// `tradeoffs` (not one of the paper's) and, naming `--ct`, the
     /// experiments that render the real CT when it is not given.
