@@ -102,10 +102,16 @@ pub fn find_inputs(dir: &Path) -> Result<Vec<BatchInput>, InputError> {
     walk(dir, &mut out, &mut dicom)?;
     // DICOM files by series, wherever they are: a series is one input,
     // named after the deepest directory holding all its files.
+    // A file whose header cannot be read has no series: it fails the
+    // series whose directory holds it (the series would have a gap), or
+    // else fails as an input of its own.
     let mut series: std::collections::BTreeMap<String, Vec<PathBuf>> = Default::default();
+    let mut unreadable = Vec::new();
     for f in dicom {
-        if let Some(uid) = crate::input::dicom::series_of(&f) {
-            series.entry(uid).or_default().push(f);
+        match crate::input::dicom::series_of(&f) {
+            Ok(Some(uid)) => series.entry(uid).or_default().push(f),
+            Ok(None) => {}
+            Err(e) => unreadable.push((f, e.to_string())),
         }
     }
     let mut per_dir: std::collections::BTreeMap<PathBuf, usize> = Default::default();
@@ -132,13 +138,46 @@ pub fn find_inputs(dir: &Path) -> Result<Vec<BatchInput>, InputError> {
         } else {
             name
         };
+        let bad: Vec<&String> = unreadable
+            .iter()
+            .filter(|(f, _)| f.starts_with(&d))
+            .map(|(_, e)| e)
+            .collect();
+        let error = (!bad.is_empty()).then(|| {
+            format!(
+                "{} of the series' directory cannot be read: {}",
+                if bad.len() == 1 {
+                    "a DICOM file"
+                } else {
+                    "DICOM files"
+                },
+                bad.iter()
+                    .map(|e| e.as_str())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            )
+        });
         out.push(BatchInput {
             path: d,
             series: Some(uid),
             files,
             name,
-            error: None,
+            error,
         });
+    }
+    for (f, e) in unreadable {
+        let covered = out
+            .iter()
+            .any(|i| i.series.is_some() && f.starts_with(&i.path));
+        if !covered {
+            out.push(BatchInput {
+                name: rel(dir, &f),
+                path: f,
+                series: None,
+                files: Vec::new(),
+                error: Some(e),
+            });
+        }
     }
     out.sort_by(|a, b| a.name.cmp(&b.name));
     Ok(out)

@@ -17,7 +17,13 @@
 //! BitsAllocated, PixelRepresentation or the rescale; a stack whose slices
 //! are displaced off their normal (gantry tilt: it would need resampling);
 //! two slices at the same position; multi-frame or colour images; pixel
-//! data the decoder cannot decode (the transfer syntax is named).
+//! data the decoder cannot decode (the transfer syntax is named); an image
+//! of the series without ImagePositionPatient (it would leave a gap);
+//! sequences nested deeper than [`guard::MAX_NESTING`], malformed RLE
+//! headers and any panic inside dicom-rs (module [`guard`]); a slice
+//! larger than the memory limit; a PixelSpacing below
+//! [`MIN_SPACING_MM`](super::sidecar::MIN_SPACING_MM) and a rescale that
+//! is not finite or has slope 0.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -25,6 +31,10 @@ use std::path::{Path, PathBuf};
 use dicom_dictionary_std::tags;
 use dicom_object::{DefaultDicomObject, OpenFileOptions};
 use dicom_pixeldata::PixelDecoder;
+
+mod guard;
+
+pub use guard::MAX_NESTING;
 
 use super::raw::decode_samples;
 use super::{Dtype, Endian, InputError, Rescale, SliceSource, VolumeMeta};
@@ -105,19 +115,41 @@ fn files_under(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), InputError> {
     Ok(())
 }
 
-fn header_of(path: &Path) -> Result<Option<SliceInfo>, InputError> {
-    let obj = OpenFileOptions::new()
-        .read_until(tags::PIXEL_DATA)
-        .open_file(path)
-        .map_err(|e| err(path, "file", format!("not a readable DICOM file: {e}")))?;
-    // DICOMDIR and other non-image objects have no position: not slices.
-    if obj
-        .element_opt(tags::IMAGE_POSITION_PATIENT)
-        .ok()
-        .flatten()
-        .is_none()
-    {
-        return Ok(None);
+/// What a file's header says it is.
+enum Header {
+    /// An image slice with a position.
+    Slice(Box<SliceInfo>),
+    /// An image (it has Rows) of this series without ImagePositionPatient:
+    /// no place in the stack.
+    Unplaced { series: String },
+    /// DICOMDIR and other non-image objects.
+    Other,
+}
+
+fn header_of(path: &Path) -> Result<Header, InputError> {
+    guard::check_nesting(path, true)?;
+    let obj = guard::no_panic(path, "file", || {
+        OpenFileOptions::new()
+            .read_until(tags::PIXEL_DATA)
+            .open_file(path)
+            .map_err(|e| err(path, "file", format!("not a readable DICOM file: {e}")))
+    })?;
+    let has = |tag| obj.element_opt(tag).ok().flatten().is_some();
+    if !has(tags::IMAGE_POSITION_PATIENT) {
+        if !has(tags::ROWS) {
+            return Ok(Header::Other);
+        }
+        let series = obj
+            .element_opt(tags::SERIES_INSTANCE_UID)
+            .ok()
+            .flatten()
+            .and_then(|e| {
+                e.to_str()
+                    .ok()
+                    .map(|s| s.trim_end_matches('\0').trim().to_string())
+            })
+            .unwrap_or_default();
+        return Ok(Header::Unplaced { series });
     }
     let s = |tag, name: &str| -> Result<String, InputError> {
         let e = obj.element(tag).map_err(|_| err(path, name, "missing"))?;
@@ -137,7 +169,7 @@ fn header_of(path: &Path) -> Result<Option<SliceInfo>, InputError> {
             return Err(err(
                 path,
                 name,
-                format!("{v:?}, expected {n} finite numbers"),
+                format!("{}, expected {n} finite numbers", numbers(&v)),
             ));
         }
         Ok(v)
@@ -151,35 +183,108 @@ fn header_of(path: &Path) -> Result<Option<SliceInfo>, InputError> {
         }
     };
     let opt_float = |tag, name: &str, default: f64| -> Result<f64, InputError> {
-        match obj.element_opt(tag).ok().flatten() {
-            Some(e) => e.to_float64().map_err(|x| err(path, name, format!("{x}"))),
-            None => Ok(default),
+        let v = match obj.element_opt(tag).ok().flatten() {
+            Some(e) => e
+                .to_float64()
+                .map_err(|x| err(path, name, format!("{x}")))?,
+            None => default,
+        };
+        if !v.is_finite() || (name == "RescaleSlope" && v == 0.0) {
+            let want = if name == "RescaleSlope" {
+                "a finite, non-zero number"
+            } else {
+                "a finite number"
+            };
+            return Err(err(path, name, format!("{v}, expected {want}")));
         }
+        Ok(v)
+    };
+    // Rows and Columns are US (1..=65535); NumberOfFrames is checked to
+    // be 1 later, BitsAllocated against 8, 16 and 32.
+    let size = |tag, name: &str, default: Option<i64>| -> Result<u32, InputError> {
+        let v = int(tag, name, default)?;
+        u32::try_from(v)
+            .ok()
+            .filter(|&v| (1..=65535).contains(&v))
+            .ok_or_else(|| err(path, name, format!("{v}, expected 1 to 65535")))
     };
     let spacing = floats(tags::PIXEL_SPACING, "PixelSpacing", 2)?;
+    let min = super::sidecar::MIN_SPACING_MM;
+    if spacing.iter().any(|&s| s < min) {
+        return Err(err(
+            path,
+            "PixelSpacing",
+            format!("{}, expected spacings >= {min:e} mm", numbers(&spacing)),
+        ));
+    }
     let orientation = floats(
         tags::IMAGE_ORIENTATION_PATIENT,
         "ImageOrientationPatient",
         6,
     )?;
     let position = floats(tags::IMAGE_POSITION_PATIENT, "ImagePositionPatient", 3)?;
-    Ok(Some(SliceInfo {
+    let small = |tag, name: &str, default: Option<i64>| -> Result<u16, InputError> {
+        let v = int(tag, name, default)?;
+        u16::try_from(v).map_err(|_| {
+            err(
+                path,
+                name,
+                format!("{v}, expected a number from 0 to 65535"),
+            )
+        })
+    };
+    let rows = size(tags::ROWS, "Rows", None)?;
+    let cols = size(tags::COLUMNS, "Columns", None)?;
+    let bits = small(tags::BITS_ALLOCATED, "BitsAllocated", None)?;
+    // Native pixel data are in the file: a file too short for Rows x
+    // Columns is refused before a slice of that size is allocated.
+    if NATIVE.contains(&obj.meta().transfer_syntax()) {
+        let need = rows as u64 * cols as u64 * (bits as u64).div_ceil(8);
+        let have = std::fs::metadata(path).map(|m| m.len()).unwrap_or(u64::MAX);
+        if have < need {
+            return Err(err(
+                path,
+                "Rows/Columns",
+                format!(
+                    "{rows} x {cols} samples of {bits} bits need {need} bytes of pixel data, \
+                     but the file has {have} bytes"
+                ),
+            ));
+        }
+    }
+    Ok(Header::Slice(Box::new(SliceInfo {
         path: path.to_path_buf(),
         series: s(tags::SERIES_INSTANCE_UID, "SeriesInstanceUID")?,
-        rows: int(tags::ROWS, "Rows", None)? as u32,
-        cols: int(tags::COLUMNS, "Columns", None)? as u32,
+        rows,
+        cols,
         spacing: [spacing[0], spacing[1]],
-        orientation: orientation.try_into().expect("6"),
-        position: position.try_into().expect("3"),
-        bits: int(tags::BITS_ALLOCATED, "BitsAllocated", None)? as u16,
+        orientation: [0, 1, 2, 3, 4, 5].map(|i| orientation[i]),
+        position: [position[0], position[1], position[2]],
+        bits,
         signed: int(tags::PIXEL_REPRESENTATION, "PixelRepresentation", Some(0))? == 1,
         rescale: [
             opt_float(tags::RESCALE_SLOPE, "RescaleSlope", 1.0)?,
             opt_float(tags::RESCALE_INTERCEPT, "RescaleIntercept", 0.0)?,
         ],
-        frames: int(tags::NUMBER_OF_FRAMES, "NumberOfFrames", Some(1))? as u32,
-        samples_per_pixel: int(tags::SAMPLES_PER_PIXEL, "SamplesPerPixel", Some(1))? as u16,
-    }))
+        frames: size(tags::NUMBER_OF_FRAMES, "NumberOfFrames", Some(1))?,
+        samples_per_pixel: small(tags::SAMPLES_PER_PIXEL, "SamplesPerPixel", Some(1))?,
+    })))
+}
+
+/// The uncompressed transfer syntaxes: implicit VR little endian,
+/// explicit VR little and big endian.
+const NATIVE: [&str; 3] = [
+    "1.2.840.10008.1.2",
+    "1.2.840.10008.1.2.1",
+    "1.2.840.10008.1.2.2",
+];
+
+/// `1, 2.5, 3` for a message.
+fn numbers(v: &[f64]) -> String {
+    v.iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -200,9 +305,14 @@ fn name(p: &Path) -> String {
         .unwrap_or_else(|| p.display().to_string())
 }
 
-/// The SeriesInstanceUID of a DICOM image file (`None` if it is not one).
-pub fn series_of(path: &Path) -> Option<String> {
-    header_of(path).ok().flatten().map(|s| s.series)
+/// The SeriesInstanceUID of a DICOM image file (`None` if it is not an
+/// image slice), or why its header cannot be read.
+pub fn series_of(path: &Path) -> Result<Option<String>, InputError> {
+    Ok(match header_of(path)? {
+        Header::Slice(s) => Some(s.series),
+        Header::Unplaced { series } => Some(series),
+        Header::Other => None,
+    })
 }
 
 fn dicom_files(dir: &Path) -> Result<Vec<PathBuf>, InputError> {
@@ -226,9 +336,12 @@ pub fn open_files(
     series: Option<&str>,
 ) -> Result<DicomSource, InputError> {
     let mut slices = Vec::new();
+    let mut unplaced = Vec::new();
     for f in &files {
-        if let Some(s) = header_of(f)? {
-            slices.push(s);
+        match header_of(f)? {
+            Header::Slice(s) => slices.push(*s),
+            Header::Unplaced { series } => unplaced.push((f, series)),
+            Header::Other => {}
         }
     }
     let mut by_series: BTreeMap<String, Vec<SliceInfo>> = BTreeMap::new();
@@ -259,6 +372,17 @@ pub fn open_files(
             });
         }
     };
+    if let Some((f, _)) = unplaced.iter().find(|(_, s)| *s == slices[0].series) {
+        return Err(err(
+            f,
+            "ImagePositionPatient",
+            format!(
+                "missing in an image of series {}: cdvol places each slice by its \
+                 position, and without it this slice would be left out as a gap",
+                slices[0].series
+            ),
+        ));
+    }
     let first = slices[0].clone();
     let row_dir = [
         first.orientation[0],
@@ -275,7 +399,10 @@ pub fn open_files(
         return Err(err(
             &first.path,
             "ImageOrientationPatient",
-            format!("{:?} is not two orthogonal unit vectors", first.orientation),
+            format!(
+                "{} is not two orthogonal unit vectors",
+                numbers(&first.orientation)
+            ),
         ));
     }
     for s in &slices {
@@ -310,11 +437,7 @@ pub fn open_files(
         };
         same(s.rows.to_string(), first.rows.to_string(), "Rows")?;
         same(s.cols.to_string(), first.cols.to_string(), "Columns")?;
-        same(
-            format!("{:?}", s.spacing),
-            format!("{:?}", first.spacing),
-            "PixelSpacing",
-        )?;
+        same(numbers(&s.spacing), numbers(&first.spacing), "PixelSpacing")?;
         let o_diff = s
             .orientation
             .iter()
@@ -322,8 +445,8 @@ pub fn open_files(
             .any(|(a, b)| (a - b).abs() > 1e-4);
         if o_diff {
             same(
-                format!("{:?}", s.orientation),
-                format!("{:?}", first.orientation),
+                numbers(&s.orientation),
+                numbers(&first.orientation),
                 "ImageOrientationPatient",
             )?;
         }
@@ -334,8 +457,8 @@ pub fn open_files(
             "PixelRepresentation",
         )?;
         same(
-            format!("{:?}", s.rescale),
-            format!("{:?}", first.rescale),
+            numbers(&s.rescale),
+            numbers(&first.rescale),
             "RescaleSlope/RescaleIntercept",
         )?;
     }
@@ -351,8 +474,8 @@ pub fn open_files(
                 &b.path,
                 "ImagePositionPatient",
                 format!(
-                    "{:?}: the same position as {} (a duplicate slice?)",
-                    b.position,
+                    "{}: the same position as {} (a duplicate slice?)",
+                    numbers(&b.position),
                     name(&a.path)
                 ),
             ));
@@ -391,6 +514,23 @@ pub fn open_files(
         }
     };
     let (nx, ny) = (first.cols as usize, first.rows as usize);
+    // A slice is decoded whole (its pixel data, then f64 samples): bound
+    // it before the first decode below allocates it. Rows and Columns are
+    // at most 65535, so the product fits.
+    let slice_mem = (nx * ny) as u64 * (dtype.size() as u64 + 8);
+    let limit = crate::memory::default_limit();
+    if slice_mem > limit {
+        return Err(err(
+            &first.path,
+            "Rows/Columns",
+            format!(
+                "{ny} x {nx} samples: one slice needs about {} to decode, above the \
+                 memory limit of {}",
+                crate::memory::human(slice_mem),
+                crate::memory::describe_limit(limit, false)
+            ),
+        ));
+    }
     let ox = dot(first.position, row_dir);
     let oy = dot(first.position, col_dir);
     let ax = Axis::uniform(ox, first.spacing[1], nx)
@@ -472,19 +612,41 @@ impl SliceSource for DicomSource {
 
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {
         let p = &self.files[z];
-        let obj: DefaultDicomObject = dicom_object::open_file(p)
-            .map_err(|e| err(p, "file", format!("not a readable DICOM file: {e}")))?;
+        guard::check_nesting(p, false)?;
+        let obj: DefaultDicomObject = guard::no_panic(p, "file", || {
+            dicom_object::open_file(p)
+                .map_err(|e| err(p, "file", format!("not a readable DICOM file: {e}")))
+        })?;
+        // The slice may have changed since its header was read: the
+        // decoder allocates what this file's Rows and Columns say.
+        let (ny, nx) = (
+            self.meta.grid.axes[1].samples(),
+            self.meta.grid.axes[0].samples(),
+        );
+        for (tag, name, want) in [(tags::ROWS, "Rows", ny), (tags::COLUMNS, "Columns", nx)] {
+            let got = obj.element(tag).ok().and_then(|e| e.to_int::<i64>().ok());
+            if got != Some(want as i64) {
+                return Err(err(
+                    p,
+                    name,
+                    format!("changed since the series was opened, expected {want}"),
+                ));
+            }
+        }
+        guard::check_rle(p, &obj, self.meta.dtype.size())?;
         let ts = obj
             .meta()
             .transfer_syntax()
             .trim_end_matches('\0')
             .to_string();
-        let px = obj.decode_pixel_data().map_err(|e| {
-            err(
-                p,
-                "PixelData",
-                format!("cannot decode (transfer syntax {ts}): {e}"),
-            )
+        let px = guard::no_panic(p, "PixelData", || {
+            obj.decode_pixel_data().map_err(|e| {
+                err(
+                    p,
+                    "PixelData",
+                    format!("cannot decode (transfer syntax {ts}): {e}"),
+                )
+            })
         })?;
         let data = px.data();
         if data.len() < self.slice_bytes {

@@ -1,55 +1,97 @@
-//! The HTTP side of `cdvol serve` (tiny_http, docs/SERVE.md says why):
-//! [`HANDLERS`] threads take requests from the listener, answer the page
-//! and JSON at once and hand image requests to the [`Engine`]. Routes are
-//! fixed strings; no part of a URL reaches the file system. Every refusal
-//! is a status with a plain-text message.
+//! The HTTP side of `cdvol serve`: a listener, one thread a connection (at
+//! most [`MAX_CONNECTIONS`]), request heads parsed by `httparse`, routes
+//! answered at once and image requests handed to the [`Engine`]. Routes
+//! are fixed strings; no part of a URL reaches the file system. Every
+//! refusal is a status with a plain-text message.
+//!
+//! Every request is bounded before anything is allocated for it (issue
+//! 57; docs/SERVE.md says why this is not tiny_http any more): a head is
+//! at most [`MAX_HEAD`] bytes and [`MAX_HEADERS`] lines; a request that
+//! announces a body (`Content-Length` above 0 or any
+//! `Transfer-Encoding`) is answered 413 and its connection closed without
+//! reading the body, since no route takes one; a connection idle for
+//! [`IDLE`] is closed, and a response that cannot be written within
+//! [`WRITE_TIMEOUT`] is dropped. Status and page requests have threads of
+//! their own, so they are answered while renders queue for the render
+//! slot.
 
-use std::io::Cursor;
-use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::io::{ErrorKind, Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use tiny_http::{Header, Method, Request, Response};
-
 use super::engine::{Engine, Served};
 use super::request::{ViewRequest, MAX_SIDE};
-use super::{ServeConfig, ServeError, HANDLERS};
+use super::{ServeConfig, ServeError};
 
 /// The viewer page, every asset inline.
 const PAGE: &str = include_str!("page.html");
 
+/// Largest request head (request line and headers), bytes.
+pub const MAX_HEAD: usize = 16 << 10;
+
+/// Most header lines a request may have.
+pub const MAX_HEADERS: usize = 64;
+
+/// Most connections served at once; one more is answered 503 and closed.
+pub const MAX_CONNECTIONS: usize = 64;
+
+/// A connection with no request in progress for this long is closed.
+pub const IDLE: Duration = Duration::from_secs(10);
+
+/// A response not written within this long is dropped with its
+/// connection (a client that stopped reading).
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// How often a waiting connection looks at the stop flag.
+const POLL: Duration = Duration::from_millis(100);
+
 /// A bound server, ready to [`run`](Server::run).
 pub struct Server<'v> {
-    http: tiny_http::Server,
+    listener: TcpListener,
     engine: Engine<'v>,
     stop: Arc<AtomicBool>,
     addr: SocketAddr,
+    open: AtomicUsize,
 }
 
-type Reply = Response<Cursor<Vec<u8>>>;
+/// A response: status, content type, extra headers, body.
+struct Reply {
+    status: u16,
+    content_type: &'static str,
+    headers: Vec<(&'static str, String)>,
+    body: Vec<u8>,
+}
+
+/// What the routes need of a request head, owned.
+struct Head {
+    method: String,
+    target: String,
+    host: Option<String>,
+    /// The client asked to close, or spoke HTTP/1.0 without keep-alive.
+    close: bool,
+    /// `Content-Length` above 0 or a `Transfer-Encoding`.
+    body: bool,
+}
 
 impl<'v> Server<'v> {
     /// Binds `cfg.bind` for `files` (opened by the caller, who keeps them
     /// for the server's life).
     pub fn bind(files: &'v [Served], cfg: &ServeConfig) -> Result<Server<'v>, ServeError> {
         cfg.check()?;
-        let bind_err = |msg: String| ServeError::Bind {
+        let bind_err = |e: std::io::Error| ServeError::Bind {
             addr: cfg.bind,
-            msg,
+            msg: e.to_string(),
         };
-        let listener = listen(cfg.bind).map_err(|e| bind_err(e.to_string()))?;
-        let http = tiny_http::Server::from_listener(listener, None)
-            .map_err(|e| bind_err(e.to_string()))?;
-        let addr = http
-            .server_addr()
-            .to_ip()
-            .ok_or_else(|| bind_err("not an IP address".into()))?;
+        let listener = listen(cfg.bind).map_err(bind_err)?;
+        let addr = listener.local_addr().map_err(bind_err)?;
         Ok(Server {
-            http,
+            listener,
             engine: Engine::new(files, cfg.cache_mb << 20, cfg.threads)?,
             stop: Arc::new(AtomicBool::new(false)),
             addr,
+            open: AtomicUsize::new(0),
         })
     }
 
@@ -67,50 +109,125 @@ impl<'v> Server<'v> {
     /// Answers requests until the stop flag is set.
     pub fn run(&self) {
         std::thread::scope(|s| {
-            for _ in 0..HANDLERS {
-                s.spawn(|| self.handle_until_stopped());
+            // accept() blocks: once the flag is set, a connection of our
+            // own wakes it.
+            s.spawn(|| {
+                while !self.stop.load(Ordering::Relaxed) {
+                    std::thread::sleep(POLL);
+                }
+                let _ = TcpStream::connect_timeout(&wake_addr(self.addr), Duration::from_secs(1));
+            });
+            loop {
+                let accepted = self.listener.accept();
+                if self.stop.load(Ordering::Relaxed) {
+                    break;
+                }
+                let stream = match accepted {
+                    Ok((stream, _)) => stream,
+                    Err(e) => {
+                        eprintln!("cdvol serve: {e}");
+                        std::thread::sleep(POLL);
+                        continue;
+                    }
+                };
+                if self.open.fetch_add(1, Ordering::AcqRel) >= MAX_CONNECTIONS {
+                    self.open.fetch_sub(1, Ordering::AcqRel);
+                    let busy = text(
+                        503,
+                        &format!("busy: {MAX_CONNECTIONS} connections are open, try again"),
+                    );
+                    let _ = stream.set_write_timeout(Some(Duration::from_secs(1)));
+                    let _ = send(&stream, &busy, true);
+                    continue;
+                }
+                s.spawn(move || {
+                    self.connection(stream);
+                    self.open.fetch_sub(1, Ordering::AcqRel);
+                });
             }
         });
     }
 
-    fn handle_until_stopped(&self) {
-        while !self.stop.load(Ordering::Relaxed) {
-            match self.http.recv_timeout(Duration::from_millis(100)) {
-                Ok(Some(rq)) => self.handle(rq),
-                Ok(None) => {}
-                Err(e) => {
-                    eprintln!("cdvol serve: {e}");
-                    std::thread::sleep(Duration::from_millis(100));
+    /// Serves one connection's requests in order until it closes, idles
+    /// past [`IDLE`], breaks a bound, or the server stops.
+    fn connection(&self, mut stream: TcpStream) {
+        if stream.set_read_timeout(Some(POLL)).is_err()
+            || stream.set_write_timeout(Some(WRITE_TIMEOUT)).is_err()
+        {
+            return;
+        }
+        let mut buf: Vec<u8> = Vec::with_capacity(1024);
+        let mut idle = Duration::ZERO;
+        loop {
+            match parse_head(&buf) {
+                Ok(Some((len, head))) => {
+                    buf.drain(..len);
+                    let (reply, close) = if head.body {
+                        let r = text(
+                            413,
+                            "request bodies are not accepted: every route is a GET without one",
+                        );
+                        (r, true)
+                    } else {
+                        (self.route(&head), head.close)
+                    };
+                    if send(&stream, &reply, close).is_err() || close {
+                        return;
+                    }
+                    idle = Duration::ZERO;
+                    continue;
                 }
+                Ok(None) => {}
+                Err(reply) => {
+                    let _ = send(&stream, &reply, true);
+                    return;
+                }
+            }
+            if self.stop.load(Ordering::Relaxed) {
+                return;
+            }
+            let mut chunk = [0u8; 4096];
+            let room = (MAX_HEAD - buf.len()).min(chunk.len());
+            match stream.read(&mut chunk[..room]) {
+                Ok(0) => return,
+                Ok(n) => {
+                    buf.extend_from_slice(&chunk[..n]);
+                    idle = Duration::ZERO;
+                }
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                    idle += POLL;
+                    if idle >= IDLE {
+                        return;
+                    }
+                }
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(_) => return,
             }
         }
     }
 
-    fn handle(&self, rq: Request) {
-        let reply = self.route(&rq);
-        // A client that went away is no error of ours.
-        let _ = rq.respond(reply);
-    }
-
-    fn route(&self, rq: &Request) -> Reply {
-        if *rq.method() != Method::Get {
+    fn route(&self, rq: &Head) -> Reply {
+        if rq.method != "GET" {
             return text(405, "only GET is served");
         }
         if let Some(host) = self.foreign_host(rq) {
             return text(
                 403,
                 &format!(
-                    "Host {host:?} refused: a server on a loopback address answers only to \
+                    "Host {host} refused: a server on a loopback address answers only to \
                      localhost, 127.0.0.1 or [::1] (another name may be a DNS rebinding page)"
                 ),
             );
         }
-        let url = rq.url();
+        let url = rq.target.as_str();
         let (path, query) = url.split_once('?').unwrap_or((url, ""));
         match path {
-            "/" | "/index.html" => {
-                with_type(Response::from_string(PAGE), "text/html; charset=utf-8")
-            }
+            "/" | "/index.html" => Reply {
+                status: 200,
+                content_type: "text/html; charset=utf-8",
+                headers: Vec::new(),
+                body: PAGE.as_bytes().to_vec(),
+            },
             "/api/info" => json(&self.info()),
             "/api/status" => json(&self.engine.counters),
             "/api/image" => self.image(query),
@@ -128,22 +245,17 @@ impl<'v> Server<'v> {
     /// address and the name is not a loopback one: a page from elsewhere
     /// whose name was rebound to 127.0.0.1 could otherwise read the
     /// images.
-    fn foreign_host(&self, rq: &Request) -> Option<String> {
+    fn foreign_host(&self, rq: &Head) -> Option<String> {
         if !self.addr.ip().is_loopback() {
             return None;
         }
-        let host = rq
-            .headers()
-            .iter()
-            .find(|h| h.field.equiv("Host"))?
-            .value
-            .as_str()
-            .to_ascii_lowercase();
+        let host = rq.host.as_deref()?.to_ascii_lowercase();
         let name = match host.strip_prefix('[') {
             Some(v6) => v6.split(']').next().unwrap_or(""),
             None => host.split(':').next().unwrap_or(""),
         };
-        (!matches!(name, "localhost" | "127.0.0.1" | "::1")).then_some(host)
+        (!matches!(name, "localhost" | "127.0.0.1" | "::1"))
+            .then(|| host.chars().take(200).collect())
     }
 
     fn image(&self, query: &str) -> Reply {
@@ -154,10 +266,11 @@ impl<'v> Server<'v> {
         match self.engine.render(&req) {
             Ok(r) => {
                 let stats = serde_json::to_string(&r).unwrap_or_default();
-                let resp = with_type(Response::from_data(r.bytes), r.content_type);
-                match Header::from_bytes("X-Cdvol-Stats", ascii_json(&stats)) {
-                    Ok(h) => resp.with_header(h),
-                    Err(()) => resp,
+                Reply {
+                    status: 200,
+                    content_type: r.content_type,
+                    headers: vec![("X-Cdvol-Stats", ascii_json(&stats))],
+                    body: r.bytes,
                 }
             }
             Err(e) => text(e.status(), &e.to_string()),
@@ -204,13 +317,102 @@ impl<'v> Server<'v> {
     }
 }
 
+/// The request head at the start of `buf` and its length, `None` while
+/// it is incomplete, or the reply that refuses it.
+fn parse_head(buf: &[u8]) -> Result<Option<(usize, Head)>, Reply> {
+    let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
+    let mut rq = httparse::Request::new(&mut headers);
+    let len = match rq.parse(buf) {
+        Ok(httparse::Status::Complete(len)) => len,
+        Ok(httparse::Status::Partial) if buf.len() >= MAX_HEAD => {
+            return Err(text(431, &format!("request head over {MAX_HEAD} bytes")))
+        }
+        Ok(httparse::Status::Partial) => return Ok(None),
+        Err(httparse::Error::TooManyHeaders) => {
+            return Err(text(431, &format!("more than {MAX_HEADERS} header lines")))
+        }
+        Err(e) => return Err(text(400, &format!("malformed request: {e}"))),
+    };
+    let value = |name: &str| {
+        rq.headers
+            .iter()
+            .find(|h| h.name.eq_ignore_ascii_case(name))
+            .map(|h| String::from_utf8_lossy(h.value).trim().to_string())
+    };
+    let connection = value("Connection").unwrap_or_default().to_ascii_lowercase();
+    let http10 = rq.version == Some(0);
+    let body = value("Transfer-Encoding").is_some()
+        || rq.headers.iter().any(|h| {
+            h.name.eq_ignore_ascii_case("Content-Length")
+                && String::from_utf8_lossy(h.value).trim() != "0"
+        });
+    let head = Head {
+        method: rq.method.unwrap_or("").to_string(),
+        target: rq.path.unwrap_or("/").to_string(),
+        host: value("Host"),
+        close: connection.contains("close") || (http10 && !connection.contains("keep-alive")),
+        body,
+    };
+    Ok(Some((len, head)))
+}
+
+/// Writes `reply` (with `Connection: close` when `close`) in one write.
+fn send(mut stream: &TcpStream, reply: &Reply, close: bool) -> std::io::Result<()> {
+    let mut out = format!(
+        "HTTP/1.1 {} {}\r\nContent-Type: {}\r\nContent-Length: {}\r\nCache-Control: no-store\r\n\
+         Connection: {}\r\n",
+        reply.status,
+        reason(reply.status),
+        reply.content_type,
+        reply.body.len(),
+        if close { "close" } else { "keep-alive" },
+    )
+    .into_bytes();
+    for (k, v) in &reply.headers {
+        out.extend_from_slice(format!("{k}: {v}\r\n").as_bytes());
+    }
+    out.extend_from_slice(b"\r\n");
+    out.extend_from_slice(&reply.body);
+    stream.write_all(&out)?;
+    stream.flush()
+}
+
+fn reason(status: u16) -> &'static str {
+    match status {
+        200 => "OK",
+        400 => "Bad Request",
+        403 => "Forbidden",
+        404 => "Not Found",
+        405 => "Method Not Allowed",
+        409 => "Conflict",
+        413 => "Content Too Large",
+        431 => "Request Header Fields Too Large",
+        500 => "Internal Server Error",
+        503 => "Service Unavailable",
+        _ => "",
+    }
+}
+
+/// Where a connection of our own reaches the listener: its own address,
+/// or loopback when it listens on every address.
+fn wake_addr(addr: SocketAddr) -> SocketAddr {
+    let mut a = addr;
+    if a.ip().is_unspecified() {
+        a.set_ip(match a {
+            SocketAddr::V4(_) => std::net::Ipv4Addr::LOCALHOST.into(),
+            SocketAddr::V6(_) => std::net::Ipv6Addr::LOCALHOST.into(),
+        });
+    }
+    a
+}
+
 /// A listener on `addr` whose connections send at once: without
 /// TCP_NODELAY, a keep-alive connection's response waits for the
 /// client's delayed ACK of the previous one (Nagle), about 40 ms a frame
 /// (measured: 44 ms against 6 ms for a 128^2 image). Linux gives accepted
 /// sockets the listener's TCP_NODELAY.
-fn listen(addr: SocketAddr) -> std::io::Result<std::net::TcpListener> {
-    let l = std::net::TcpListener::bind(addr)?;
+fn listen(addr: SocketAddr) -> std::io::Result<TcpListener> {
+    let l = TcpListener::bind(addr)?;
     no_delay(&l)?;
     Ok(l)
 }
@@ -260,29 +462,23 @@ fn ascii_json(s: &str) -> String {
     out
 }
 
-fn with_type(mut r: Reply, content_type: &str) -> Reply {
-    for (k, v) in [
-        ("Cache-Control", "no-store"),
-        ("Content-Type", content_type),
-    ] {
-        if let Ok(h) = Header::from_bytes(k, v) {
-            r.add_header(h);
-        }
-    }
-    r
-}
-
 fn text(status: u16, msg: &str) -> Reply {
-    with_type(
-        Response::from_string(format!("{msg}\n")),
-        "text/plain; charset=utf-8",
-    )
-    .with_status_code(status)
+    Reply {
+        status,
+        content_type: "text/plain; charset=utf-8",
+        headers: Vec::new(),
+        body: format!("{msg}\n").into_bytes(),
+    }
 }
 
 fn json(v: &impl serde::Serialize) -> Reply {
     match serde_json::to_vec(v) {
-        Ok(b) => with_type(Response::from_data(b), "application/json"),
+        Ok(body) => Reply {
+            status: 200,
+            content_type: "application/json",
+            headers: Vec::new(),
+            body,
+        },
         Err(e) => text(500, &format!("cannot encode JSON: {e}")),
     }
 }

@@ -10,7 +10,8 @@
 //!             the equivalent `cdvol render` command
 //! engine.rs   the files, the shared cache, one render at a time,
 //!             per-session cancellation, PNG/JPEG/WebP encoding
-//! http.rs     tiny_http: handler threads, routes, 400s with messages
+//! http.rs     connections (httparse heads, bounded), routes, 400s with
+//!             messages
 //! page.html   the viewer (orbit, zoom, pan, modes, presets, readouts)
 //! ```
 
@@ -24,11 +25,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 pub use engine::{encode, open_files, Engine, Failure, Rendered, Served};
-pub use http::Server;
-
-/// Handler threads: requests read, parsed and answered at once; renders
-/// still go one at a time.
-pub const HANDLERS: usize = 8;
+pub use http::{Server, IDLE, MAX_CONNECTIONS, MAX_HEAD, MAX_HEADERS};
 
 /// Largest `--cache-mb`.
 pub const MAX_CACHE_MB: usize = 1 << 20;

@@ -135,12 +135,13 @@ fn broken_series_are_refused_by_file_and_tag() {
     let b = std::fs::read(&files[7]).unwrap();
     std::fs::write(&files[7], &b[..b.len() / 2]).unwrap();
     let cut = files[7].file_name().unwrap().to_string_lossy().into_owned();
-    // Headers are read first, pixel data when prep reaches the slice: the
-    // error comes from prep, names the file, and leaves no output.
+    // Its header says how many bytes of native pixel data it must hold,
+    // so the series is refused when it is opened (before issue 57, only
+    // when prep reached the slice), naming the file; no output.
     let out = d.join("cut.cdv");
     let e = series_error(&p, None, &out);
     assert!(
-        e.contains(&cut) && e.contains("not a readable DICOM file"),
+        e.contains(&cut) && e.contains("need 1848 bytes of pixel data"),
         "{e}"
     );
     assert!(!out.exists());

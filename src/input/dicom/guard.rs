@@ -1,0 +1,216 @@
+//! What stands between a hostile DICOM file and dicom-rs (issue 57).
+//!
+//! dicom-rs parses and decodes well-formed files, but three kinds of
+//! malformed file took a whole `prep-batch` down with them:
+//!
+//! - **Nesting.** dicom-object builds a data set by recursion, one frame
+//!   per sequence and item, so a file of 100,000 nested sequences
+//!   overflowed the stack (SIGSEGV: no error, no batch.json).
+//!   [`check_nesting`] first walks the file with dicom-parser's lazy token
+//!   reader, which keeps its open sequences in a `Vec`, skips values
+//!   without reading them into memory and never recurses, and refuses
+//!   nesting deeper than [`MAX_NESTING`] before dicom-object sees the file.
+//! - **Decoder panics.** The RLE Lossless decoder of
+//!   dicom-transfer-syntax-registry 0.8 indexes the fragment by offsets
+//!   read from it and unwraps a short read, so garbage pixel data panics
+//!   (`rle_lossless.rs:230`); it also allocates `4 x` the header's segment
+//!   count before checking it. [`check_rle`] checks the RLE header
+//!   (PS3.5 G.3.1: at most 15 segments, offsets inside the fragment, in
+//!   order) before the decoder runs, and [`no_panic`] turns any panic left
+//!   inside dicom-rs into a named error for that file, without the panic
+//!   message on stderr. The reproducer is the test
+//!   `hostile_dicom::rle_garbage_is_a_named_error`; docs/RELIABILITY.md
+//!   has the upstream note.
+//! - **Sizes.** Rows x Columns x bytes is checked against the memory limit
+//!   before anything of that size is allocated (module `super`).
+
+use std::any::Any;
+use std::cell::Cell;
+use std::io::{BufReader, Seek, SeekFrom};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+use std::sync::Once;
+
+use dicom_dictionary_std::tags;
+use dicom_object::{DefaultDicomObject, FileMetaTable};
+use dicom_parser::dataset::lazy_read::LazyDataSetReader;
+use dicom_parser::dataset::LazyDataToken;
+use dicom_transfer_syntax_registry::TransferSyntaxRegistry;
+
+use super::err;
+use crate::input::InputError;
+
+/// Deepest nesting of sequences a slice may have. Image slices nest a
+/// few levels (a procedure code inside a request attribute sequence);
+/// 32 sequences, each with an item, is far above that and far below what
+/// dicom-object's recursion takes to fill a 2 MiB thread stack (the tests
+/// parse a file nested this deep on such a thread).
+pub const MAX_NESTING: usize = 32;
+
+/// Refuses a file whose sequences nest deeper than [`MAX_NESTING`],
+/// before dicom-object parses it. With `until_pixel_data`, the walk stops
+/// at the top-level PixelData (what a header read parses).
+///
+/// A file this walk cannot read is left to dicom-object, which reads it
+/// with the same decoder and names the fault; only the depth is judged
+/// here.
+pub fn check_nesting(path: &Path, until_pixel_data: bool) -> Result<(), InputError> {
+    let file = crate::fsutil::open_regular(path).map_err(|source| InputError::Io {
+        path: path.to_path_buf(),
+        what: "cannot open",
+        source,
+    })?;
+    let mut f = BufReader::new(file);
+    if f.seek(SeekFrom::Start(128)).is_err() {
+        return Ok(());
+    }
+    let Ok(meta) = FileMetaTable::from_reader(&mut f) else {
+        return Ok(());
+    };
+    let uid = meta.transfer_syntax();
+    let Some(ts) = TransferSyntaxRegistry.iter().find(|t| t.uid() == uid) else {
+        return Ok(());
+    };
+    let Ok(mut rd) = LazyDataSetReader::new_with_ts(f, ts) else {
+        return Ok(());
+    };
+    // Open sequences and items: one nesting level is a sequence and an
+    // item inside it.
+    let mut open = 0usize;
+    while let Some(token) = rd.advance() {
+        let Ok(token) = token else { return Ok(()) };
+        let top = open == 0;
+        match token {
+            LazyDataToken::ElementHeader(h) if top && h.tag == tags::PIXEL_DATA => {
+                if until_pixel_data {
+                    return Ok(());
+                }
+            }
+            LazyDataToken::PixelSequenceStart if top && until_pixel_data => return Ok(()),
+            LazyDataToken::SequenceStart { .. }
+            | LazyDataToken::PixelSequenceStart
+            | LazyDataToken::ItemStart { .. } => open += 1,
+            LazyDataToken::SequenceEnd | LazyDataToken::ItemEnd => open = open.saturating_sub(1),
+            t @ (LazyDataToken::LazyValue { .. } | LazyDataToken::LazyItemValue { .. }) => {
+                if t.skip().is_err() {
+                    return Ok(());
+                }
+            }
+            _ => {}
+        }
+        if open > 2 * MAX_NESTING {
+            return Err(err(
+                path,
+                "sequence nesting",
+                format!(
+                    "sequences nested more than {MAX_NESTING} deep, expected at most \
+                     {MAX_NESTING} (a malformed or hostile file)"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The RLE Lossless transfer syntax.
+const RLE_LOSSLESS: &str = "1.2.840.10008.1.2.5";
+
+/// Checks the RLE header of frame 0 of an RLE Lossless file (PS3.5
+/// G.3.1) before dicom-rs decodes it: a header of 64 bytes, 1 to 15
+/// segments, as many as the samples have bytes, the first at byte 64 and
+/// each inside the fragment, in order. Other transfer syntaxes pass.
+pub fn check_rle(path: &Path, obj: &DefaultDicomObject, segments: usize) -> Result<(), InputError> {
+    if obj.meta().transfer_syntax() != RLE_LOSSLESS {
+        return Ok(());
+    }
+    let bad = |msg: String| err(path, "PixelData", format!("RLE Lossless: {msg}"));
+    let px = obj
+        .element(tags::PIXEL_DATA)
+        .map_err(|_| err(path, "PixelData", "missing"))?;
+    let Some(fragment) = px.fragments().and_then(|f| f.first()) else {
+        return Err(bad("no fragment, expected one per frame".into()));
+    };
+    if fragment.len() < 64 {
+        return Err(bad(format!(
+            "a fragment of {} bytes, expected a 64-byte header and data",
+            fragment.len()
+        )));
+    }
+    let word = |i: usize| {
+        let mut b = [0u8; 4];
+        b.copy_from_slice(&fragment[4 * i..4 * i + 4]);
+        u32::from_le_bytes(b) as usize
+    };
+    let n = word(0);
+    if n != segments {
+        return Err(bad(format!(
+            "{n} segments in the header, expected {segments} (one per byte of a sample)"
+        )));
+    }
+    let mut last = 64;
+    for i in 0..n {
+        let at = word(i + 1);
+        if (i == 0 && at != 64) || at < last || at > fragment.len() {
+            return Err(bad(format!(
+                "segment {i} starts at byte {at}, expected {} within the fragment's {} bytes",
+                if i == 0 {
+                    "64".to_string()
+                } else {
+                    format!("at least {last}")
+                },
+                fragment.len()
+            )));
+        }
+        last = at;
+    }
+    Ok(())
+}
+
+thread_local! {
+    /// Set while this thread runs inside [`no_panic`]: its panics are
+    /// caught and reported as errors, so the hook stays quiet.
+    static QUIET: Cell<bool> = const { Cell::new(false) };
+}
+
+static HOOK: Once = Once::new();
+
+/// Runs `f` (a call into dicom-rs on the file `path`) and turns a panic
+/// inside it into an error naming the file and `field`. The panic hook
+/// stays silent for panics caught here and prints the others as before.
+pub fn no_panic<T>(
+    path: &Path,
+    field: &str,
+    f: impl FnOnce() -> Result<T, InputError>,
+) -> Result<T, InputError> {
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    let was = QUIET.with(|q| q.replace(true));
+    let r = catch_unwind(AssertUnwindSafe(f));
+    QUIET.with(|q| q.set(was));
+    r.unwrap_or_else(|payload| {
+        Err(err(
+            path,
+            field,
+            format!(
+                "dicom-rs failed on this file ({}): the file is malformed",
+                panic_text(payload.as_ref())
+            ),
+        ))
+    })
+}
+
+fn panic_text(payload: &(dyn Any + Send)) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        s.to_string()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "a panic".into()
+    }
+}
