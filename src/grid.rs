@@ -20,6 +20,52 @@ pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 20;
 /// reports stays a finite, normal f64, and positions stay finite in f32.
 pub const MAX_COORD_MM: f64 = 1e15;
 
+/// Smallest spacing an input may give, in mm (1 nm): the spacing of a
+/// uniform axis, or the mean gap of a listed one (single gaps may be
+/// smaller). A smaller one (5e-324 was accepted) puts every sample at one
+/// point and renders nothing. Every reader checks it with [`check_spacing`].
+pub const MIN_SPACING_MM: f64 = 1e-6;
+
+/// Checks a spacing read from an input file (in mm, after any unit
+/// conversion): a finite number of at least [`MIN_SPACING_MM`]. (Too
+/// large a spacing puts a sample past [`MAX_COORD_MM`], which the axis
+/// refuses.) Returns the spacing; the error says what was found and what
+/// was expected, for the reader to prefix with the file and the field.
+pub fn check_spacing(spacing_mm: f64) -> Result<f64, SpacingError> {
+    if !spacing_mm.is_finite() {
+        return Err(SpacingError::NotFinite { value: spacing_mm });
+    }
+    if spacing_mm < MIN_SPACING_MM {
+        return Err(SpacingError::TooSmall { value: spacing_mm });
+    }
+    Ok(spacing_mm)
+}
+
+/// Why a spacing is refused ([`check_spacing`]).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum SpacingError {
+    /// NaN or infinite.
+    #[error("spacing {value} mm, expected a finite spacing >= {MIN_SPACING_MM:e} mm")]
+    NotFinite { value: f64 },
+    /// Below [`MIN_SPACING_MM`] (zero and negative included).
+    #[error("spacing {value:e} mm, expected a spacing >= {MIN_SPACING_MM:e} mm")]
+    TooSmall { value: f64 },
+}
+
+/// Checks a number of samples along one axis read from an input file,
+/// before anything is allocated for it: from 2 to
+/// [`MAX_SAMPLES_PER_AXIS`]. Takes a `u64` so that a reader can pass a
+/// count wider than `usize` (or a negative one cast) unchanged.
+pub fn check_samples(n: u64) -> Result<usize, AxisError> {
+    if n < 2 {
+        return Err(AxisError::TooShort { len: n as usize });
+    }
+    if n > MAX_SAMPLES_PER_AXIS as u64 {
+        return Err(AxisError::TooLong { len: n as usize });
+    }
+    Ok(n as usize)
+}
+
 /// Why a list of sample positions is not a valid axis. Each variant names
 /// the position's index and value where one is at fault.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -90,8 +136,10 @@ impl Axis {
         Ok(Axis { coords, uniform })
     }
 
-    /// A uniform axis of `n` samples (paper eq. 6).
+    /// A uniform axis of `n` samples (paper eq. 6). `n` is checked before
+    /// any allocation.
     pub fn uniform(origin_mm: f64, spacing_mm: f64, n: usize) -> Result<Axis, AxisError> {
+        check_samples(n as u64)?;
         Axis::from_coords((0..n).map(|i| origin_mm + spacing_mm * i as f64).collect())
     }
 
@@ -171,6 +219,23 @@ mod tests {
         assert!(e.to_string().contains("strictly increasing"), "{e}");
         let e = Axis::from_coords(vec![0.0, f64::NAN]).unwrap_err();
         assert!(e.to_string().contains("finite"), "{e}");
+    }
+
+    #[test]
+    fn checks_spacings_and_sample_counts_before_allocating() {
+        assert_eq!(check_spacing(0.5), Ok(0.5));
+        for bad in [0.0, -1.0, 1e-45, 1e-300, f64::NAN, f64::INFINITY] {
+            let e = check_spacing(bad).unwrap_err().to_string();
+            assert!(e.contains("expected"), "{bad}: {e}");
+        }
+        assert!(check_samples(u64::MAX).is_err());
+        assert!(check_samples(1).is_err());
+        assert_eq!(check_samples(2), Ok(2));
+        // Refused by its count, not by a failed allocation.
+        assert_eq!(
+            Axis::uniform(0.0, 1.0, usize::MAX),
+            Err(AxisError::TooLong { len: usize::MAX })
+        );
     }
 
     #[test]

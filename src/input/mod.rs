@@ -257,6 +257,16 @@ pub enum InputError {
         what: &'static str,
         source: std::io::Error,
     },
+    /// A file is larger than its kind may be (a sidecar, say); refused
+    /// before it is read.
+    #[error("{}: {what} is {actual} bytes, expected at most {limit} bytes", path.display())]
+    TooLarge {
+        path: PathBuf,
+        what: &'static str,
+        /// The size found (`more than N` when read through a bound).
+        actual: String,
+        limit: u64,
+    },
     /// An I/O error on a named file.
     #[error("{}: {what}: {source}", path.display())]
     Io {

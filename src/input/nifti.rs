@@ -21,7 +21,7 @@ use super::gz::{GzLayout, GzSource};
 use super::raw::RawSource;
 use super::sidecar::{DataFiles, Sidecar};
 use super::{Dtype, Endian, InputError, Rescale, SliceSource, VolumeMeta};
-use crate::grid::{Axis, Grid};
+use crate::grid::{check_spacing, Axis, Grid, MAX_COORD_MM};
 use crate::orient::Orientation;
 
 /// Opens a `.nii` or `.nii.gz` file as a slice source.
@@ -43,23 +43,42 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
             ),
         ));
     }
-    let nd = h.dim[0];
-    let extra_ok = (4..=nd.min(7) as usize).all(|k| h.dim[k] == 1);
-    if !(3..=7).contains(&nd) || !extra_ok {
+    // NIfTI stores dims as signed 16-bit numbers; the crate reads them
+    // unsigned, so a negative one is read back as such here.
+    let dim = h.dim.map(|d| d as i16);
+    let nd = dim[0];
+    if !(3..=7).contains(&nd) {
         return Err(bad(
             "dim",
             format!(
-                "{:?}, expected a 3D volume (dim[0] = 3, or more with every extra dimension 1)",
-                &h.dim[..=nd.min(7) as usize]
+                "dim[0] is {nd}, expected a 3D volume (dim[0] = 3, or up to 7 with every \
+                 extra dimension 1)"
             ),
         ));
     }
-    let dims = [h.dim[1] as usize, h.dim[2] as usize, h.dim[3] as usize];
-    if let Some(d) = dims.iter().find(|&&d| d < 2) {
+    if let Some(k) = (4..=nd as usize).find(|&k| dim[k] != 1) {
         return Err(bad(
             "dim",
-            format!("{d} samples, expected at least 2 per axis"),
+            format!(
+                "dim[{k}] is {}, expected 1 (a 3D volume: every dimension after the third is 1)",
+                dim[k]
+            ),
         ));
+    }
+    let mut dims = [0usize; 3];
+    for k in 0..3 {
+        let d = dim[k + 1];
+        if d < 2 {
+            return Err(bad(
+                "dim",
+                format!(
+                    "dim[{}] is {d}, expected at least 2 samples along {}",
+                    k + 1,
+                    ["x", "y", "z"][k]
+                ),
+            ));
+        }
+        dims[k] = d as usize;
     }
     let dtype = match h.data_type() {
         Ok(NiftiType::Uint8) => Dtype::U8,
@@ -85,23 +104,38 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
         3 => 0.001,
         _ => 1.0,
     };
-    let mut axes = Vec::with_capacity(3);
-    let origin = if h.sform_code > 0 {
-        [h.srow_x[3], h.srow_y[3], h.srow_z[3]]
+    let (origin, origin_names) = if h.sform_code > 0 {
+        (
+            [h.srow_x[3], h.srow_y[3], h.srow_z[3]],
+            ["srow_x[3]", "srow_y[3]", "srow_z[3]"],
+        )
     } else {
-        [h.quatern_x, h.quatern_y, h.quatern_z]
+        (
+            [h.quatern_x, h.quatern_y, h.quatern_z],
+            ["qoffset_x", "qoffset_y", "qoffset_z"],
+        )
     };
+    let mut axes = Vec::with_capacity(3);
     for k in 0..3 {
-        let s = dec(h.pixdim[k + 1]).abs() * unit_mm;
+        let field = format!("pixdim[{}]", k + 1);
+        let s = check_spacing(dec(h.pixdim[k + 1]).abs() * unit_mm)
+            .map_err(|e| bad(&field, e.to_string()))?;
         let o = dec(origin[k]) * unit_mm;
-        axes.push(
-            Axis::uniform(o, s, dims[k])
-                .map_err(|e| bad(&format!("pixdim[{}]", k + 1), format!("{e}")))?,
-        );
+        if !(o.is_finite() && o.abs() <= MAX_COORD_MM) {
+            return Err(bad(
+                origin_names[k],
+                format!(
+                    "{} mm, expected a finite origin at most {MAX_COORD_MM:e} mm from 0",
+                    origin[k]
+                ),
+            ));
+        }
+        axes.push(Axis::uniform(o, s, dims[k]).map_err(|e| bad(&field, e.to_string()))?);
     }
-    let grid = Grid {
-        axes: axes.try_into().expect("three axes"),
-    };
+    let [ax, ay, az]: [Axis; 3] = axes
+        .try_into()
+        .map_err(|_| bad("dim", "expected three axes".into()))?;
+    let grid = Grid { axes: [ax, ay, az] };
     let rescale = if h.scl_slope == 0.0 || !h.scl_slope.is_finite() {
         Rescale::IDENTITY
     } else {
@@ -118,12 +152,34 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
         Endianness::Little => Endian::Little,
         Endianness::Big => Endian::Big,
     };
-    let skip = h.vox_offset as u64;
-    if !(h.vox_offset.is_finite() && h.vox_offset >= 348.0) {
+    // vox_offset: a whole number of bytes after the 348-byte header, and
+    // (uncompressed) within the file; a compressed stream's skip is
+    // bounded by gz.rs against what the stream holds.
+    let vo = h.vox_offset;
+    if !(vo.is_finite() && vo >= 348.0 && vo.fract() == 0.0) {
         return Err(bad(
             "vox_offset",
-            format!("{}, expected at least 348", h.vox_offset),
+            format!("{vo}, expected a whole number of bytes >= 348"),
         ));
+    }
+    let skip = vo as u64;
+    let gz = path
+        .file_name()
+        .is_some_and(|n| n.to_string_lossy().to_ascii_lowercase().ends_with(".gz"));
+    if !gz {
+        let len = std::fs::metadata(path)
+            .map_err(|source| InputError::Io {
+                path: path.to_path_buf(),
+                what: "cannot open NIfTI file",
+                source,
+            })?
+            .len();
+        if skip > len {
+            return Err(bad(
+                "vox_offset",
+                format!("{skip}, past the end of the file ({len} bytes)"),
+            ));
+        }
     }
     let meta = VolumeMeta {
         grid: grid.clone(),
@@ -132,9 +188,6 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
         origin_desc: path.display().to_string(),
         orientation: orientation(&h),
     };
-    let gz = path
-        .file_name()
-        .is_some_and(|n| n.to_string_lossy().to_ascii_lowercase().ends_with(".gz"));
     if gz {
         let layout = GzLayout {
             file: path.to_path_buf(),
@@ -143,6 +196,8 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
             skip,
             dtype,
             endian,
+            dims_field: "dim",
+            skip_field: "vox_offset",
         };
         Ok(Box::new(GzSource::open(meta, layout)?))
     } else {

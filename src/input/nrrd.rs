@@ -15,18 +15,22 @@
 //! (crate::orient); any other space, or none, leaves it unknown.
 
 use std::collections::BTreeMap;
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use super::gz::{GzLayout, GzSource};
 use super::raw::RawSource;
 use super::sidecar::{DataFiles, Sidecar};
 use super::{Dtype, Endian, InputError, Rescale, SliceSource, VolumeMeta};
-use crate::grid::{Axis, Grid};
+use crate::grid::{check_spacing, Axis, Grid, MAX_COORD_MM, MAX_SAMPLES_PER_AXIS};
 use crate::orient::Orientation;
 
-/// Headers longer than this are refused (a real one is a few hundred bytes).
+/// Headers longer than this are refused (a real one is a few hundred
+/// bytes); the header is read through a reader that stops there, so a
+/// file that is one long line costs no more memory than this.
 const MAX_HEADER: u64 = 1 << 20;
+
+const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
 
 /// Opens an NRRD header (`.nrrd` or `.nhdr`) as a slice source.
 pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
@@ -46,6 +50,8 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
             skip: h.skip,
             dtype: h.dtype,
             endian: h.endian,
+            dims_field: "sizes",
+            skip_field: "byte skip",
         };
         Ok(Box::new(GzSource::open(meta, layout)?))
     } else {
@@ -55,7 +61,7 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
             dims: h.dims,
             dtype: h.dtype,
             endian: h.endian,
-            header_bytes: h.file_offset + h.skip,
+            header_bytes: h.file_offset.saturating_add(h.skip),
             grid: h.grid,
             rescale: Rescale::IDENTITY,
             orientation: h.orientation,
@@ -76,7 +82,8 @@ pub struct NrrdHeader {
     /// File bytes before the data: the attached header, or 0.
     pub file_offset: u64,
     /// `byte skip`: bytes before the first sample (in the decompressed
-    /// stream for gzip).
+    /// stream for gzip); `byte skip: -1` (raw only) is resolved to the
+    /// skip that puts the samples at the end of the file.
     pub skip: u64,
     pub gzip: bool,
     /// From `space` and the signs of `space directions`; `None` when the
@@ -95,7 +102,7 @@ pub fn parse(path: &Path) -> Result<NrrdHeader, InputError> {
     };
     let bad = |field: &str, msg: String| InputError::field(path, field, msg);
     let f = crate::fsutil::open_regular(path).map_err(io("cannot open NRRD header"))?;
-    let mut r = BufReader::new(f);
+    let mut r = BufReader::new(f.take(MAX_HEADER + 1));
     let mut fields: BTreeMap<String, String> = BTreeMap::new();
     let mut consumed = 0u64;
     let mut attached = false;
@@ -153,20 +160,43 @@ pub fn parse(path: &Path) -> Result<NrrdHeader, InputError> {
             format!("{dimension}, expected 3 (a scalar volume)"),
         ));
     }
-    let sizes: Vec<usize> = need("sizes")?
-        .split_whitespace()
-        .map(|s| s.parse::<usize>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| bad("sizes", "expected three whole numbers".into()))?;
-    let dims: [usize; 3] = sizes
-        .clone()
-        .try_into()
-        .map_err(|_| bad("sizes", format!("{} numbers, expected 3", sizes.len())))?;
-    if let Some(d) = dims.iter().find(|&&d| d < 2) {
+    let sizes = need("sizes")?;
+    let words: Vec<&str> = sizes.split_whitespace().collect();
+    if words.len() != 3 {
         return Err(bad(
             "sizes",
-            format!("{d} samples, expected at least 2 per axis"),
+            format!(
+                "{} numbers, expected 3 (samples along x, y and z)",
+                words.len()
+            ),
         ));
+    }
+    // Bounded before anything is allocated for an axis.
+    let mut dims = [0usize; 3];
+    for (k, w) in words.iter().enumerate() {
+        let axis = AXIS_NAMES[k];
+        let n = w.parse::<u64>().map_err(|_| {
+            bad(
+                "sizes",
+                format!(
+                    "{w:?} along {axis}, expected a whole number of samples \
+                     from 2 to {MAX_SAMPLES_PER_AXIS}"
+                ),
+            )
+        })?;
+        if n < 2 {
+            return Err(bad(
+                "sizes",
+                format!("{n} samples along {axis}, expected at least 2"),
+            ));
+        }
+        if n > MAX_SAMPLES_PER_AXIS as u64 {
+            return Err(bad(
+                "sizes",
+                format!("{n} samples along {axis}, expected at most {MAX_SAMPLES_PER_AXIS}"),
+            ));
+        }
+        dims[k] = n as usize;
     }
     let ty = need("type")?;
     let dtype = dtype_of(ty).ok_or_else(|| {
@@ -193,40 +223,63 @@ pub fn parse(path: &Path) -> Result<NrrdHeader, InputError> {
         None => return Err(bad("endian", format!("missing, needed for {ty}"))),
         Some(e) => return Err(bad("endian", format!("{e:?}, expected little or big"))),
     };
-    let spacing = spacings(&fields, path)?;
+    let (spacing, spacing_field) = spacings(&fields, path)?;
     let orientation = orientation(&fields, path)?;
     let origin = match get("space origin") {
-        Some(v) => vector(v).ok_or_else(|| {
-            bad(
-                "space origin",
-                format!("{v:?}, expected (x,y,z) in finite numbers"),
-            )
-        })?,
+        Some(v) => vector(v)
+            .filter(|o| o.iter().all(|c| c.abs() <= MAX_COORD_MM))
+            .ok_or_else(|| {
+                bad(
+                    "space origin",
+                    format!(
+                        "{v:?}, expected (x,y,z) in finite numbers of mm, \
+                         at most {MAX_COORD_MM:e} from 0"
+                    ),
+                )
+            })?,
         None => [0.0; 3],
     };
     let mut axes = Vec::with_capacity(3);
     for k in 0..3 {
         axes.push(
             Axis::uniform(origin[k], spacing[k], dims[k])
-                .map_err(|e| bad("spacing", format!("axis {k}: {e}")))?,
+                .map_err(|e| bad(spacing_field, format!("axis {k}: {e}")))?,
         );
     }
-    let grid = Grid {
-        axes: axes.try_into().expect("three axes"),
-    };
+    let [ax, ay, az]: [Axis; 3] = axes
+        .try_into()
+        .map_err(|_| bad("sizes", "expected three axes".into()))?;
+    let grid = Grid { axes: [ax, ay, az] };
     if let Some(ls) = get("line skip") {
         if ls != "0" {
-            return Err(bad("line skip", format!("{ls}, only 0 is supported")));
+            return Err(bad(
+                "line skip",
+                format!("{ls:?}, expected 0 (skipping lines is not supported)"),
+            ));
         }
     }
-    let byte_skip = match get("byte skip") {
-        None => 0,
-        Some(v) => v.parse::<u64>().map_err(|_| {
+    // `byte skip`: a byte count, or -1 (raw only): the samples end the
+    // file. Resolved against the data file's length below.
+    let skip_given: Option<u64> = match get("byte skip") {
+        None => Some(0),
+        Some("-1") if gzip => {
+            return Err(bad(
+                "byte skip",
+                "-1 (the samples end the file) is allowed for raw encoding only, \
+                 expected a byte count >= 0 for gzip"
+                    .into(),
+            ))
+        }
+        Some("-1") => None,
+        Some(v) => Some(v.parse::<u64>().map_err(|_| {
             bad(
                 "byte skip",
-                format!("{v:?}, expected a byte count >= 0 (-1 is not supported)"),
+                format!(
+                    "{v:?}, expected a byte count >= 0, or -1 (the samples end the file, \
+                     raw encoding only)"
+                ),
             )
-        })?,
+        })?),
     };
     let (data, file_offset) = match get("data file").or(get("datafile")) {
         None if attached => (path.to_path_buf(), consumed),
@@ -247,6 +300,12 @@ pub fn parse(path: &Path) -> Result<NrrdHeader, InputError> {
             (dir.join(v), 0)
         }
     };
+    let byte_skip = if gzip {
+        // In the decompressed stream: checked as it is read (gz.rs).
+        skip_given.unwrap_or(0)
+    } else {
+        raw_skip(path, &data, file_offset, skip_given, dims, dtype)?
+    };
     Ok(NrrdHeader {
         dims,
         dtype,
@@ -258,6 +317,77 @@ pub fn parse(path: &Path) -> Result<NrrdHeader, InputError> {
         gzip,
         orientation,
     })
+}
+
+/// The `byte skip` of raw data in `data` (whose samples start after
+/// `file_offset` bytes of attached header): the one given, checked against
+/// the file's length, or for -1 (`given` is `None`) the one that puts the
+/// samples at the end of the file. A data file that cannot be examined is
+/// left for the raw reader to report (it names the file and the field).
+fn raw_skip(
+    path: &Path,
+    data: &Path,
+    file_offset: u64,
+    given: Option<u64>,
+    dims: [usize; 3],
+    dtype: Dtype,
+) -> Result<u64, InputError> {
+    let bad = |msg: String| InputError::field(path, "byte skip", msg);
+    let len = match std::fs::metadata(data) {
+        Ok(m) => Some(m.len()),
+        Err(_) if given.is_some() => None,
+        Err(source) => {
+            return Err(InputError::DataFile {
+                path: data.to_path_buf(),
+                sidecar: path.to_path_buf(),
+                field: "data file".into(),
+                what: "cannot open data file",
+                source,
+            })
+        }
+    };
+    let Some(len) = len else {
+        return Ok(given.unwrap_or(0));
+    };
+    let after_header = len.saturating_sub(file_offset);
+    match given {
+        Some(skip) => {
+            if skip > after_header {
+                return Err(bad(format!(
+                    "{skip} bytes, past the end of {} ({after_header} bytes{})",
+                    data.display(),
+                    if file_offset > 0 {
+                        " after the header"
+                    } else {
+                        ""
+                    }
+                )));
+            }
+            Ok(skip)
+        }
+        None => {
+            let need = dims
+                .iter()
+                .try_fold(dtype.size() as u64, |acc, &d| acc.checked_mul(d as u64));
+            match need {
+                Some(need) if need <= after_header => Ok(after_header - need),
+                _ => Err(bad(format!(
+                    "-1 (the samples end the file), but {} holds {after_header} bytes{}, \
+                     fewer than the {} x {} x {} samples of {} need",
+                    data.display(),
+                    if file_offset > 0 {
+                        " after the header"
+                    } else {
+                        ""
+                    },
+                    dims[0],
+                    dims[1],
+                    dims[2],
+                    dtype.name()
+                ))),
+            }
+        }
+    }
 }
 
 fn dtype_of(t: &str) -> Option<Dtype> {
@@ -295,14 +425,19 @@ fn vector(s: &str) -> Option<[f64; 3]> {
 }
 
 /// Spacing per axis from `space directions` (axis-aligned vectors) or
-/// `spacings`.
-fn spacings(fields: &BTreeMap<String, String>, path: &Path) -> Result<[f64; 3], InputError> {
+/// `spacings`, each checked by [`check_spacing`], and the field it came
+/// from.
+fn spacings(
+    fields: &BTreeMap<String, String>,
+    path: &Path,
+) -> Result<([f64; 3], &'static str), InputError> {
     let bad = |field: &str, msg: String| InputError::field(path, field, msg);
     if let Some(v) = fields.get("space directions") {
+        let field = "space directions";
         let vs: Vec<&str> = v.split_whitespace().collect();
         if vs.len() != 3 {
             return Err(bad(
-                "space directions",
+                field,
                 format!("{} vectors, expected 3 of the form (x,y,z)", vs.len()),
             ));
         }
@@ -310,39 +445,39 @@ fn spacings(fields: &BTreeMap<String, String>, path: &Path) -> Result<[f64; 3], 
         for (k, s) in vs.iter().enumerate() {
             let d = vector(s).ok_or_else(|| {
                 bad(
-                    "space directions",
+                    field,
                     format!("axis {k}: {s:?}, expected (x,y,z) in finite numbers"),
                 )
             })?;
             let off: f64 = (0..3).filter(|&j| j != k).map(|j| d[j].abs()).sum();
             if off != 0.0 || d[k] == 0.0 {
                 return Err(bad(
-                    "space directions",
+                    field,
                     format!(
                         "axis {k}: {s} is not along axis {k}; oblique or permuted volumes \
                          are not supported (cdvol does not resample): reslice the volume first"
                     ),
                 ));
             }
-            out[k] = d[k].abs();
+            out[k] = check_spacing(d[k].abs()).map_err(|e| bad(field, format!("axis {k}: {e}")))?;
         }
-        return Ok(out);
+        return Ok((out, field));
     }
     if let Some(v) = fields.get("spacings") {
+        let field = "spacings";
         let s: Vec<f64> = v
             .split_whitespace()
-            .map(|x| x.parse::<f64>().ok().filter(|f| f.is_finite() && *f != 0.0))
+            .map(|x| x.parse::<f64>().ok())
             .collect::<Option<_>>()
-            .ok_or_else(|| {
-                bad(
-                    "spacings",
-                    format!("{v:?}, expected three non-zero finite numbers"),
-                )
-            })?;
+            .ok_or_else(|| bad(field, format!("{v:?}, expected three numbers (mm)")))?;
         let s: [f64; 3] = s
             .try_into()
-            .map_err(|_| bad("spacings", format!("{v:?}, expected three numbers")))?;
-        return Ok(s.map(f64::abs));
+            .map_err(|_| bad(field, format!("{v:?}, expected three numbers (mm)")))?;
+        let mut out = [0.0; 3];
+        for k in 0..3 {
+            out[k] = check_spacing(s[k].abs()).map_err(|e| bad(field, format!("axis {k}: {e}")))?;
+        }
+        return Ok((out, field));
     }
     Err(bad(
         "space directions",

@@ -15,6 +15,9 @@ pub struct RawSource {
     sidecar: Sidecar,
     maps: Vec<Mmap>,
     slice_bytes: u64,
+    /// Warnings for the user ([`SliceSource::report`]): data files longer
+    /// than the samples they hold.
+    notes: Vec<String>,
 }
 
 impl RawSource {
@@ -76,6 +79,10 @@ impl RawSource {
                 .collect(),
         };
         let mut maps = Vec::with_capacity(files.len());
+        // Data files longer than needed: (file, actual, expected, why) of
+        // the first, and how many.
+        let mut longer: Option<(PathBuf, u64, u64, String)> = None;
+        let mut n_longer = 0usize;
         for (field, file, need, why) in files {
             let data_err = |what| {
                 let (path, field, sidecar) = (file.clone(), field.clone(), path.to_path_buf());
@@ -102,6 +109,12 @@ impl RawSource {
                     why,
                 });
             }
+            if len > need {
+                n_longer += 1;
+                if longer.is_none() {
+                    longer = Some((file.clone(), len, need, why));
+                }
+            }
             // SAFETY: the map is read-only and we only read it. The caller
             // must not truncate or rewrite the input while cdvol runs; if
             // it does, reads may fault (SIGBUS), as with any mmap reader.
@@ -110,6 +123,25 @@ impl RawSource {
             let _ = map.advise(memmap2::Advice::Sequential);
             maps.push(map);
         }
+        // Kept (a file may carry a trailer), but said: a wrong dims or
+        // dtype can also leave bytes over.
+        let notes = longer
+            .map(|(file, actual, expected, why)| {
+                format!(
+                    "warning: {}: {actual} bytes, expected {expected} ({why}; from {}); \
+                     the last {} bytes are not read{}",
+                    file.display(),
+                    path.display(),
+                    actual - expected,
+                    if n_longer > 1 {
+                        format!(" ({} more data files are longer than needed)", n_longer - 1)
+                    } else {
+                        String::new()
+                    }
+                )
+            })
+            .into_iter()
+            .collect();
         let meta = VolumeMeta {
             grid: sidecar.grid.clone(),
             dtype: sidecar.dtype,
@@ -122,6 +154,7 @@ impl RawSource {
             sidecar,
             maps,
             slice_bytes,
+            notes,
         })
     }
 
@@ -155,6 +188,10 @@ impl SliceSource for RawSource {
             DataFiles::PerSlice(list) => v.extend(list.iter().cloned()),
         }
         v
+    }
+
+    fn report(&self) -> Vec<String> {
+        self.notes.clone()
     }
 
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {

@@ -83,19 +83,54 @@ impl SidecarOut {
 
 const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
 
-/// Smallest spacing a sidecar may give, in mm (1 nm): a uniform spacing,
-/// or the mean gap of a `spacing` or `positions` axis (single gaps may be
-/// smaller). A smaller one (5e-324 was accepted) puts every sample at one
-/// point and renders nothing.
-pub const MIN_SPACING_MM: f64 = 1e-6;
+/// Smallest spacing a sidecar may give, in mm: the one every reader
+/// checks ([`crate::grid::check_spacing`]).
+pub use crate::grid::MIN_SPACING_MM;
 
-/// Reads and checks a sidecar. Data files are not opened here.
-pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
-    let text = crate::fsutil::read_regular_to_string(path).map_err(|source| InputError::Io {
+/// Largest sidecar file read, in bytes (64 MiB): checked on the file's
+/// size before it is read, and the read stops there (a FIFO has no size).
+/// A sidecar listing a position and a file name for each of a million
+/// slices stays far below it.
+pub const MAX_SIDECAR_BYTES: u64 = 64 << 20;
+
+/// The text of the sidecar at `path`, refused by its size before it is
+/// read and read through a bounded reader.
+fn read_bounded(path: &Path) -> Result<String, InputError> {
+    use std::io::Read;
+    let io = |source| InputError::Io {
         path: path.to_path_buf(),
         what: "cannot read sidecar",
         source,
-    })?;
+    };
+    let too_big = |actual: String| InputError::TooLarge {
+        path: path.to_path_buf(),
+        what: "the sidecar",
+        actual,
+        limit: MAX_SIDECAR_BYTES,
+    };
+    let f = crate::fsutil::open_regular(path).map_err(io)?;
+    let len = f.metadata().map_err(io)?.len();
+    if len > MAX_SIDECAR_BYTES {
+        return Err(too_big(len.to_string()));
+    }
+    let mut b = Vec::with_capacity(len as usize);
+    f.take(MAX_SIDECAR_BYTES + 1)
+        .read_to_end(&mut b)
+        .map_err(io)?;
+    if b.len() as u64 > MAX_SIDECAR_BYTES {
+        return Err(too_big(format!("more than {MAX_SIDECAR_BYTES}")));
+    }
+    String::from_utf8(b).map_err(|e| {
+        io(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            e.utf8_error(),
+        ))
+    })
+}
+
+/// Reads and checks a sidecar. Data files are not opened here.
+pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
+    let text = read_bounded(path)?;
     let v: Value = serde_json::from_str(&text).map_err(|source| InputError::Json {
         path: path.to_path_buf(),
         source,
@@ -353,14 +388,8 @@ fn parse_axis(
         |field: &str, p: crate::grid::AxisError| InputError::field(path, field, p.to_string());
     match v {
         Value::Number(_) => {
-            let s = v.as_f64().unwrap_or(f64::NAN);
-            if !(s.is_finite() && s >= MIN_SPACING_MM) {
-                return Err(InputError::field(
-                    path,
-                    name,
-                    format!("{v}, expected a finite spacing >= {MIN_SPACING_MM:e} mm"),
-                ));
-            }
+            let s = crate::grid::check_spacing(v.as_f64().unwrap_or(f64::NAN))
+                .map_err(|e| InputError::field(path, name, e.to_string()))?;
             Axis::uniform(origin, s, n).map_err(|p| axis_err(name, p))
         }
         Value::Object(o) => {
