@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use cdvol::progress::NoProgress;
 use cdvol::tools::phantom;
 
-use crate::common::{self, cdvol};
+use crate::common;
 
 /// A running `cdvol serve` under a 4 GiB address-space limit, killed
 /// when dropped.

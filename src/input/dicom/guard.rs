@@ -81,10 +81,10 @@ pub fn check_nesting(path: &Path, until_pixel_data: bool) -> Result<(), InputErr
         let Ok(token) = token else { return Ok(()) };
         let top = open == 0;
         match token {
-            LazyDataToken::ElementHeader(h) if top && h.tag == tags::PIXEL_DATA => {
-                if until_pixel_data {
-                    return Ok(());
-                }
+            LazyDataToken::ElementHeader(h)
+                if top && until_pixel_data && h.tag == tags::PIXEL_DATA =>
+            {
+                return Ok(())
             }
             LazyDataToken::PixelSequenceStart if top && until_pixel_data => return Ok(()),
             LazyDataToken::SequenceStart { .. }
@@ -92,9 +92,8 @@ pub fn check_nesting(path: &Path, until_pixel_data: bool) -> Result<(), InputErr
             | LazyDataToken::ItemStart { .. } => open += 1,
             LazyDataToken::SequenceEnd | LazyDataToken::ItemEnd => open = open.saturating_sub(1),
             t @ (LazyDataToken::LazyValue { .. } | LazyDataToken::LazyItemValue { .. }) => {
-                if t.skip().is_err() {
-                    return Ok(());
-                }
+                // A value that cannot be skipped: dicom-object names it.
+                let Ok(()) = t.skip() else { return Ok(()) };
             }
             _ => {}
         }
