@@ -507,28 +507,37 @@ impl Orphan {
 /// output name: [`output_names`] over all inputs, so shards agree).
 /// No summary yet gives none; one that cannot be read gives an error
 /// saying why, for a warning.
-pub fn orphans(summary: &Path, out_dir: &Path, outs: &[PathBuf]) -> Result<Vec<Orphan>, String> {
+pub fn orphans(
+    summary: &Path,
+    out_dir: &Path,
+    outs: &[PathBuf],
+) -> Result<Vec<Orphan>, OrphanError> {
+    let path = || summary.to_path_buf();
     let m = match std::fs::metadata(summary) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(format!("{}: {e}", summary.display())),
+        Err(source) => {
+            return Err(OrphanError::Io {
+                path: path(),
+                source,
+            })
+        }
     };
     if m.len() > MAX_SUMMARY_BYTES {
-        return Err(format!(
-            "{}: {} bytes, expected a summary of at most {} MiB",
-            summary.display(),
-            m.len(),
-            MAX_SUMMARY_BYTES >> 20
-        ));
+        return Err(OrphanError::TooLarge {
+            path: path(),
+            len: m.len(),
+        });
     }
-    let bytes =
-        crate::fsutil::read_regular(summary).map_err(|e| format!("{}: {e}", summary.display()))?;
-    let rows: Vec<serde_json::Value> = serde_json::from_slice(&bytes).map_err(|e| {
-        format!(
-            "{}: expected the JSON array of rows prep-batch writes: {e}",
-            summary.display()
-        )
+    let bytes = crate::fsutil::read_regular(summary).map_err(|source| OrphanError::Io {
+        path: path(),
+        source,
     })?;
+    let rows: Vec<serde_json::Value> =
+        serde_json::from_slice(&bytes).map_err(|source| OrphanError::Json {
+            path: path(),
+            source,
+        })?;
     let current: std::collections::HashSet<&std::ffi::OsStr> =
         outs.iter().filter_map(|o| o.file_name()).collect();
     let mut found: Vec<Orphan> = Vec::new();
@@ -564,15 +573,47 @@ pub fn orphans(summary: &Path, out_dir: &Path, outs: &[PathBuf]) -> Result<Vec<O
 
 /// Removes orphan `o` (`--prune`), only if it is still a packed file
 /// cdvol can open: a file put under that name since is never removed.
-pub fn prune(o: &Orphan) -> Result<(), String> {
-    PackedVolume::open(&o.output).map_err(|e| {
-        format!(
-            "{}: not removed, not a packed file any more: {e}",
-            o.output.display()
-        )
+pub fn prune(o: &Orphan) -> Result<(), OrphanError> {
+    let path = || o.output.clone();
+    PackedVolume::open(&o.output).map_err(|source| OrphanError::NotPacked {
+        path: path(),
+        source: Box::new(source),
     })?;
-    std::fs::remove_file(&o.output)
-        .map_err(|e| format!("{}: cannot remove: {e}", o.output.display()))
+    std::fs::remove_file(&o.output).map_err(|source| OrphanError::Remove {
+        path: path(),
+        source,
+    })
+}
+
+/// Why the orphans of a batch could not be listed, or one removed.
+#[derive(Debug, thiserror::Error)]
+pub enum OrphanError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(
+        "{}: {len} bytes, expected a summary of at most {} MiB",
+        path.display(),
+        MAX_SUMMARY_BYTES >> 20
+    )]
+    TooLarge { path: PathBuf, len: u64 },
+    #[error("{}: expected the JSON array of rows prep-batch writes: {source}", path.display())]
+    Json {
+        path: PathBuf,
+        source: serde_json::Error,
+    },
+    #[error("{}: not removed, not a packed file any more: {source}", path.display())]
+    NotPacked {
+        path: PathBuf,
+        source: Box<crate::format::FormatError>,
+    },
+    #[error("{}: cannot remove: {source}", path.display())]
+    Remove {
+        path: PathBuf,
+        source: std::io::Error,
+    },
 }
 
 fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {

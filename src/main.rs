@@ -119,7 +119,10 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             let src =
                 cdvol::input::open_with(&a.input, a.series.as_deref()).map_err(cli::input_error)?;
             for line in src.report() {
-                println!("{line}");
+                match line.strip_prefix("warning: ") {
+                    Some(w) => eprintln!("cdvol: warning: {w}"),
+                    None => println!("{line}"),
+                }
             }
             let report = prep(src.as_ref(), &a.output, &opts, progress).map_err(cli::prep_error)?;
             print_prep(&a.output, &report)?;

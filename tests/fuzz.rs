@@ -81,17 +81,34 @@ static LARGEST: AtomicUsize = AtomicUsize::new(0);
 
 struct Watch;
 
+/// Set (from `CDVOL_FUZZ_TRACE_ALLOC`) to print where each allocation
+/// above [`ALLOC_LIMIT`] is made.
+static TRACE_BIG: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+fn trace_big(size: usize) {
+    if size > ALLOC_LIMIT && TRACE_BIG.load(Ordering::Relaxed) {
+        // The backtrace's own allocations are small: no recursion here.
+        eprintln!(
+            "cdvol-fuzz: allocation of {size} bytes:\n{}",
+            std::backtrace::Backtrace::force_capture()
+        );
+    }
+}
+
 unsafe impl GlobalAlloc for Watch {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
         LARGEST.fetch_max(l.size(), Ordering::Relaxed);
+        trace_big(l.size());
         System.alloc(l)
     }
     unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
         LARGEST.fetch_max(l.size(), Ordering::Relaxed);
+        trace_big(l.size());
         System.alloc_zeroed(l)
     }
     unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
         LARGEST.fetch_max(new, Ordering::Relaxed);
+        trace_big(new);
         System.realloc(p, l, new)
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
@@ -105,6 +122,9 @@ static GLOBAL: Watch = Watch;
 // ---- running ----
 
 fn cases() -> u32 {
+    if std::env::var_os("CDVOL_FUZZ_TRACE_ALLOC").is_some() {
+        TRACE_BIG.store(true, Ordering::Relaxed);
+    }
     std::env::var("CDVOL_FUZZ_CASES")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -1299,4 +1319,1462 @@ fn found_t_overflow_and_underflow_are_fixed() {
     for v in &w.visits {
         assert!(v.t_enter < v.t_exit && v.t_enter > 0.0, "{v:?}");
     }
+}
+
+// ---- (c)-(f) the input readers ----
+
+/// A byte-level mutation of one file (or one region of it).
+#[derive(Debug, Clone)]
+enum ByteMut {
+    Flip {
+        at: Index,
+        bit: u8,
+    },
+    Set {
+        at: Index,
+        value: u8,
+    },
+    Truncate {
+        keep: Index,
+    },
+    Append(Vec<u8>),
+    /// `del` bytes at `at` replaced by `bytes`.
+    Splice {
+        at: Index,
+        del: usize,
+        bytes: Vec<u8>,
+    },
+}
+
+fn byte_mut() -> impl Strategy<Value = ByteMut> {
+    let bytes = prop_oneof![
+        3 => proptest::collection::vec(any::<u8>(), 0..16),
+        1 => proptest::collection::vec(prop::sample::select(vec![0u8, 0xff, b'\n', b' ', b'-', b'9']), 1..8),
+    ];
+    prop_oneof![
+        3 => (any::<Index>(), 0u8..8).prop_map(|(at, bit)| ByteMut::Flip { at, bit }),
+        3 => (any::<Index>(), any::<u8>()).prop_map(|(at, value)| ByteMut::Set { at, value }),
+        1 => any::<Index>().prop_map(|keep| ByteMut::Truncate { keep }),
+        1 => proptest::collection::vec(any::<u8>(), 1..48).prop_map(ByteMut::Append),
+        2 => (any::<Index>(), 0usize..8, bytes)
+            .prop_map(|(at, del, bytes)| ByteMut::Splice { at, del, bytes }),
+    ]
+}
+
+fn apply_bytes(b: &mut Vec<u8>, m: &ByteMut) {
+    let n = b.len();
+    match m {
+        ByteMut::Flip { at, bit } if n > 0 => b[at.index(n)] ^= 1 << bit,
+        ByteMut::Set { at, value } if n > 0 => b[at.index(n)] = *value,
+        ByteMut::Truncate { keep } if n > 0 => b.truncate(keep.index(n)),
+        ByteMut::Append(x) => b.extend_from_slice(x),
+        ByteMut::Splice { at, del, bytes } => {
+            let i = if n == 0 { 0 } else { at.index(n) };
+            let j = (i + del).min(n);
+            b.splice(i..j, bytes.iter().copied());
+        }
+        _ => {}
+    }
+}
+
+/// `m` applied to `b[range]` only (a truncation cuts the region short,
+/// keeping what follows it).
+fn apply_region(b: &mut Vec<u8>, range: std::ops::Range<usize>, m: &ByteMut) {
+    let (lo, hi) = (range.start.min(b.len()), range.end.min(b.len()));
+    let mut mid = b[lo..hi].to_vec();
+    apply_bytes(&mut mid, m);
+    b.splice(lo..hi, mid);
+}
+
+/// Corruption of a gzip stream: its 10-byte member header, its deflate
+/// data or its 8-byte trailer (CRC-32, ISIZE).
+#[derive(Debug, Clone)]
+struct GzMut {
+    part: u8,
+    at: Index,
+    value: u8,
+}
+
+fn gz_mut() -> impl Strategy<Value = GzMut> {
+    (0u8..3, any::<Index>(), any::<u8>()).prop_map(|(part, at, value)| GzMut { part, at, value })
+}
+
+fn apply_gz(b: &mut [u8], m: &GzMut) {
+    let n = b.len();
+    if n < 18 {
+        return;
+    }
+    let (lo, hi) = match m.part {
+        0 => (0, 10),
+        1 => (10, n - 8),
+        _ => (n - 8, n),
+    };
+    if hi > lo {
+        b[lo + m.at.index(hi - lo)] = m.value;
+    }
+}
+
+fn gzip(b: &[u8]) -> Vec<u8> {
+    common::gz(b)
+}
+
+/// How deep the cases of one reader target got.
+struct ReaderTally {
+    refused: AtomicU64,
+    opened: AtomicU64,
+    read: AtomicU64,
+    read_refused: AtomicU64,
+}
+
+impl ReaderTally {
+    const fn new() -> ReaderTally {
+        ReaderTally {
+            refused: AtomicU64::new(0),
+            opened: AtomicU64::new(0),
+            read: AtomicU64::new(0),
+            read_refused: AtomicU64::new(0),
+        }
+    }
+
+    fn report(&self, name: &str) {
+        let l = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        eprintln!(
+            "cdvol-fuzz: {name}: outcomes: {} refused at open, {} opened, {} read whole, \
+             {} refused while reading",
+            l(&self.refused),
+            l(&self.opened),
+            l(&self.read),
+            l(&self.read_refused)
+        );
+    }
+}
+
+/// Opens `path` with `cdvol::input::open` and, if it opens, reads every
+/// slice. Everything must be `Ok` or `Err` (a panic fails the case); an
+/// error must contain one of `names` (the file names of the case); an
+/// opened volume may not hold more sample bytes than `input_bytes` can
+/// (1032 times, what deflate can expand to); no allocation may exceed
+/// [`ALLOC_LIMIT`]. With `expect` (an unmutated base), the volume must
+/// open and read back exactly those raw samples.
+fn read_input(
+    path: &Path,
+    names: &[String],
+    input_bytes: u64,
+    expect: Option<&[f64]>,
+    tally: &ReaderTally,
+) -> Result<(), TestCaseError> {
+    LARGEST.store(0, Ordering::Relaxed);
+    let r = read_input_inner(path, names, input_bytes, expect, tally);
+    let largest = LARGEST.load(Ordering::Relaxed);
+    prop_assert!(
+        largest <= ALLOC_LIMIT,
+        "an allocation of {largest} bytes ({input_bytes} input bytes)"
+    );
+    r
+}
+
+fn read_input_inner(
+    path: &Path,
+    names: &[String],
+    input_bytes: u64,
+    expect: Option<&[f64]>,
+    tally: &ReaderTally,
+) -> Result<(), TestCaseError> {
+    let named = |m: &str| names.iter().any(|n| m.contains(n.as_str()));
+    let src = match cdvol::input::open(path) {
+        Ok(s) => s,
+        Err(e) => {
+            tally.refused.fetch_add(1, Ordering::Relaxed);
+            let m = e.to_string();
+            prop_assert!(expect.is_none(), "base refused: {m}");
+            prop_assert!(named(&m), "open error names none of {names:?}: {m}");
+            return Ok(());
+        }
+    };
+    tally.opened.fetch_add(1, Ordering::Relaxed);
+    let meta = src.meta().clone();
+    let [nx, ny, nz] = meta.dims();
+    let bytes = (nx as u128) * (ny as u128) * (nz as u128) * meta.dtype.size() as u128;
+    prop_assert!(
+        bytes <= input_bytes as u128 * 1032,
+        "opened {nx} x {ny} x {nz} samples of {} from {input_bytes} input bytes",
+        meta.dtype.name()
+    );
+    let _ = (src.report(), src.files());
+    let mut all = Vec::new();
+    let mut slice = vec![0.0; nx * ny];
+    for z in 0..nz {
+        if let Err(e) = src.read_slice(z, &mut slice) {
+            tally.read_refused.fetch_add(1, Ordering::Relaxed);
+            let m = e.to_string();
+            prop_assert!(expect.is_none(), "base slice {z}: {m}");
+            prop_assert!(named(&m), "slice {z} error names none of {names:?}: {m}");
+            return Ok(());
+        }
+        if expect.is_some() {
+            all.extend_from_slice(&slice);
+        }
+    }
+    tally.read.fetch_add(1, Ordering::Relaxed);
+    if let Some(want) = expect {
+        let same = all.len() == want.len()
+            && all
+                .iter()
+                .zip(want)
+                .all(|(a, b)| a == b || (a.is_nan() && b.is_nan()));
+        prop_assert!(same, "base samples differ: {all:?} != {want:?}");
+    }
+    Ok(())
+}
+
+/// Sample values of a small base volume: a ramp with the type's extremes.
+fn base_values(n: usize, lo: f64, hi: f64, float: bool) -> Vec<f64> {
+    (0..n)
+        .map(|i| match i % 11 {
+            0 => lo,
+            5 => hi,
+            _ if float => (i as f64 - 7.0) * 0.375,
+            _ => ((mix(i as u64) % 97) as f64 + lo.max(-40.0)).min(hi),
+        })
+        .collect()
+}
+
+/// `values` as samples of `dtype` ("u8", "i16", "i32", "f32", "f64").
+fn encode(values: &[f64], dtype: &str, big: bool) -> Vec<u8> {
+    let mut out = Vec::new();
+    for &v in values {
+        let b: Vec<u8> = match (dtype, big) {
+            ("u8", _) => vec![v as u8],
+            ("i16", false) => (v as i16).to_le_bytes().to_vec(),
+            ("i16", true) => (v as i16).to_be_bytes().to_vec(),
+            ("i32", false) => (v as i32).to_le_bytes().to_vec(),
+            ("i32", true) => (v as i32).to_be_bytes().to_vec(),
+            ("f32", false) => (v as f32).to_le_bytes().to_vec(),
+            ("f32", true) => (v as f32).to_be_bytes().to_vec(),
+            ("f64", false) => v.to_le_bytes().to_vec(),
+            ("f64", true) => v.to_be_bytes().to_vec(),
+            _ => panic!("dtype {dtype}"),
+        };
+        out.extend_from_slice(&b);
+    }
+    out
+}
+
+// -- (c) NRRD --
+
+/// A valid NRRD input: header lines (magic first), the samples (after
+/// `skip` junk bytes), and whether they are gzip'd and detached.
+struct NrrdBase {
+    lines: Vec<String>,
+    /// The decompressed data stream: skipped bytes, then the samples.
+    stream: Vec<u8>,
+    values: Vec<f64>,
+    gzip: bool,
+    detached: bool,
+}
+
+fn nrrd_bases() -> &'static [NrrdBase] {
+    static B: OnceLock<Vec<NrrdBase>> = OnceLock::new();
+    B.get_or_init(|| {
+        let base = |fields: &[(&str, &str)],
+                    dims: [usize; 3],
+                    dtype: &str,
+                    big: bool,
+                    skip: &[u8],
+                    gzip: bool,
+                    detached: bool| {
+            let (lo, hi, float) = match dtype {
+                "u8" => (0.0, 255.0, false),
+                "i16" => (-32768.0, 32767.0, false),
+                "i32" => (-2147483648.0, 2147483647.0, false),
+                _ => (f32::MIN as f64, f32::MAX as f64, true),
+            };
+            let values = base_values(dims.iter().product(), lo, hi, float);
+            let mut stream = skip.to_vec();
+            stream.extend_from_slice(&encode(&values, dtype, big));
+            let mut lines = vec!["NRRD0004".to_string(), "# cdvol fuzz base".to_string()];
+            lines.extend(fields.iter().map(|(k, v)| format!("{k}: {v}")));
+            NrrdBase {
+                lines,
+                stream,
+                values,
+                gzip,
+                detached,
+            }
+        };
+        vec![
+            base(
+                &[
+                    ("type", "short"),
+                    ("dimension", "3"),
+                    ("space", "left-posterior-superior"),
+                    ("sizes", "5 4 3"),
+                    ("space directions", "(0.5,0,0) (0,-0.75,0) (0,0,2)"),
+                    ("kinds", "domain domain domain"),
+                    ("endian", "little"),
+                    ("encoding", "raw"),
+                    ("space origin", "(-10,5,3)"),
+                ],
+                [5, 4, 3],
+                "i16",
+                false,
+                &[],
+                false,
+                false,
+            ),
+            base(
+                &[
+                    ("type", "float"),
+                    ("dimension", "3"),
+                    ("sizes", "4 3 3"),
+                    ("spacings", "1 1.5 0.25"),
+                    ("endian", "big"),
+                    ("encoding", "gzip"),
+                    ("byte skip", "3"),
+                ],
+                [4, 3, 3],
+                "f32",
+                true,
+                b"abc",
+                true,
+                false,
+            ),
+            base(
+                &[
+                    ("type", "uchar"),
+                    ("dimension", "3"),
+                    ("sizes", "6 3 2"),
+                    ("spacings", "1 1 1"),
+                    ("encoding", "raw"),
+                    ("byte skip", "7"),
+                    ("line skip", "0"),
+                    ("data file", "case.raw"),
+                ],
+                [6, 3, 2],
+                "u8",
+                false,
+                b"skipped",
+                false,
+                true,
+            ),
+            base(
+                &[
+                    ("type", "int"),
+                    ("dimension", "3"),
+                    ("sizes", "3 3 4"),
+                    ("space", "RAS"),
+                    ("space directions", "(-1,0,0) (0,2,0) (0,0,0.5)"),
+                    ("endian", "little"),
+                    ("encoding", "gz"),
+                    ("datafile", "case.raw"),
+                ],
+                [3, 3, 4],
+                "i32",
+                false,
+                &[],
+                true,
+                true,
+            ),
+        ]
+    })
+}
+
+const NRRD_FIELDS: &[&str] = &[
+    "dimension",
+    "type",
+    "sizes",
+    "encoding",
+    "endian",
+    "byte skip",
+    "line skip",
+    "spacings",
+    "space directions",
+    "space origin",
+    "space",
+    "data file",
+    "datafile",
+    "kinds",
+];
+
+const NRRD_VALUES: &[&str] = &[
+    "18446744073709551615",
+    "18446744073709551616",
+    "9223372036854775807",
+    "-9223372036854775808",
+    "4294967296",
+    "-1",
+    "-0",
+    "0",
+    "1",
+    "2",
+    "3",
+    "4",
+    "1e308",
+    "-1e308",
+    "nan",
+    "inf",
+    "-inf",
+    "",
+    "x",
+    "3 3",
+    "5 4 3",
+    "6 3 2",
+    "2 2 2",
+    "2 2 2 2",
+    "1048576 1048576 1048576",
+    "1048577 2 2",
+    "65535 65535 65535",
+    "2 2 18446744073709551615",
+    "4294967296 4294967296 4294967296",
+    "-5 4 3",
+    "1e308 2 2",
+    "1 1 1",
+    "1e308 1e308 1e308",
+    "nan nan nan",
+    "inf 1 1",
+    "-1 -1 -1",
+    "0 0 0",
+    "1e-300 1 1",
+    "5e-324 1 1",
+    "(1,0,0) (0,1,0) (0,0,1)",
+    "(1e308,0,0) (0,1e308,0) (0,0,1e308)",
+    "(nan,0,0) (0,1,0) (0,0,1)",
+    "(inf,0,0) (0,1,0) (0,0,1)",
+    "(0,0,0) (0,1,0) (0,0,1)",
+    "(-1,0,0) (0,-1,0) (0,0,-1)",
+    "(1,1,0) (0,1,0) (0,0,1)",
+    "(1e-300,0,0) (0,1,0) (0,0,1)",
+    "none (1,0,0) (0,1,0)",
+    "(1,0,0) (0,1,0)",
+    "(1,0) (0,1) (0,0)",
+    "(1,0,0",
+    "(1e308,1e308,1e308)",
+    "(-1e308,0,0)",
+    "(nan,nan,nan)",
+    "(1,2)",
+    "()",
+    "uchar",
+    "signed char",
+    "short",
+    "ushort",
+    "int",
+    "uint",
+    "int64",
+    "uint64",
+    "float",
+    "double",
+    "block",
+    "raw",
+    "gzip",
+    "gz",
+    "bzip2",
+    "ascii",
+    "hex",
+    "little",
+    "big",
+    "middle",
+    "case.raw",
+    "case.nrrd",
+    "case.nhdr",
+    "missing.raw",
+    "/",
+    ".",
+    "..",
+    "/dev/null",
+    "/dev/zero",
+    "LIST",
+    "LIST 2",
+    "case-%d.raw 0 2 1",
+    "LPS",
+    "RAS",
+    "left-anterior-superior",
+    "scanner-xyz",
+];
+
+/// Odd lines inserted into an NRRD header.
+const NRRD_LINES: &[&str] = &[
+    "",
+    "#",
+    "sizes: 5 4 3",
+    "sizes: 18446744073709551615 2 2",
+    "type: float",
+    "encoding: gzip",
+    "byte skip: -1",
+    "byte skip: 18446744073709551615",
+    "data file: case.raw",
+    "space directions: (1,0,0) (0,1,0) (0,0,1)",
+    "key:=value",
+    "no colon here",
+    ": empty key",
+    "sizes:",
+    "NRRD0004",
+    "\u{feff}type: short",
+    "dimension: 3\r",
+    "line skip: 1",
+];
+
+#[derive(Debug, Clone)]
+enum NrrdMut {
+    /// `field: value` replacing the field's line (or added).
+    Field {
+        field: usize,
+        value: usize,
+    },
+    InsertLine {
+        at: Index,
+        line: String,
+    },
+    DeleteLine {
+        at: Index,
+    },
+    /// Bytes of the header text (with its end: the empty line, when
+    /// attached).
+    Header(ByteMut),
+    /// Bytes of the decompressed data stream (skipped bytes and samples).
+    Samples(ByteMut),
+    /// Bytes of the stored data (the gzip stream when gzip'd).
+    Stored(ByteMut),
+    Gz(GzMut),
+}
+
+fn nrrd_mut() -> impl Strategy<Value = NrrdMut> {
+    prop_oneof![
+        8 => (0..NRRD_FIELDS.len(), 0..NRRD_VALUES.len())
+            .prop_map(|(field, value)| NrrdMut::Field { field, value }),
+        2 => (
+            any::<Index>(),
+            prop_oneof![
+                3 => prop::sample::select(NRRD_LINES).prop_map(String::from),
+                1 => "[ -~]{0,16}",
+            ],
+        )
+            .prop_map(|(at, line)| NrrdMut::InsertLine { at, line }),
+        2 => any::<Index>().prop_map(|at| NrrdMut::DeleteLine { at }),
+        3 => byte_mut().prop_map(NrrdMut::Header),
+        2 => byte_mut().prop_map(NrrdMut::Samples),
+        2 => byte_mut().prop_map(NrrdMut::Stored),
+        2 => gz_mut().prop_map(NrrdMut::Gz),
+    ]
+}
+
+/// The files of an NRRD case: (file name, bytes), the header first.
+fn nrrd_files(base: &NrrdBase, muts: &[NrrdMut]) -> Vec<(String, Vec<u8>)> {
+    let mut lines = base.lines.clone();
+    for m in muts {
+        match m {
+            NrrdMut::Field { field, value } => {
+                let (k, v) = (NRRD_FIELDS[*field], NRRD_VALUES[*value]);
+                let line = format!("{k}: {v}");
+                let prefix = format!("{k}:");
+                match lines.iter().position(|l| l.starts_with(&prefix)) {
+                    Some(i) => lines[i] = line,
+                    None => lines.push(line),
+                }
+            }
+            NrrdMut::InsertLine { at, line } => {
+                let i = at.index(lines.len() + 1);
+                lines.insert(i, line.clone());
+            }
+            NrrdMut::DeleteLine { at } if !lines.is_empty() => {
+                lines.remove(at.index(lines.len()));
+            }
+            _ => {}
+        }
+    }
+    let mut header = lines.join("\n").into_bytes();
+    header.extend_from_slice(if base.detached { b"\n" } else { b"\n\n" });
+    let mut stream = base.stream.clone();
+    for m in muts {
+        match m {
+            NrrdMut::Header(b) => apply_bytes(&mut header, b),
+            NrrdMut::Samples(b) => apply_bytes(&mut stream, b),
+            _ => {}
+        }
+    }
+    let mut stored = if base.gzip { gzip(&stream) } else { stream };
+    for m in muts {
+        match m {
+            NrrdMut::Stored(b) => apply_bytes(&mut stored, b),
+            NrrdMut::Gz(g) if base.gzip => apply_gz(&mut stored, g),
+            _ => {}
+        }
+    }
+    if base.detached {
+        vec![("case.nhdr".into(), header), ("case.raw".into(), stored)]
+    } else {
+        header.extend_from_slice(&stored);
+        vec![("case.nrrd".into(), header)]
+    }
+}
+
+/// The file name in the last `data file` line of an NRRD header, if any.
+fn nrrd_data_name(header: &[u8]) -> Option<String> {
+    let text = String::from_utf8_lossy(header);
+    text.lines()
+        .filter_map(|l| {
+            let l = l.trim_end_matches('\r');
+            l.strip_prefix("data file: ")
+                .or_else(|| l.strip_prefix("datafile: "))
+        })
+        .last()
+        .and_then(|v| Path::new(v.trim()).file_name())
+        .map(|n| n.to_string_lossy().into_owned())
+}
+
+/// Writes `files` into `dir` (emptied of earlier cases' files first) and
+/// returns their total size.
+fn write_case(dir: &Path, files: &[(String, Vec<u8>)]) -> u64 {
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            std::fs::remove_dir_all(&p).unwrap();
+        } else {
+            std::fs::remove_file(&p).unwrap();
+        }
+    }
+    let mut total = 0;
+    for (name, bytes) in files {
+        let p = dir.join(name);
+        if let Some(d) = p.parent() {
+            std::fs::create_dir_all(d).unwrap();
+        }
+        std::fs::write(&p, bytes).unwrap();
+        total += bytes.len() as u64;
+    }
+    total
+}
+
+static NRRD_TALLY: ReaderTally = ReaderTally::new();
+
+fn nrrd_case(dir: &Path, which: usize, muts: &[NrrdMut]) -> Result<(), TestCaseError> {
+    let base = &nrrd_bases()[which];
+    let files = nrrd_files(base, muts);
+    let total = write_case(dir, &files);
+    // An error names the header, or the data file the header names.
+    let mut names = vec![files[0].0.clone()];
+    names.extend(nrrd_data_name(&files[0].1));
+    let expect = muts.is_empty().then_some(&base.values[..]);
+    read_input(&dir.join(&files[0].0), &names, total, expect, &NRRD_TALLY)
+}
+
+#[test]
+fn fuzz_readers_nrrd() {
+    let dir = scratch("nrrd");
+    for which in 0..nrrd_bases().len() {
+        nrrd_case(&dir, which, &[]).unwrap_or_else(|e| panic!("NRRD base {which}: {e}"));
+    }
+    fuzz(
+        "fuzz::fuzz_readers_nrrd",
+        (
+            0..nrrd_bases().len(),
+            proptest::collection::vec(nrrd_mut(), 1..5),
+        ),
+        |(which, muts)| nrrd_case(&dir, which, &muts),
+    );
+    NRRD_TALLY.report("fuzz::fuzz_readers_nrrd");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+// -- (d) NIfTI --
+
+/// A valid NIfTI-1 file's bytes (uncompressed), how it is stored, and its
+/// samples.
+struct NiftiBase {
+    bytes: Vec<u8>,
+    big: bool,
+    gz: bool,
+    values: Vec<f64>,
+}
+
+fn nifti_bases() -> &'static [NiftiBase] {
+    static B: OnceLock<Vec<NiftiBase>> = OnceLock::new();
+    B.get_or_init(|| {
+        let make = |big: bool, dtype: &str, dims: [i16; 3], gz: bool| {
+            let mut h = vec![0u8; 352];
+            let w16 = |h: &mut Vec<u8>, at: usize, v: i16| {
+                let b = if big {
+                    v.to_be_bytes()
+                } else {
+                    v.to_le_bytes()
+                };
+                h[at..at + 2].copy_from_slice(&b);
+            };
+            let w32 = |h: &mut Vec<u8>, at: usize, v: f32| {
+                let b = if big {
+                    v.to_be_bytes()
+                } else {
+                    v.to_le_bytes()
+                };
+                h[at..at + 4].copy_from_slice(&b);
+            };
+            let sz = if big {
+                348i32.to_be_bytes()
+            } else {
+                348i32.to_le_bytes()
+            };
+            h[0..4].copy_from_slice(&sz);
+            for (k, d) in [3, dims[0], dims[1], dims[2], 1, 1, 1, 1]
+                .iter()
+                .enumerate()
+            {
+                w16(&mut h, 40 + 2 * k, *d);
+            }
+            let (code, bits, lo, hi, float) = match dtype {
+                "i16" => (4, 16, -32768.0, 32767.0, false),
+                "f32" => (16, 32, f32::MIN as f64, f32::MAX as f64, true),
+                _ => panic!(),
+            };
+            w16(&mut h, 70, code);
+            w16(&mut h, 72, bits);
+            for (k, p) in [-1.0, 0.75, 1.25, 2.5, 1.0, 0.0, 0.0, 0.0]
+                .iter()
+                .enumerate()
+            {
+                w32(&mut h, 76 + 4 * k, *p);
+            }
+            w32(&mut h, 108, 352.0);
+            if !float {
+                w32(&mut h, 112, 2.0);
+                w32(&mut h, 116, -5.0);
+            }
+            h[123] = 2; // mm
+            w16(&mut h, 252, 1); // qform_code
+            w16(&mut h, 254, if float { 0 } else { 1 }); // sform_code
+            w32(&mut h, 264, 1.0); // quatern_d: 180 degrees about z
+            for (k, o) in [12.5, -3.0, 40.0].iter().enumerate() {
+                w32(&mut h, 268 + 4 * k, *o);
+            }
+            let srow = [
+                [-0.75, 0.0, 0.0, 12.5],
+                [0.0, -1.25, 0.0, -3.0],
+                [0.0, 0.0, 2.5, 40.0],
+            ];
+            for (r, row) in srow.iter().enumerate() {
+                for (c, v) in row.iter().enumerate() {
+                    w32(&mut h, 280 + 16 * r + 4 * c, *v);
+                }
+            }
+            h[344..348].copy_from_slice(b"n+1\0");
+            let n = dims.iter().map(|&d| d as usize).product();
+            let values = base_values(n, lo, hi, float);
+            h.extend_from_slice(&encode(&values, dtype, big));
+            NiftiBase {
+                bytes: h,
+                big,
+                gz,
+                values,
+            }
+        };
+        vec![
+            make(false, "i16", [5, 4, 3], false),
+            make(false, "i16", [5, 4, 3], true),
+            make(true, "f32", [3, 4, 2], false),
+            make(true, "f32", [3, 4, 2], true),
+        ]
+    })
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Kind {
+    I16,
+    I32,
+    F32,
+    U8,
+}
+
+/// Header fields: (name, byte offset, kind).
+const NIFTI_FIELDS: &[(&str, usize, Kind)] = &[
+    ("sizeof_hdr", 0, Kind::I32),
+    ("dim[0]", 40, Kind::I16),
+    ("dim[1]", 42, Kind::I16),
+    ("dim[2]", 44, Kind::I16),
+    ("dim[3]", 46, Kind::I16),
+    ("dim[4]", 48, Kind::I16),
+    ("dim[7]", 54, Kind::I16),
+    ("datatype", 70, Kind::I16),
+    ("bitpix", 72, Kind::I16),
+    ("pixdim[0]", 76, Kind::F32),
+    ("pixdim[1]", 80, Kind::F32),
+    ("pixdim[2]", 84, Kind::F32),
+    ("pixdim[3]", 88, Kind::F32),
+    ("vox_offset", 108, Kind::F32),
+    ("scl_slope", 112, Kind::F32),
+    ("scl_inter", 116, Kind::F32),
+    ("xyzt_units", 123, Kind::U8),
+    ("qform_code", 252, Kind::I16),
+    ("sform_code", 254, Kind::I16),
+    ("quatern_b", 256, Kind::F32),
+    ("quatern_d", 264, Kind::F32),
+    ("qoffset_x", 268, Kind::F32),
+    ("qoffset_z", 276, Kind::F32),
+    ("srow_x[0]", 280, Kind::F32),
+    ("srow_x[3]", 292, Kind::F32),
+    ("srow_y[1]", 300, Kind::F32),
+    ("srow_z[2]", 320, Kind::F32),
+    ("srow_z[3]", 324, Kind::F32),
+    ("magic", 344, Kind::I32),
+];
+
+const NIFTI_I16: &[i16] = &[
+    0, 1, 2, 3, 4, 5, 7, 8, 16, 32, 64, 128, 256, 512, 768, 1024, 1280, 1536, 1792, 2048, 2304, -1,
+    -2, -32768, 32767, 255, 348,
+];
+
+const NIFTI_F32: &[f32] = &[
+    0.0,
+    -0.0,
+    1.0,
+    -1.0,
+    0.5,
+    2.0,
+    f32::NAN,
+    f32::INFINITY,
+    f32::NEG_INFINITY,
+    f32::MAX,
+    f32::MIN,
+    1e38,
+    1e-45,
+    1e-30,
+    1e-10,
+    348.0,
+    351.0,
+    352.0,
+    352.5,
+    353.0,
+    356.0,
+    1e6,
+    4294967296.0,
+    1.8446744e19,
+];
+
+const NIFTI_I32: &[i32] = &[0, 348, 540, -1, i32::MIN, i32::MAX, 0x6e2b3100, 0x6e693100];
+
+#[derive(Debug, Clone)]
+enum NiftiMut {
+    /// A header field set to one of its kind's special values.
+    Field {
+        field: usize,
+        value: Index,
+    },
+    /// A header field set to an arbitrary bit pattern.
+    FieldBits {
+        field: usize,
+        bits: u32,
+    },
+    /// Bytes of the 352-byte header only.
+    HeaderByte {
+        at: usize,
+        value: u8,
+    },
+    /// Bytes of the whole (uncompressed) file.
+    Bytes(ByteMut),
+    /// Bytes of the gzip stream (`.nii.gz`).
+    Stored(ByteMut),
+    Gz(GzMut),
+}
+
+fn nifti_mut() -> impl Strategy<Value = NiftiMut> {
+    prop_oneof![
+        8 => (0..NIFTI_FIELDS.len(), any::<Index>())
+            .prop_map(|(field, value)| NiftiMut::Field { field, value }),
+        2 => (0..NIFTI_FIELDS.len(), any::<u32>())
+            .prop_map(|(field, bits)| NiftiMut::FieldBits { field, bits }),
+        2 => (0usize..352, any::<u8>()).prop_map(|(at, value)| NiftiMut::HeaderByte { at, value }),
+        3 => byte_mut().prop_map(NiftiMut::Bytes),
+        2 => byte_mut().prop_map(NiftiMut::Stored),
+        2 => gz_mut().prop_map(NiftiMut::Gz),
+    ]
+}
+
+fn nifti_file(base: &NiftiBase, muts: &[NiftiMut]) -> Vec<u8> {
+    let mut b = base.bytes.clone();
+    let put = |b: &mut Vec<u8>, at: usize, le: &[u8]| {
+        if b.len() < at + le.len() {
+            return;
+        }
+        let mut v = le.to_vec();
+        if base.big {
+            v.reverse();
+        }
+        b[at..at + v.len()].copy_from_slice(&v);
+    };
+    for m in muts {
+        match m {
+            NiftiMut::Field { field, value } => {
+                let (_, at, kind) = NIFTI_FIELDS[*field];
+                match kind {
+                    Kind::I16 => put(&mut b, at, &value.get(NIFTI_I16).to_le_bytes()),
+                    Kind::I32 => put(&mut b, at, &value.get(NIFTI_I32).to_le_bytes()),
+                    Kind::F32 => put(&mut b, at, &value.get(NIFTI_F32).to_le_bytes()),
+                    Kind::U8 => put(&mut b, at, &[[0u8, 1, 2, 3, 7, 255][value.index(6)]]),
+                }
+            }
+            NiftiMut::FieldBits { field, bits } => {
+                let (_, at, kind) = NIFTI_FIELDS[*field];
+                let n = match kind {
+                    Kind::I16 => 2,
+                    Kind::I32 | Kind::F32 => 4,
+                    Kind::U8 => 1,
+                };
+                put(&mut b, at, &bits.to_le_bytes()[..n]);
+            }
+            NiftiMut::HeaderByte { at, value } if *at < b.len() => b[*at] = *value,
+            NiftiMut::Bytes(m) => apply_bytes(&mut b, m),
+            _ => {}
+        }
+    }
+    if !base.gz {
+        return b;
+    }
+    let mut z = gzip(&b);
+    for m in muts {
+        match m {
+            NiftiMut::Stored(m) => apply_bytes(&mut z, m),
+            NiftiMut::Gz(g) => apply_gz(&mut z, g),
+            _ => {}
+        }
+    }
+    z
+}
+
+static NIFTI_TALLY: ReaderTally = ReaderTally::new();
+
+fn nifti_case(dir: &Path, which: usize, muts: &[NiftiMut]) -> Result<(), TestCaseError> {
+    let base = &nifti_bases()[which];
+    let name = if base.gz { "case.nii.gz" } else { "case.nii" };
+    let files = vec![(name.to_string(), nifti_file(base, muts))];
+    let total = write_case(dir, &files);
+    let expect = muts.is_empty().then_some(&base.values[..]);
+    read_input(
+        &dir.join(name),
+        &[name.to_string()],
+        total,
+        expect,
+        &NIFTI_TALLY,
+    )
+}
+
+#[test]
+fn fuzz_readers_nifti() {
+    let dir = scratch("nifti");
+    for which in 0..nifti_bases().len() {
+        nifti_case(&dir, which, &[]).unwrap_or_else(|e| panic!("NIfTI base {which}: {e}"));
+    }
+    fuzz(
+        "fuzz::fuzz_readers_nifti",
+        (
+            0..nifti_bases().len(),
+            proptest::collection::vec(nifti_mut(), 1..5),
+        ),
+        |(which, muts)| nifti_case(&dir, which, &muts),
+    );
+    NIFTI_TALLY.report("fuzz::fuzz_readers_nifti");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+// -- (e) raw stack sidecars --
+
+/// A valid sidecar (JSON) and its data files.
+struct SidecarBase {
+    json: serde_json::Value,
+    data: Vec<(String, Vec<u8>)>,
+    values: Vec<f64>,
+}
+
+fn sidecar_bases() -> &'static [SidecarBase] {
+    static B: OnceLock<Vec<SidecarBase>> = OnceLock::new();
+    B.get_or_init(|| {
+        let values = base_values(5 * 4 * 3, -32768.0, 32767.0, false);
+        let mut one = b"HDR!".to_vec();
+        one.extend_from_slice(&encode(&values, "i16", false));
+        let a = SidecarBase {
+            json: serde_json::json!({
+                "data": "case.raw",
+                "dims": [5, 4, 3],
+                "dtype": "i16",
+                "endian": "little",
+                "header_bytes": 4,
+                "x": 0.5,
+                "y": {"spacing": [1, 0.25, 2]},
+                "z": {"positions": [-3, 1e-3, 7.5]},
+                "origin": [1, -2, 3],
+                "rescale": {"slope": 0.5, "intercept": -1024},
+                "orientation": "LPS",
+            }),
+            data: vec![("case.raw".into(), one)],
+            values,
+        };
+        let fvalues = base_values(3 * 2 * 3, f32::MIN as f64, f32::MAX as f64, true);
+        let per = encode(&fvalues, "f32", true);
+        let b = SidecarBase {
+            json: serde_json::json!({
+                "data": ["s0.raw", "s1.raw", "s2.raw"],
+                "dims": [3, 2, 3],
+                "dtype": "f32",
+                "endian": "big",
+                "x": {"positions": [0, 1, 3]},
+                "y": 2,
+                "z": 1.5,
+                "orientation": {"lps": [[1, 0, 0], [0, -1, 0], [0, 0, 1]]},
+            }),
+            data: (0..3)
+                .map(|k| (format!("s{k}.raw"), per[24 * k..24 * (k + 1)].to_vec()))
+                .collect(),
+            values: fvalues,
+        };
+        vec![a, b]
+    })
+}
+
+const SIDECAR_FIELDS: &[&str] = &[
+    "/data",
+    "/data/0",
+    "/data/2",
+    "/dims",
+    "/dims/0",
+    "/dims/1",
+    "/dims/2",
+    "/dtype",
+    "/endian",
+    "/header_bytes",
+    "/x",
+    "/y",
+    "/y/spacing",
+    "/y/spacing/1",
+    "/z",
+    "/z/positions",
+    "/z/positions/1",
+    "/x/positions",
+    "/x/positions/2",
+    "/origin",
+    "/origin/0",
+    "/rescale",
+    "/rescale/slope",
+    "/rescale/intercept",
+    "/orientation",
+    "/orientation/lps",
+    "/orientation/lps/1",
+];
+
+/// Values for sidecar fields beyond the packed header's [`JSON_VALUES`].
+const SIDECAR_VALUES: &[&str] = &[
+    "\"case.raw\"",
+    "\"s0.raw\"",
+    "\"case.json\"",
+    "\"missing.raw\"",
+    "\"\"",
+    "\"/\"",
+    "\"..\"",
+    "\"/dev/zero\"",
+    "[\"s0.raw\", \"s0.raw\", \"s0.raw\"]",
+    "[\"case.raw\", \"case.raw\", \"case.raw\"]",
+    "[\"s0.raw\", 1, null]",
+    "\"i16\"",
+    "\"i8\"",
+    "\"u32\"",
+    "\"big\"",
+    "\"little\"",
+    "\"middle\"",
+    "\"LPS\"",
+    "\"RAS\"",
+    "\"LLL\"",
+    "\"XYZ\"",
+    "{\"lps\": [[1, 0, 0], [0, 1, 0], [0, 0, 0]]}",
+    "{\"ras\": [[1e308, 0, 0], [0, 1, 0], [0, 0, 1]]}",
+    "{\"xyz\": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}",
+    "{\"positions\": [0, 0, 0]}",
+    "{\"positions\": [0, 1e308, -1e308]}",
+    "{\"positions\": [0, 1e-300, 2e-300]}",
+    "{\"positions\": [0, 1, 2, 3, 4]}",
+    "{\"spacing\": [1e308, 1e308]}",
+    "{\"spacing\": [1e308, 1e308, 1e308, 1e308]}",
+    "{\"spacing\": [-1, 1]}",
+    "{\"spacing\": [0, 0]}",
+    "{\"positions\": [0, 1, 2], \"spacing\": [1, 1]}",
+    "{\"other\": 1}",
+    "[0, \"1\", 2]",
+    "[1, 2, \"x\"]",
+    "[5, 4, 3]",
+    "[3, 2, 3]",
+    "[5, 4, 1048576]",
+    "[65535, 65535, 3]",
+    "1e-300",
+    "-0.0",
+    "\"1\"",
+];
+
+#[derive(Debug, Clone)]
+enum SidecarMut {
+    Field {
+        field: usize,
+        value: usize,
+    },
+    Remove {
+        field: usize,
+    },
+    /// Raw text spliced into the sidecar.
+    Splice {
+        at: Index,
+        del: usize,
+        text: String,
+    },
+    /// A data file cut short or made longer by `delta` bytes.
+    DataLen {
+        file: Index,
+        delta: i64,
+    },
+    Data {
+        file: Index,
+        m: ByteMut,
+    },
+}
+
+fn sidecar_mut() -> impl Strategy<Value = SidecarMut> {
+    let n_values = JSON_VALUES.len() + SIDECAR_VALUES.len();
+    prop_oneof![
+        8 => (0..SIDECAR_FIELDS.len(), 0..n_values)
+            .prop_map(|(field, value)| SidecarMut::Field { field, value }),
+        1 => (0..SIDECAR_FIELDS.len()).prop_map(|field| SidecarMut::Remove { field }),
+        3 => (
+            any::<Index>(),
+            0usize..12,
+            prop_oneof![
+                3 => prop::sample::select(SPLICES).prop_map(String::from),
+                1 => "[ -~]{0,12}",
+            ],
+        )
+            .prop_map(|(at, del, text)| SidecarMut::Splice { at, del, text }),
+        3 => (
+            any::<Index>(),
+            prop_oneof![-40i64..40, Just(-1), Just(1), Just(-100_000), Just(4096)],
+        )
+            .prop_map(|(file, delta)| SidecarMut::DataLen { file, delta }),
+        1 => (any::<Index>(), byte_mut()).prop_map(|(file, m)| SidecarMut::Data { file, m }),
+    ]
+}
+
+fn sidecar_value(i: usize) -> serde_json::Value {
+    let text = JSON_VALUES
+        .get(i)
+        .copied()
+        .unwrap_or_else(|| SIDECAR_VALUES[i - JSON_VALUES.len()]);
+    serde_json::from_str(text).unwrap()
+}
+
+fn sidecar_files(base: &SidecarBase, muts: &[SidecarMut]) -> Vec<(String, Vec<u8>)> {
+    let mut json = base.json.clone();
+    for m in muts {
+        match m {
+            SidecarMut::Field { field, value } => {
+                set_json(&mut json, SIDECAR_FIELDS[*field], sidecar_value(*value))
+            }
+            SidecarMut::Remove { field } => {
+                let (parent, key) = SIDECAR_FIELDS[*field].rsplit_once('/').unwrap();
+                if let Some(serde_json::Value::Object(o)) = json.pointer_mut(parent) {
+                    o.remove(key);
+                }
+            }
+            _ => {}
+        }
+    }
+    let mut text = serde_json::to_vec_pretty(&json).unwrap();
+    let mut data = base.data.clone();
+    for m in muts {
+        match m {
+            SidecarMut::Splice { at, del, text: t } => {
+                let i = at.index(text.len());
+                let j = (i + del).min(text.len());
+                text.splice(i..j, t.bytes());
+            }
+            SidecarMut::DataLen { file, delta } => {
+                let d = &mut data[file.index(base.data.len())].1;
+                let n = (d.len() as i64 + delta).max(0) as usize;
+                let fill = d.len();
+                d.resize(n, 0);
+                for (i, x) in d.iter_mut().enumerate().skip(fill) {
+                    *x = mix(i as u64) as u8;
+                }
+            }
+            SidecarMut::Data { file, m } => {
+                apply_bytes(&mut data[file.index(base.data.len())].1, m)
+            }
+            _ => {}
+        }
+    }
+    let mut files = vec![("case.json".to_string(), text)];
+    files.extend(data);
+    files
+}
+
+static SIDECAR_TALLY: ReaderTally = ReaderTally::new();
+
+fn sidecar_case(dir: &Path, which: usize, muts: &[SidecarMut]) -> Result<(), TestCaseError> {
+    let base = &sidecar_bases()[which];
+    let files = sidecar_files(base, muts);
+    let total = write_case(dir, &files);
+    let expect = muts.is_empty().then_some(&base.values[..]);
+    read_input(
+        &dir.join("case.json"),
+        &["case.json".to_string()],
+        total,
+        expect,
+        &SIDECAR_TALLY,
+    )
+}
+
+#[test]
+fn fuzz_readers_sidecar() {
+    let dir = scratch("sidecar");
+    for which in 0..sidecar_bases().len() {
+        sidecar_case(&dir, which, &[]).unwrap_or_else(|e| panic!("sidecar base {which}: {e}"));
+    }
+    fuzz(
+        "fuzz::fuzz_readers_sidecar",
+        (
+            0..sidecar_bases().len(),
+            proptest::collection::vec(sidecar_mut(), 1..5),
+        ),
+        |(which, muts)| sidecar_case(&dir, which, &muts),
+    );
+    SIDECAR_TALLY.report("fuzz::fuzz_readers_sidecar");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+// -- (f) DICOM --
+
+/// Rows of the base slices (Columns are `dicom_series::NX`).
+const DICOM_ROWS: usize = 4;
+
+/// A valid 3-slice series: each file's bytes, and the stored samples.
+fn dicom_base() -> &'static (Vec<Vec<u8>>, Vec<f64>) {
+    static B: OnceLock<(Vec<Vec<u8>>, Vec<f64>)> = OnceLock::new();
+    B.get_or_init(|| {
+        use common::dicom_series as ds;
+        let dir = tempfile::tempdir().unwrap();
+        let mut files = Vec::new();
+        let mut values = Vec::new();
+        for k in 0..3 {
+            let p = dir.path().join(format!("s{k}.dcm"));
+            ds::write_slice(
+                &p,
+                &ds::Slice {
+                    k,
+                    series: ds::SERIES,
+                    rows: DICOM_ROWS,
+                    position: [10.0, -5.0, ds::z_positions()[k]],
+                    ts: ds::EXPLICIT_LE,
+                },
+            );
+            files.push(std::fs::read(&p).unwrap());
+            values.extend(
+                ds::slice(k)[..ds::NX * DICOM_ROWS]
+                    .iter()
+                    .map(|&v| v as f64),
+            );
+        }
+        (files, values)
+    })
+}
+
+/// Elements to overwrite: (name, group, element).
+const DICOM_US: &[(&str, u16, u16)] = &[
+    ("SamplesPerPixel", 0x0028, 0x0002),
+    ("Rows", 0x0028, 0x0010),
+    ("Columns", 0x0028, 0x0011),
+    ("BitsAllocated", 0x0028, 0x0100),
+    ("BitsStored", 0x0028, 0x0101),
+    ("HighBit", 0x0028, 0x0102),
+    ("PixelRepresentation", 0x0028, 0x0103),
+];
+
+const DICOM_TEXT: &[(&str, u16, u16)] = &[
+    ("PixelSpacing", 0x0028, 0x0030),
+    ("ImagePositionPatient", 0x0020, 0x0032),
+    ("ImageOrientationPatient", 0x0020, 0x0037),
+    ("RescaleIntercept", 0x0028, 0x1052),
+    ("RescaleSlope", 0x0028, 0x1053),
+    ("SeriesInstanceUID", 0x0020, 0x000e),
+    ("TransferSyntaxUID", 0x0002, 0x0010),
+];
+
+const DICOM_US_VALUES: &[u16] = &[
+    0, 1, 2, 3, 4, 7, 8, 12, 15, 16, 17, 32, 33, 64, 255, 0x8000, 65535,
+];
+
+const DICOM_TEXTS: &[&str] = &[
+    "",
+    "0",
+    "1",
+    "-1",
+    "0\\0",
+    "1e308\\1e308",
+    "-1e308\\1",
+    "nan\\nan",
+    "inf\\1",
+    "1e-300\\1",
+    "5e-324\\5e-324",
+    "0.8\\0.7",
+    "0.8\\0.7\\0.6",
+    "1\\2\\3\\4\\5\\6\\7",
+    "1\\0\\0\\0\\1\\0",
+    "1\\0\\0\\1\\0\\0",
+    "0\\0\\0\\0\\0\\0",
+    "1\\0\\0\\0\\0\\1",
+    "nan\\0\\0\\0\\1\\0",
+    "10\\-5\\-40",
+    "10\\-5\\-38",
+    "11\\-5\\-38",
+    "10\\-5\\1e308",
+    "abc",
+    "1.2.3",
+    "1.2.840.10008.1.2",
+    "1.2.840.10008.1.2.2",
+    "1.2.840.10008.1.2.1.99",
+    "1.2.840.10008.1.2.5",
+    "1.2.840.10008.1.2.4.50",
+    "1.2.840.10008.1.2.4.90",
+    "1.2.826.0.1.3680043.9.7777.2",
+];
+
+#[derive(Debug, Clone)]
+enum DicomMut {
+    /// Bytes of the header (before PixelData), of the pixel data element,
+    /// or of the whole file.
+    Bytes { region: u8, m: ByteMut },
+    /// A US element's value.
+    Us { elem: usize, value: u16 },
+    /// A text element (DS, UI) replaced, its length updated.
+    Text { elem: usize, text: usize },
+    /// An element's length field overwritten.
+    Len { elem: usize, value: u32 },
+}
+
+fn dicom_mut() -> impl Strategy<Value = DicomMut> {
+    prop_oneof![
+        5 => (0u8..3, byte_mut()).prop_map(|(region, m)| DicomMut::Bytes { region, m }),
+        3 => (
+            0..DICOM_US.len(),
+            prop_oneof![3 => prop::sample::select(DICOM_US_VALUES), 1 => any::<u16>()],
+        )
+            .prop_map(|(elem, value)| DicomMut::Us { elem, value }),
+        3 => (0..DICOM_TEXT.len(), 0..DICOM_TEXTS.len())
+            .prop_map(|(elem, text)| DicomMut::Text { elem, text }),
+        2 => (
+            0..DICOM_US.len() + DICOM_TEXT.len() + 1,
+            prop_oneof![
+                2 => prop::sample::select(vec![0u32, 1, 2, 3, 0xfffe, 0xffff, 0xffff_ffff, 0x7fff_ffff, 264, 266]),
+                1 => any::<u32>(),
+            ],
+        )
+            .prop_map(|(elem, value)| DicomMut::Len { elem, value }),
+    ]
+}
+
+/// Offset of element (`group`, `elem`) in explicit VR little endian.
+fn find_elem(b: &[u8], group: u16, elem: u16) -> Option<usize> {
+    let mut tag = group.to_le_bytes().to_vec();
+    tag.extend_from_slice(&elem.to_le_bytes());
+    // The first whose VR bytes are upper-case letters.
+    b.windows(6)
+        .position(|w| w[..4] == tag[..] && w[4].is_ascii_uppercase() && w[5].is_ascii_uppercase())
+}
+
+const PIXEL_DATA: (u16, u16) = (0x7fe0, 0x0010);
+
+fn dicom_file(base: &[u8], muts: &[DicomMut]) -> Vec<u8> {
+    let mut b = base.to_vec();
+    for m in muts {
+        let pix = find_elem(&b, PIXEL_DATA.0, PIXEL_DATA.1).unwrap_or(b.len());
+        match m {
+            DicomMut::Bytes { region, m } => {
+                let range = match region {
+                    0 => 0..pix,
+                    1 => pix..b.len(),
+                    _ => 0..b.len(),
+                };
+                apply_region(&mut b, range, m);
+            }
+            DicomMut::Us { elem, value } => {
+                let (_, g, e) = DICOM_US[*elem];
+                if let Some(i) = find_elem(&b, g, e) {
+                    if i + 10 <= b.len() {
+                        b[i + 8..i + 10].copy_from_slice(&value.to_le_bytes());
+                    }
+                }
+            }
+            DicomMut::Text { elem, text } => {
+                let (_, g, e) = DICOM_TEXT[*elem];
+                if let Some(i) = find_elem(&b, g, e) {
+                    if i + 8 <= b.len() {
+                        let old = u16::from_le_bytes([b[i + 6], b[i + 7]]) as usize;
+                        let end = (i + 8 + old).min(b.len());
+                        let mut t = DICOM_TEXTS[*text].as_bytes().to_vec();
+                        if t.len() % 2 == 1 {
+                            t.push(if g == 0x0002 || e == 0x000e { 0 } else { b' ' });
+                        }
+                        b[i + 6..i + 8].copy_from_slice(&(t.len() as u16).to_le_bytes());
+                        b.splice(i + 8..end, t);
+                    }
+                }
+            }
+            DicomMut::Len { elem, value } => {
+                let (g, e) = if *elem < DICOM_US.len() {
+                    (DICOM_US[*elem].1, DICOM_US[*elem].2)
+                } else if *elem < DICOM_US.len() + DICOM_TEXT.len() {
+                    let t = DICOM_TEXT[*elem - DICOM_US.len()];
+                    (t.1, t.2)
+                } else {
+                    PIXEL_DATA
+                };
+                if let Some(i) = find_elem(&b, g, e) {
+                    if (g, e) == PIXEL_DATA {
+                        if i + 12 <= b.len() {
+                            b[i + 8..i + 12].copy_from_slice(&value.to_le_bytes());
+                        }
+                    } else if i + 8 <= b.len() {
+                        b[i + 6..i + 8].copy_from_slice(&(*value as u16).to_le_bytes());
+                    }
+                }
+            }
+        }
+    }
+    b
+}
+
+static DICOM_TALLY: ReaderTally = ReaderTally::new();
+
+fn dicom_case(dir: &Path, which: usize, muts: &[DicomMut]) -> Result<(), TestCaseError> {
+    let (bases, values) = dicom_base();
+    let files: Vec<(String, Vec<u8>)> = bases
+        .iter()
+        .enumerate()
+        .map(|(k, b)| {
+            let bytes = if k == which {
+                dicom_file(b, muts)
+            } else {
+                b.clone()
+            };
+            (format!("dcmdir/s{k}.dcm"), bytes)
+        })
+        .collect();
+    let total = write_case(dir, &files);
+    // An error names a slice file, or the series directory when it is
+    // about the series as a whole.
+    let mut names: Vec<String> = (0..3).map(|k| format!("s{k}.dcm")).collect();
+    names.push("dcmdir".into());
+    let expect = muts.is_empty().then_some(&values[..]);
+    read_input(&dir.join("dcmdir"), &names, total, expect, &DICOM_TALLY)
+}
+
+#[test]
+fn fuzz_readers_dicom() {
+    let dir = scratch("dicom");
+    dicom_case(&dir, 0, &[]).unwrap_or_else(|e| panic!("DICOM base: {e}"));
+    fuzz(
+        "fuzz::fuzz_readers_dicom",
+        (0usize..3, proptest::collection::vec(dicom_mut(), 1..4)),
+        |(which, muts)| dicom_case(&dir, which, &muts),
+    );
+    DICOM_TALLY.report("fuzz::fuzz_readers_dicom");
+    let _ = std::fs::remove_dir_all(&dir);
 }
