@@ -61,7 +61,8 @@ def run(cdvol, args, cwd, stdin=None, limit=True):
 
 def first_line(err):
     lines = [l for l in err.splitlines() if l.strip() and "Command" not in l]
-    s = lines[0] if lines else ""
+    errors = [l for l in lines if "error:" in l]
+    s = (errors or lines or [""])[0]
     s = s.replace("|", "\\|")
     return s if len(s) <= 160 else s[:157] + "..."
 
@@ -244,23 +245,31 @@ def serve_cases(cdvol, work, packed):
         ROWS.append(
             f"| {what} | {'answers' if alive else 'DIED'} | {took:.2f} | - | no | {first} |"
         )
-    # Status behind a flood of renders.
+    # Status behind a flood of renders: 12 clients at once, no sessions
+    # (none cancels another), so they queue for the render slot.
     import threading
-    flood = [
-        threading.Thread(target=http, args=(port, (
-            f"GET /api/image?mode=composite&preset=ct-bone&width=1024&height=1024&az={i} "
+    answers = []
+
+    def render(i):
+        answers.append(http(port, (
+            f"GET /api/image?mode=surface&shadows=1&w=1024&h=1024&az={i} "
             "HTTP/1.0\r\nHost: localhost\r\n\r\n").encode(), 120))
-        for i in range(12)
-    ]
+
+    flood = [threading.Thread(target=render, args=(i,)) for i in range(12)]
     for th in flood:
         th.start()
     time.sleep(0.3)
     t = time.monotonic()
     first = http(port, status_rq)
     took = time.monotonic() - t
-    ROWS.append(f"| serve: /api/status behind 12 queued 1024^2 renders | {'answers' if p.poll() is None else 'DIED'} | {took:.2f} | - | no | {first} |")
     for th in flood:
         th.join()
+    drawn = sum("200" in a for a in answers)
+    ROWS.append(
+        f"| serve: /api/status behind 12 queued shadowed 1024^2 renders "
+        f"({drawn} of 12 drawn) | {'answers' if p.poll() is None else 'DIED'} | "
+        f"{took:.2f} | - | no | {first} |"
+    )
     rss = 0
     try:
         for line in open(f"/proc/{p.pid}/status"):

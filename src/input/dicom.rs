@@ -22,7 +22,7 @@
 //! sequences nested deeper than [`guard::MAX_NESTING`], malformed RLE
 //! headers and any panic inside dicom-rs (module [`guard`]); a slice
 //! larger than the memory limit; a PixelSpacing below
-//! [`MIN_SPACING_MM`](super::sidecar::MIN_SPACING_MM) and a rescale that
+//! [`MIN_SPACING_MM`](crate::grid::MIN_SPACING_MM) and a rescale that
 //! is not finite or has slope 0.
 
 use std::collections::BTreeMap;
@@ -209,7 +209,7 @@ fn header_of(path: &Path) -> Result<Header, InputError> {
             .ok_or_else(|| err(path, name, format!("{v}, expected 1 to 65535")))
     };
     let spacing = floats(tags::PIXEL_SPACING, "PixelSpacing", 2)?;
-    let min = super::sidecar::MIN_SPACING_MM;
+    let min = crate::grid::MIN_SPACING_MM;
     if spacing.iter().any(|&s| s < min) {
         return Err(err(
             path,
@@ -279,12 +279,18 @@ const NATIVE: [&str; 3] = [
     "1.2.840.10008.1.2.2",
 ];
 
-/// `1, 2.5, 3` for a message.
+/// `1, 2.5, 3e-300` for a message (exponents where plain digits would
+/// run long).
 fn numbers(v: &[f64]) -> String {
-    v.iter()
-        .map(|x| x.to_string())
-        .collect::<Vec<_>>()
-        .join(", ")
+    let one = |x: &f64| {
+        let a = x.abs();
+        if a != 0.0 && !(1e-4..1e15).contains(&a) {
+            format!("{x:e}")
+        } else {
+            x.to_string()
+        }
+    };
+    v.iter().map(one).collect::<Vec<_>>().join(", ")
 }
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

@@ -252,7 +252,8 @@ fn a_tiny_pixel_spacing_is_refused() {
     let d = tempfile::tempdir().unwrap();
     let files = series(&d.path().join("in"), 3, EXPLICIT_LE);
     set_ds(&files, tags::PIXEL_SPACING, "1e-300\\1e-300");
-    refused(d.path(), "s0", "PixelSpacing");
+    let e = refused(d.path(), "s0", "PixelSpacing");
+    assert!(e.contains("1e-300, 1e-300, expected spacings >= 1e-6 mm"), "{e}");
 }
 
 #[test]
