@@ -136,6 +136,16 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
         .try_into()
         .map_err(|_| bad("dim", "expected three axes".into()))?;
     let grid = Grid { axes: [ax, ay, az] };
+    // A slope of 0 means no rescale (the standard); NaN or infinity is
+    // read the same way, as nibabel reads it, but not silently.
+    let mut notes = Vec::new();
+    if !h.scl_slope.is_finite() {
+        notes.push(format!(
+            "warning: {}: scl_slope {}: read as no rescale (slope 1, intercept 0), as nibabel does",
+            path.display(),
+            h.scl_slope
+        ));
+    }
     let rescale = if h.scl_slope == 0.0 || !h.scl_slope.is_finite() {
         Rescale::IDENTITY
     } else {
@@ -199,9 +209,9 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
             dims_field: "dim",
             skip_field: "vox_offset",
         };
-        Ok(Box::new(GzSource::open(meta, layout)?))
+        noted(Box::new(GzSource::open(meta, layout)?), notes)
     } else {
-        Ok(Box::new(RawSource::from_sidecar(Sidecar {
+        noted(Box::new(RawSource::from_sidecar(Sidecar {
             path: path.to_path_buf(),
             data: DataFiles::One(path.to_path_buf()),
             dims,
@@ -211,7 +221,43 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
             grid,
             rescale,
             orientation: meta.orientation,
-        })?))
+        })?), notes)
+    }
+}
+
+/// `src` with `notes` added to its report (a warning of the header's).
+fn noted(
+    src: Box<dyn SliceSource>,
+    notes: Vec<String>,
+) -> Result<Box<dyn SliceSource>, InputError> {
+    if notes.is_empty() {
+        return Ok(src);
+    }
+    Ok(Box::new(Noted { src, notes }))
+}
+
+struct Noted {
+    src: Box<dyn SliceSource>,
+    notes: Vec<String>,
+}
+
+impl SliceSource for Noted {
+    fn meta(&self) -> &VolumeMeta {
+        self.src.meta()
+    }
+
+    fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {
+        self.src.read_slice(z, out)
+    }
+
+    fn report(&self) -> Vec<String> {
+        let mut r = self.src.report();
+        r.extend(self.notes.iter().cloned());
+        r
+    }
+
+    fn files(&self) -> Vec<std::path::PathBuf> {
+        self.src.files()
     }
 }
 

@@ -559,3 +559,32 @@ fn nifti_vox_offset_is_checked() {
     std::fs::write(d.path().join("good.nii"), &b).unwrap();
     ok(&mut prep(d.path(), "good.nii"));
 }
+
+// ---------------------------------------------------------------------------
+// Lower severity: a NIfTI scl_slope of NaN or infinity is not silent
+// ---------------------------------------------------------------------------
+
+#[test]
+fn a_nifti_slope_that_is_not_finite_is_read_as_no_rescale_with_a_warning() {
+    let d = tempfile::tempdir().unwrap();
+    for (name, slope) in [("nan.nii", f32::NAN), ("inf.nii", f32::INFINITY)] {
+        let mut b = nifti_header([4, 4, 3], [1.0, 1.0, 1.0]);
+        set_f32(&mut b, 112, slope);
+        b.extend_from_slice(&samples());
+        std::fs::write(d.path().join(name), &b).unwrap();
+        let o = prep(d.path(), name).output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{name}: {e}");
+        for w in ["warning", name, "scl_slope", "no rescale"] {
+            assert!(e.contains(w), "{name}: {w:?} not in {e}");
+        }
+    }
+    // A slope of 0 means no rescale by the standard: no warning.
+    let mut b = nifti_header([4, 4, 3], [1.0, 1.0, 1.0]);
+    set_f32(&mut b, 112, 0.0);
+    b.extend_from_slice(&samples());
+    std::fs::write(d.path().join("zero.nii"), &b).unwrap();
+    let o = prep(d.path(), "zero.nii").output().unwrap();
+    assert!(o.status.success());
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("scl_slope"));
+}
