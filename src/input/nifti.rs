@@ -211,17 +211,20 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
         };
         noted(Box::new(GzSource::open(meta, layout)?), notes)
     } else {
-        noted(Box::new(RawSource::from_sidecar(Sidecar {
-            path: path.to_path_buf(),
-            data: DataFiles::One(path.to_path_buf()),
-            dims,
-            dtype,
-            endian,
-            header_bytes: skip,
-            grid,
-            rescale,
-            orientation: meta.orientation,
-        })?), notes)
+        noted(
+            Box::new(RawSource::from_sidecar(Sidecar {
+                path: path.to_path_buf(),
+                data: DataFiles::One(path.to_path_buf()),
+                dims,
+                dtype,
+                endian,
+                header_bytes: skip,
+                grid,
+                rescale,
+                orientation: meta.orientation,
+            })?),
+            notes,
+        )
     }
 }
 
