@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Fuzzes cdvol with the proptest targets of tests/fuzz.rs: the packed-file
-# reader (mutated files opened, inspected, rendered, exported) and the
-# traversal (random grids and rays from arbitrary f64 bit patterns).
+# reader (mutated files opened, inspected, rendered, exported), the
+# traversal (random grids and rays from arbitrary f64 bit patterns) and
+# the input readers (fuzz_readers_*: mutated NRRD, NIfTI, raw stack
+# sidecar and DICOM inputs opened and read slice by slice).
 #
 #   tools/fuzz.sh [SECONDS]       # default 300
 #
@@ -56,6 +58,7 @@ deadline=$((start + budget))
 runs=0
 reader=0
 traversal=0
+inputs=0
 failed=""
 refused=0
 num() { sed -n "s/.*$1.*/\\1/p" "$2" | head -n 1; }
@@ -73,13 +76,16 @@ while [ "$(date +%s)" -lt "$deadline" ]; do
     t=$(sed -n 's/^cdvol-fuzz: fuzz::fuzz_traversal: \([0-9]*\) cases$/\1/p' "$log" | head -n 1)
     reader=$((reader + ${r:-0}))
     traversal=$((traversal + ${t:-0}))
+    for i in $(sed -n 's/^cdvol-fuzz: fuzz::fuzz_readers_[a-z]*: \([0-9]*\) cases$/\1/p' "$log"); do
+        inputs=$((inputs + i))
+    done
     a=$(num 'fuzz_traversal: \([0-9]*\) grids refused' "$log")
     refused=$((refused + ${a:-0}))
     if [ $rc -ne 0 ]; then
         case $rc in
         124) failed="run with PROPTEST_RNG_SEED=$seed hung (timeout)" ;;
         101) failed="run with PROPTEST_RNG_SEED=$seed failed" ;;
-        *) failed="run with PROPTEST_RNG_SEED=$seed crashed (exit $rc; the input of an aborted reader case is left in $CARGO_TARGET_DIR/tmp/cdvol-fuzz-reader-*/case.cdv)" ;;
+        *) failed="run with PROPTEST_RNG_SEED=$seed crashed (exit $rc; the input of an aborted case is left in $CARGO_TARGET_DIR/tmp/cdvol-fuzz-*/: case.cdv of the packed reader, the files of an input reader)" ;;
         esac
         echo "fuzz: $failed; log: $log"
         grep -E "^(Test failed|minimal failing input|thread .* panicked)" "$log" | head -n 5
@@ -90,7 +96,7 @@ done
 elapsed=$(($(date +%s) - start))
 after=$(sum_of "$reg")
 
-echo "fuzz: $runs runs in ${elapsed} s: $reader reader cases, $traversal traversal cases ($((reader + traversal)) in all)"
+echo "fuzz: $runs runs in ${elapsed} s: $reader packed-reader cases, $traversal traversal cases, $inputs input-reader cases ($((reader + traversal + inputs)) in all)"
 echo "fuzz: $refused traversal cases had grids beyond MAX_COORD_MM (refused, as prep refuses them)"
 if [ "$before" != "$after" ]; then
     echo "fuzz: a failure was persisted to $reg (cargo test --test fuzz replays it)"
