@@ -127,7 +127,7 @@ enum Header {
 }
 
 fn header_of(path: &Path) -> Result<Header, InputError> {
-    guard::check_nesting(path, true)?;
+    guard::check_structure(path, true)?;
     let obj = guard::no_panic(path, "file", || {
         OpenFileOptions::new()
             .read_until(tags::PIXEL_DATA)
@@ -618,7 +618,7 @@ impl SliceSource for DicomSource {
 
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {
         let p = &self.files[z];
-        guard::check_nesting(p, false)?;
+        guard::check_structure(p, false)?;
         let obj: DefaultDicomObject = guard::no_panic(p, "file", || {
             dicom_object::open_file(p)
                 .map_err(|e| err(p, "file", format!("not a readable DICOM file: {e}")))

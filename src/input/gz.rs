@@ -44,6 +44,28 @@ pub struct GzLayout {
     pub skip_field: &'static str,
 }
 
+impl GzLayout {
+    /// The error of opening the compressed file: it names the header too
+    /// when the data are detached (an NRRD `data file`).
+    fn open_err(&self, what: &'static str, source: std::io::Error) -> InputError {
+        if self.file == self.header {
+            InputError::Io {
+                path: self.file.clone(),
+                what,
+                source,
+            }
+        } else {
+            InputError::DataFile {
+                path: self.file.clone(),
+                sidecar: self.header.clone(),
+                field: "data file".into(),
+                what,
+                source,
+            }
+        }
+    }
+}
+
 /// Most bytes one compressed byte of deflate data inflates to (a run of
 /// 258 bytes costs at least two bits, plus block overhead): the bound on
 /// the decompressed size of a gzip file.
@@ -202,18 +224,10 @@ impl GzSource {
 
     fn start(&self) -> Result<Stream, InputError> {
         let l = &self.layout;
-        let mut f = crate::fsutil::open_regular(&l.file).map_err(|source| InputError::Io {
-            path: l.file.clone(),
-            what: "cannot open gzip data file",
-            source,
-        })?;
-        std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(l.file_offset)).map_err(|source| {
-            InputError::Io {
-                path: l.file.clone(),
-                what: "cannot seek to the gzip data",
-                source,
-            }
-        })?;
+        let mut f = crate::fsutil::open_regular(&l.file)
+            .map_err(|source| l.open_err("cannot open gzip data file", source))?;
+        std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(l.file_offset))
+            .map_err(|source| l.open_err("cannot seek to the gzip data", source))?;
         let mut s = Stream::new(BufReader::with_capacity(1 << 20, f));
         let skipped = std::io::copy(&mut (&mut s).take(l.skip), &mut std::io::sink())
             .map_err(|e| self.gz_err(e))?;
@@ -236,18 +250,20 @@ impl GzSource {
         let is_issue = source
             .get_ref()
             .is_some_and(|e| e.downcast_ref::<GzIssue>().is_some());
+        let l = &self.layout;
         if is_issue {
+            let of = if l.file == l.header {
+                String::new()
+            } else {
+                format!(" (the data file of {})", l.header.display())
+            };
             return InputError::Field {
-                path: self.layout.file.clone(),
+                path: l.file.clone(),
                 field: "data".into(),
-                msg: source.to_string(),
+                msg: format!("{source}{of}"),
             };
         }
-        InputError::Io {
-            path: self.layout.file.clone(),
-            what: "cannot decompress gzip data",
-            source,
-        }
+        l.open_err("cannot decompress gzip data", source)
     }
 
     fn short(&self, z: usize) -> InputError {
@@ -339,11 +355,7 @@ fn check_inflated_size(
 ) -> Result<(), InputError> {
     let [nx, ny, nz] = meta.grid.dims();
     let len = std::fs::metadata(&layout.file)
-        .map_err(|source| InputError::Io {
-            path: layout.file.clone(),
-            what: "cannot open gzip data file",
-            source,
-        })?
+        .map_err(|source| layout.open_err("cannot open gzip data file", source))?
         .len();
     let compressed = len.saturating_sub(layout.file_offset);
     let most = compressed.saturating_mul(MAX_INFLATE_RATIO);

@@ -290,6 +290,9 @@ pub fn parse(path: &Path) -> Result<NrrdHeader, InputError> {
             ))
         }
         Some(v) => {
+            if v.trim().is_empty() {
+                return Err(bad("data file", "empty, expected a file name".into()));
+            }
             if v.starts_with("LIST") || v.split_whitespace().count() > 1 {
                 return Err(bad(
                     "data file",

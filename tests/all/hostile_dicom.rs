@@ -253,7 +253,10 @@ fn a_tiny_pixel_spacing_is_refused() {
     let files = series(&d.path().join("in"), 3, EXPLICIT_LE);
     set_ds(&files, tags::PIXEL_SPACING, "1e-300\\1e-300");
     let e = refused(d.path(), "s0", "PixelSpacing");
-    assert!(e.contains("1e-300, 1e-300, expected spacings >= 1e-6 mm"), "{e}");
+    assert!(
+        e.contains("1e-300, 1e-300, expected spacings >= 1e-6 mm"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -297,4 +300,19 @@ fn a_batch_prepares_the_good_series_beside_hostile_ones() {
         .collect();
     assert_eq!(prepared.len(), 1, "only the good series: {prepared:?}");
     assert!(prepared[0].contains("good"), "{prepared:?}");
+}
+
+/// Found by the fuzz target `fuzz_readers_dicom`: nine zero bytes before
+/// PixelData make dicom-parser read a garbage element length and allocate
+/// it (276 MB for a 2.7 KB file) before any error.
+#[test]
+fn a_length_past_the_end_of_the_file_is_refused_before_allocating() {
+    let d = tempfile::tempdir().unwrap();
+    let files = series(&d.path().join("in"), 3, EXPLICIT_LE);
+    let mut b = std::fs::read(&files[1]).unwrap();
+    let at = pixel_data_at(&b);
+    b.splice(at..at, [0u8; 9]);
+    std::fs::write(&files[1], b).unwrap();
+    let e = refused(d.path(), "s01.dcm", "element length");
+    assert!(e.contains("past the end of the file"), "{e}");
 }

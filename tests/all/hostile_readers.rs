@@ -588,3 +588,43 @@ fn a_nifti_slope_that_is_not_finite_is_read_as_no_rescale_with_a_warning() {
     assert!(o.status.success());
     assert!(!String::from_utf8_lossy(&o.stderr).contains("scl_slope"));
 }
+
+// ---------------------------------------------------------------------------
+// Found by the fuzz target fuzz_readers_nrrd: errors of detached gzip
+// data name the header, and an empty `data file` is refused by field
+// ---------------------------------------------------------------------------
+
+#[test]
+fn detached_gzip_errors_name_the_header() {
+    let d = tempfile::tempdir().unwrap();
+    // An empty `data file` value: before, "DIR/: cannot open gzip data
+    // file: a directory", naming neither the header nor the field.
+    attached(
+        d.path(),
+        "empty.nrrd",
+        &u8_fields(&[("encoding", "gzip"), ("data file", "")]),
+        &gzip(&samples(), flate2::Compression::default()),
+    );
+    refused_fast(
+        d.path(),
+        "empty.nrrd",
+        5.0,
+        &["empty.nrrd", "data file", "empty"],
+    );
+    // A corrupt deflate stream in a detached data file.
+    let mut z = gzip(&samples(), flate2::Compression::default());
+    let n = z.len();
+    for b in &mut z[10..n - 8] {
+        *b ^= 0x5a;
+    }
+    std::fs::write(d.path().join("bad.raw.gz"), z).unwrap();
+    std::fs::write(
+        d.path().join("bad.nhdr"),
+        nrrd(
+            &u8_fields(&[("encoding", "gzip"), ("data file", "bad.raw.gz")]),
+            false,
+        ),
+    )
+    .unwrap();
+    refused_fast(d.path(), "bad.nhdr", 5.0, &["bad.raw.gz", "bad.nhdr"]);
+}

@@ -10,6 +10,11 @@
 //!   reader, which keeps its open sequences in a `Vec`, skips values
 //!   without reading them into memory and never recurses, and refuses
 //!   nesting deeper than [`MAX_NESTING`] before dicom-object sees the file.
+//! - **Lengths.** dicom-parser allocates an element's value by the length
+//!   its header declares (`read_value_ob`), so nine bytes slipped in
+//!   before PixelData made a 2.7 KB file ask for 276 MB (found by the
+//!   fuzz target `fuzz_readers_dicom`). The same walk refuses a value whose
+//!   declared length runs past the end of the file.
 //! - **Decoder panics.** The RLE Lossless decoder of
 //!   dicom-transfer-syntax-registry 0.8 indexes the fragment by offsets
 //!   read from it and unwraps a short read, so garbage pixel data panics
@@ -35,6 +40,7 @@ use dicom_dictionary_std::tags;
 use dicom_object::{DefaultDicomObject, FileMetaTable};
 use dicom_parser::dataset::lazy_read::LazyDataSetReader;
 use dicom_parser::dataset::LazyDataToken;
+use dicom_parser::StatefulDecode;
 use dicom_transfer_syntax_registry::TransferSyntaxRegistry;
 
 use super::err;
@@ -47,20 +53,34 @@ use crate::input::InputError;
 /// parse a file nested this deep on such a thread).
 pub const MAX_NESTING: usize = 32;
 
-/// Refuses a file whose sequences nest deeper than [`MAX_NESTING`],
+/// Refuses a file whose sequences nest deeper than [`MAX_NESTING`], or
+/// one of whose values declares more bytes than the file has left,
 /// before dicom-object parses it. With `until_pixel_data`, the walk stops
 /// at the top-level PixelData (what a header read parses).
 ///
 /// A file this walk cannot read is left to dicom-object, which reads it
-/// with the same decoder and names the fault; only the depth is judged
-/// here.
-pub fn check_nesting(path: &Path, until_pixel_data: bool) -> Result<(), InputError> {
-    let file = crate::fsutil::open_regular(path).map_err(|source| InputError::Io {
+/// with the same decoder and names the fault; only depth and lengths are
+/// judged here.
+pub fn check_structure(path: &Path, until_pixel_data: bool) -> Result<(), InputError> {
+    let io = |source| InputError::Io {
         path: path.to_path_buf(),
         what: "cannot open",
         source,
-    })?;
+    };
+    let file = crate::fsutil::open_regular(path).map_err(io)?;
+    let file_len = file.metadata().map_err(io)?.len();
+    let past_end = |what: String, at: u64, len: u32| {
+        err(
+            path,
+            "element length",
+            format!(
+                "{what} declares {len} bytes at byte {at}, past the end of the file \
+                 ({file_len} bytes): a truncated or malformed file"
+            ),
+        )
+    };
     let mut f = BufReader::new(file);
+    check_meta(path, &mut f, file_len)?;
     if f.seek(SeekFrom::Start(128)).is_err() {
         return Ok(());
     }
@@ -91,9 +111,29 @@ pub fn check_nesting(path: &Path, until_pixel_data: bool) -> Result<(), InputErr
             | LazyDataToken::PixelSequenceStart
             | LazyDataToken::ItemStart { .. } => open += 1,
             LazyDataToken::SequenceEnd | LazyDataToken::ItemEnd => open = open.saturating_sub(1),
-            t @ (LazyDataToken::LazyValue { .. } | LazyDataToken::LazyItemValue { .. }) => {
+            LazyDataToken::LazyValue { header, decoder } => {
+                if let Some(len) = header.len.get() {
+                    let at = decoder.position();
+                    if at.saturating_add(len as u64) > file_len {
+                        let what = format!(
+                            "element ({:04X},{:04X})",
+                            header.tag.group(),
+                            header.tag.element()
+                        );
+                        return Err(past_end(what, at, len));
+                    }
+                }
+                let token = LazyDataToken::LazyValue { header, decoder };
                 // A value that cannot be skipped: dicom-object names it.
-                let Ok(()) = t.skip() else { return Ok(()) };
+                let Ok(()) = token.skip() else { return Ok(()) };
+            }
+            LazyDataToken::LazyItemValue { len, decoder } => {
+                let at = decoder.position();
+                if at.saturating_add(len as u64) > file_len {
+                    return Err(past_end("an item".into(), at, len));
+                }
+                let token = LazyDataToken::LazyItemValue { len, decoder };
+                let Ok(()) = token.skip() else { return Ok(()) };
             }
             _ => {}
         }
@@ -107,6 +147,89 @@ pub fn check_nesting(path: &Path, until_pixel_data: bool) -> Result<(), InputErr
                 ),
             ));
         }
+    }
+    Ok(())
+}
+
+/// Largest file meta group (group 0002) read: a few hundred bytes in
+/// practice.
+const MAX_META: u64 = 1 << 20;
+
+/// Walks the file meta group (explicit VR little endian after the
+/// 128-byte preamble and `DICM`) and refuses an element whose length runs
+/// past the end of the file: dicom-object reserves each meta element's
+/// declared length before reading it. A file that does not start like
+/// DICOM is left to dicom-object.
+fn check_meta(
+    path: &Path,
+    f: &mut BufReader<std::fs::File>,
+    file_len: u64,
+) -> Result<(), InputError> {
+    use std::io::Read;
+    let mut head = Vec::new();
+    if f.seek(SeekFrom::Start(0)).is_err()
+        || f.by_ref().take(MAX_META).read_to_end(&mut head).is_err()
+        || head.len() < 132
+        || &head[128..132] != b"DICM"
+    {
+        return Ok(());
+    }
+    let mut at = 132usize;
+    while at + 8 <= head.len() && head[at..at + 2] == [2, 0] {
+        let vr = &head[at + 4..at + 6];
+        // The VRs with a 2-byte length; dicom-rs reads any other (an
+        // unknown one as UN) with 2 reserved bytes and a 4-byte length.
+        let long = !matches!(
+            vr,
+            b"AE"
+                | b"AS"
+                | b"AT"
+                | b"CS"
+                | b"DA"
+                | b"DS"
+                | b"DT"
+                | b"FL"
+                | b"FD"
+                | b"IS"
+                | b"LO"
+                | b"LT"
+                | b"PN"
+                | b"SH"
+                | b"SL"
+                | b"SS"
+                | b"ST"
+                | b"TM"
+                | b"UI"
+                | b"UL"
+                | b"US"
+        );
+        let (len, value_at) = if long {
+            if at + 12 > head.len() {
+                break;
+            }
+            let mut b = [0u8; 4];
+            b.copy_from_slice(&head[at + 8..at + 12]);
+            (u32::from_le_bytes(b) as u64, at + 12)
+        } else {
+            (
+                u16::from_le_bytes([head[at + 6], head[at + 7]]) as u64,
+                at + 8,
+            )
+        };
+        let end = value_at as u64 + len;
+        if end > file_len || end > MAX_META {
+            return Err(err(
+                path,
+                "file meta",
+                format!(
+                    "element (0002,{:02X}{:02X}) declares {len} bytes at byte {value_at}, past \
+                     the end of the file ({file_len} bytes) or of a {MAX_META}-byte meta group",
+                    head[at + 3],
+                    head[at + 2]
+                ),
+            ));
+        }
+        at = end as usize;
     }
     Ok(())
 }
