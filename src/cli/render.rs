@@ -411,7 +411,7 @@ impl RenderArgs {
     /// top.
     pub fn look(&self, tf_text: Option<&str>) -> anyhow::Result<CompositeLook> {
         let mut look = match (self.tf.as_deref().zip(tf_text), self.mode) {
-            (Some((tf, text)), ModeArg::Composite) => look_from_text(tf, text)?,
+            (Some((tf, text)), ModeArg::Composite) => CompositeLook::from_text(tf, text)?,
             (None, ModeArg::Composite) => CompositeLook {
                 shade: self.preset()?.is_some_and(|p| p.shade),
                 ..CompositeLook::default()
@@ -522,29 +522,6 @@ impl RenderArgs {
             scale_bar: self.scale_bar,
         })
     }
-}
-
-/// The look keys of transfer function file `path` from its text `text`
-/// (read once), checked as [`CompositeLook::load`] checks them.
-fn look_from_text(
-    path: &std::path::Path,
-    text: &str,
-) -> Result<CompositeLook, cdvol::classify::TfError> {
-    let e = |msg: String| cdvol::classify::TfError {
-        path: path.to_path_buf(),
-        msg,
-    };
-    if let Some(key) = cdvol::json::duplicate_key(text) {
-        return Err(e(format!("{key}: duplicate key, expected each key once")));
-    }
-    let look: CompositeLook = serde_json::from_str(text).map_err(|x| {
-        e(format!(
-            "expected optional \"shade\": true|false and \"gradient_opacity\": \
-             [{{\"gradient\", \"opacity\"}}, ...]: {x}"
-        ))
-    })?;
-    look.check().map_err(|x| e(x.to_string()))?;
-    Ok(look)
 }
 
 /// The `cdvol render` flag of a library field name, for error messages.

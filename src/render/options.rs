@@ -143,15 +143,25 @@ impl CompositeLook {
     /// The look keys of transfer function file `path` (absent keys give
     /// no shading and no gradient opacity), checked.
     pub fn load(path: &std::path::Path) -> Result<CompositeLook, crate::classify::TfError> {
+        CompositeLook::from_text(path, &crate::classify::read_tf_text(path)?)
+    }
+
+    /// [`CompositeLook::load`] of `text`, the contents of transfer
+    /// function file `path` (read once by
+    /// [`read_tf_text`](crate::classify::read_tf_text): a FIFO or `<(...)`
+    /// can be read only once).
+    pub fn from_text(
+        path: &std::path::Path,
+        text: &str,
+    ) -> Result<CompositeLook, crate::classify::TfError> {
         let e = |msg: String| crate::classify::TfError {
             path: path.to_path_buf(),
             msg,
         };
-        let text = std::fs::read_to_string(path).map_err(|x| e(format!("cannot read: {x}")))?;
-        if let Some(key) = crate::json::duplicate_key(&text) {
+        if let Some(key) = crate::json::duplicate_key(text) {
             return Err(e(format!("{key}: duplicate key, expected each key once")));
         }
-        let look: CompositeLook = serde_json::from_str(&text).map_err(|x| {
+        let look: CompositeLook = serde_json::from_str(text).map_err(|x| {
             e(format!(
                 "expected optional \"shade\": true|false and \"gradient_opacity\": \
                  [{{\"gradient\", \"opacity\"}}, ...]: {x}"

@@ -6,33 +6,10 @@
 
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
 
-use crate::common::cdvol;
-
-/// Runs `c` with a time limit: a command that hangs is killed and the
-/// test fails naming it.
-fn run(c: &mut Command, limit: Duration) -> Output {
-    let mut child = c
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    loop {
-        if child.try_wait().unwrap().is_some() {
-            return child.wait_with_output().unwrap();
-        }
-        if t0.elapsed() > limit {
-            child.kill().unwrap();
-            let _ = child.wait();
-            panic!("{c:?} still running after {limit:?}: it hangs");
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
+use crate::common::{cdvol, run};
 
 fn ok(c: &mut Command) -> String {
     let o = run(c, Duration::from_secs(60));

@@ -12,10 +12,7 @@ use std::path::Path;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
-use cdvol::progress::NoProgress;
-use cdvol::tools::phantom;
-
-use crate::common;
+use crate::serve::head;
 
 /// A running `cdvol serve` under a 4 GiB address-space limit, killed
 /// when dropped.
@@ -88,28 +85,10 @@ fn exchange(addr: &str, request: &[u8]) -> (u16, String) {
     (status, text)
 }
 
-fn packed(dir: &Path) -> std::path::PathBuf {
-    let side = dir.join("head.json");
-    phantom::ct(
-        &side,
-        &phantom::CtOptions {
-            dims: [64, 60, 48],
-            dtype: phantom::CtDtype::I16,
-            seed: 2,
-            ..Default::default()
-        },
-        &NoProgress,
-    )
-    .unwrap();
-    let out = dir.join("head.cdv");
-    common::packed(&side, &out, 100.0);
-    out
-}
-
 #[test]
 fn declared_bodies_are_refused_without_reading_them() {
     let d = tempfile::tempdir().unwrap();
-    let mut srv = Serve::start(&packed(d.path()));
+    let mut srv = Serve::start(&head(d.path()));
     for (what, req) in [
         (
             "Content-Length: 99999999999",
@@ -140,7 +119,7 @@ fn declared_bodies_are_refused_without_reading_them() {
 #[test]
 fn oversized_and_malformed_heads_are_refused() {
     let d = tempfile::tempdir().unwrap();
-    let mut srv = Serve::start(&packed(d.path()));
+    let mut srv = Serve::start(&head(d.path()));
     let long = format!(
         "GET /api/status HTTP/1.1\r\nHost: localhost\r\nX-Pad: {}\r\n\r\n",
         "a".repeat(64 << 10)
@@ -161,7 +140,7 @@ fn oversized_and_malformed_heads_are_refused() {
 #[test]
 fn status_answers_beside_idle_connections_and_a_flood_of_renders() {
     let d = tempfile::tempdir().unwrap();
-    let mut srv = Serve::start(&packed(d.path()));
+    let mut srv = Serve::start(&head(d.path()));
     // Connections that send half a head and wait.
     let idle: Vec<TcpStream> = (0..20)
         .map(|_| {
@@ -199,7 +178,7 @@ fn status_answers_beside_idle_connections_and_a_flood_of_renders() {
 #[test]
 fn too_many_connections_get_503_and_the_server_lives() {
     let d = tempfile::tempdir().unwrap();
-    let mut srv = Serve::start(&packed(d.path()));
+    let mut srv = Serve::start(&head(d.path()));
     let held: Vec<TcpStream> = (0..cdvol::serve::MAX_CONNECTIONS)
         .map(|_| TcpStream::connect(&srv.addr).unwrap())
         .collect();

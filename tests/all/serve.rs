@@ -110,7 +110,7 @@ fn get_as(addr: &str, target: &str, host: &str) -> Reply {
 
 /// The CT-like phantom prepared at iso 100 (so the bone preset's iso
 /// value, 226, renders from it), in `dir`.
-fn head(dir: &Path) -> PathBuf {
+pub(super) fn head(dir: &Path) -> PathBuf {
     let side = dir.join("head.json");
     phantom::ct(
         &side,

@@ -440,3 +440,27 @@ pub fn rewrite_header(bytes: &[u8], f: impl Fn(&mut serde_json::Value)) -> Vec<u
     out.extend_from_slice(&foot[28..40]);
     out
 }
+
+/// Runs `c` with a time limit: a command that hangs (reading a FIFO, say)
+/// is killed and the test fails naming it.
+pub fn run(c: &mut Command, limit: std::time::Duration) -> std::process::Output {
+    use std::process::Stdio;
+    let mut child = c
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    loop {
+        if child.try_wait().unwrap().is_some() {
+            return child.wait_with_output().unwrap();
+        }
+        if t0.elapsed() > limit {
+            child.kill().unwrap();
+            let _ = child.wait();
+            panic!("{c:?} still running after {limit:?}: it hangs");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+}
