@@ -19,8 +19,8 @@
 //! two slices at the same position; multi-frame or colour images; pixel
 //! data the decoder cannot decode (the transfer syntax is named); an image
 //! of the series without ImagePositionPatient (it would leave a gap);
-//! sequences nested deeper than [`guard::MAX_NESTING`], malformed RLE
-//! headers and any panic inside dicom-rs (module [`guard`]); a slice
+//! sequences nested deeper than [`MAX_NESTING`], malformed RLE
+//! headers and any panic inside dicom-rs (the private module `guard`); a slice
 //! larger than the memory limit; a PixelSpacing below
 //! [`MIN_SPACING_MM`](crate::grid::MIN_SPACING_MM) and a rescale that
 //! is not finite or has slope 0.
