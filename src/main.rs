@@ -10,7 +10,6 @@ use std::process::ExitCode;
 use std::sync::Mutex;
 
 use anyhow::{bail, Result};
-use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use cdvol::export::export;
@@ -20,7 +19,7 @@ use cdvol::info::Info;
 use cdvol::prep::{prep, PrepReport};
 use cdvol::progress::{NoProgress, Progress};
 use cdvol::tools::phantom;
-use cli::{Cli, Command, PhantomCmd};
+use cli::{Command, PhantomCmd};
 
 /// Brick planes come from a pool of 2 MiB huge-page chunks, reused from
 /// brick to brick; everything else from the system allocator
@@ -75,7 +74,7 @@ fn main() -> ExitCode {
     cdvol::memory::bound_heap_fragmentation();
     #[cfg(target_os = "linux")]
     ALLOC.register();
-    let cli = Cli::parse();
+    let cli = cli::parse();
     let bars = Bars {
         bar: Mutex::new(None),
     };

@@ -4,7 +4,7 @@
 //! Split by command group: [`render`] (render and assemble), [`prep`]
 //! (prep and prep-batch) and [`tools`] (the other commands).
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod prep;
 mod render;
@@ -75,4 +75,23 @@ pub fn mem_limit(mib: u64) -> u64 {
         eprintln!("cdvol: warning: {w}");
     }
     bytes
+}
+
+/// The command line as clap builds it from [`Cli`], with negative numbers
+/// taken as values by every option of every command: `--iso -700` as
+/// `--iso=-700` (Hounsfield units are mostly negative). Options whose
+/// values are lists (`--view -30,20`) allow hyphen values themselves.
+pub fn command() -> clap::Command {
+    fn negative_numbers(c: clap::Command) -> clap::Command {
+        c.allow_negative_numbers(true)
+            .mut_subcommands(negative_numbers)
+    }
+    negative_numbers(Cli::command())
+}
+
+/// Parses the process's arguments with [`command`]; on an error or
+/// `--help`, prints and exits as clap does.
+pub fn parse() -> Cli {
+    let matches = command().get_matches();
+    Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
 }

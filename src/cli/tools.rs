@@ -303,7 +303,7 @@ pub struct SpheresArgs {
     pub seed: u64,
     /// Spacing in mm: one spec for all axes or three, comma-separated;
     /// "A:B" varies the gap linearly from A to B (rectilinear).
-    #[arg(long, default_value = "1")]
+    #[arg(long, default_value = "1", allow_hyphen_values = true)]
     pub spacing: String,
 }
 
@@ -353,7 +353,8 @@ pub struct CtArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Samples per axis, NX,NY,NZ.
-    #[arg(long, default_value = "256,256,160", value_parser = parse_dims)]
+    #[arg(long, default_value = "256,256,160", value_parser = parse_dims,
+          allow_hyphen_values = true)]
     pub dims: [usize; 3],
     /// Sample type: i16 in HU, or u16 = HU + 1024 with a rescale.
     #[arg(long, value_enum, default_value = "i16")]

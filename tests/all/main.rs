@@ -14,9 +14,16 @@
 
 mod common;
 
+// The binary's command line, compiled here so that a test can walk every
+// option clap knows (cli_numbers).
+#[path = "../../src/cli/mod.rs"]
+#[allow(dead_code, unused_imports)]
+mod cli;
+
 mod bad_input;
 mod batch;
 mod byte_planes;
+mod cli_numbers;
 mod composite;
 mod cull;
 mod data_extremes;
