@@ -55,6 +55,7 @@ mod reference;
 mod render;
 mod scene;
 mod serve;
+mod shadow_acne;
 mod shard;
 mod template;
 mod traverse;
