@@ -247,6 +247,29 @@ pub enum Classification {
     TransferFunction { tf: TransferFunction },
 }
 
+/// For people: `iso 300` or `transfer function of 5 points, opaque
+/// somewhere in 100 .. 3071`.
+impl std::fmt::Display for Classification {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Classification::Iso { iso } => write!(f, "iso {iso}"),
+            Classification::TransferFunction { tf } => {
+                let opaque: Vec<f64> = tf
+                    .points
+                    .iter()
+                    .filter(|p| p.opacity > 0.0)
+                    .map(|p| p.value)
+                    .collect();
+                write!(f, "transfer function of {} points", tf.points.len())?;
+                match (opaque.first(), opaque.last()) {
+                    (Some(a), Some(b)) => write!(f, ", opaque at points {a} .. {b}"),
+                    _ => write!(f, ", transparent everywhere"),
+                }
+            }
+        }
+    }
+}
+
 impl Classification {
     /// Classifies a cell from the min and max of its vertex values (NaN
     /// excluded; both NaN when all 8 are NaN).

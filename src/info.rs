@@ -38,6 +38,9 @@ pub struct Info {
     pub storage: String,
     pub codes: CodeEncoding,
     pub classification: serde_json::Value,
+    /// The classification in words, for the text form.
+    #[serde(skip)]
+    pub classification_text: String,
     /// What renders from this file without another prep (issue 16).
     pub envelope: EnvelopeInfo,
     pub brick_size: u32,
@@ -100,6 +103,7 @@ impl Info {
             storage: h.storage.name().into(),
             codes: h.codes,
             classification: serde_json::to_value(&h.classification).unwrap_or_default(),
+            classification_text: h.classification.to_string(),
             envelope: EnvelopeInfo::of(&h.classification),
             brick_size: h.brick_size,
             bricks: h.bricks,
@@ -164,7 +168,7 @@ impl Info {
             );
         }
         let _ = writeln!(o, "samples      {} stored as {}", self.dtype, self.storage);
-        let _ = writeln!(o, "classify     {}", self.classification);
+        let _ = writeln!(o, "classify     {}", self.classification_text);
         let e = &self.envelope;
         let _ = writeln!(o, "envelope     {}", e.statement);
         let list = |v: &[String]| {
@@ -184,7 +188,7 @@ impl Info {
             "             surface/--iso:  {}",
             list(&e.surface_presets)
         );
-        let _ = writeln!(o, "codes        {:?}", self.codes);
+        let _ = writeln!(o, "codes        {}", self.codes);
         let _ = writeln!(
             o,
             "bricks       {} ({} x {} x {} of {}^3 cells), {} uniform (no payload)",

@@ -77,6 +77,21 @@ pub enum CodeEncoding {
     NanPayload { max: u32 },
 }
 
+/// For people: `integer words base+0 .. base+max (codes 0 .. max)` or
+/// `NaN payloads (codes 0 .. max)`.
+impl std::fmt::Display for CodeEncoding {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            CodeEncoding::IntRange { base, max } => write!(
+                f,
+                "integer words {base} .. {} (codes 0 .. {max})",
+                base.saturating_add(max as i64)
+            ),
+            CodeEncoding::NanPayload { max } => write!(f, "NaN payloads (codes 0 .. {max})"),
+        }
+    }
+}
+
 impl CodeEncoding {
     /// Largest code the file can hold (codes saturate there).
     pub fn max_code(&self) -> u32 {

@@ -621,7 +621,7 @@ fn check_header(h: &Header) -> Result<(), HeaderInvalid> {
     if !storage_ok {
         return bad(
             "codes".into(),
-            format!("{:?}", h.codes),
+            h.codes.to_string(),
             format!("an encoding that fits storage {}", h.storage.name()),
         );
     }

@@ -196,10 +196,12 @@ impl ViewRequest {
     /// mode, scene and window.
     pub fn options(&self, cache_bytes: usize) -> Result<RenderOptions, RequestError> {
         let preset = match &self.preset {
-            Some(p) => Some(crate::presets::get(p).map_err(|e| RequestError::Bad {
-                name: "preset",
-                value: p.clone(),
-                expected: e.to_string(),
+            Some(p) => Some(crate::presets::get(p).map_err(|_| {
+                bad(
+                    "preset",
+                    p,
+                    format!("a preset: {}", crate::presets::names()),
+                )
             })?),
             None => None,
         };
@@ -318,12 +320,14 @@ impl ViewRequest {
         RequestError::Bad {
             name: "view",
             value: format!(
-                "{} az={} el={} frame={:?} pan={:?}",
+                "{} az={} el={}{}{}",
                 self.view.map_or("orbit", |v| v.name()),
                 self.az_deg,
                 self.el_deg,
-                self.frame_mm,
+                self.frame_mm
+                    .map_or(String::new(), |f| format!(" frame={f}")),
                 self.pan_mm
+                    .map_or(String::new(), |[x, y]| format!(" pan={x},{y}"))
             ),
             expected: why,
         }
@@ -483,9 +487,13 @@ fn one_of(name: &'static str, v: &str, allowed: &[&str]) -> Result<String, Reque
 }
 
 fn preset(v: &str) -> Result<String, RequestError> {
-    crate::presets::get(v)
-        .map(|p| p.name)
-        .map_err(|e| bad("preset", v, e.to_string()))
+    crate::presets::get(v).map(|p| p.name).map_err(|_| {
+        bad(
+            "preset",
+            v,
+            format!("a preset: {}", crate::presets::names()),
+        )
+    })
 }
 
 fn hit(v: &str) -> Result<HitMethod, RequestError> {

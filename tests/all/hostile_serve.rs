@@ -16,13 +16,13 @@ use crate::serve::head;
 
 /// A running `cdvol serve` under a 4 GiB address-space limit, killed
 /// when dropped.
-struct Serve {
+pub(super) struct Serve {
     child: Child,
-    addr: String,
+    pub(super) addr: String,
 }
 
 impl Serve {
-    fn start(file: &Path) -> Serve {
+    pub(super) fn start(file: &Path) -> Serve {
         let mut c = std::process::Command::new("sh");
         c.arg("-c")
             .arg(format!(
@@ -48,7 +48,7 @@ impl Serve {
     }
 
     /// The server is still running and answers a status request.
-    fn alive(&mut self, after: &str) {
+    pub(super) fn alive(&mut self, after: &str) {
         assert!(
             self.child.try_wait().unwrap().is_none(),
             "the server died after {after}"
@@ -70,7 +70,7 @@ impl Drop for Serve {
 
 /// Sends `request`, then reads until the server closes (or 10 s): the
 /// status code and the whole response.
-fn exchange(addr: &str, request: &[u8]) -> (u16, String) {
+pub(super) fn exchange(addr: &str, request: &[u8]) -> (u16, String) {
     let mut s = TcpStream::connect(addr).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
     let _ = s.write_all(request);

@@ -47,6 +47,7 @@ mod hostile_readers;
 mod hostile_serve;
 mod layout;
 mod mip;
+mod no_debug_text;
 mod normals;
 mod orient;
 mod prep;
