@@ -312,7 +312,7 @@ def main():
         write(f"batch/in/rle/s{k}.dcm", dicom(k, ts="1.2.840.10008.1.2.5", pixel=rle_pixel()).replace(b"1.2.3.4\0", b"1.2.3.5\0"))
         write(f"batch/in/nest/s{k}.dcm", dicom(k, extra=nested(100_000) if k == 0 else b"").replace(b"1.2.3.4\0", b"1.2.3.6\0"))
     case("batch", "prep-batch: a good series beside RLE garbage and deep nesting",
-         "prep-batch -q in -o out --iso 100 --brick 8", ["out/good.cdv", "out/batch.json", "out/rle.cdv", "out/nest.cdv"])
+         "prep-batch -q in -o out --iso=-1 --brick 8", ["out/good.cdv", "out/batch.json", "out/rle.cdv", "out/nest.cdv"])
 
     # NRRD
     for what, size in [("2147483648", "2147483648 2 2"), ("2^36", "68719476736 2 2"),

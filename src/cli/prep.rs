@@ -90,6 +90,10 @@ pub struct PrepSettings {
     /// refused before it allocates.
     #[arg(long, value_name = "MIB")]
     pub mem_limit: Option<u64>,
+    /// Write the file even when the classification selects no cell (it
+    /// renders empty); without it such a prep fails before writing.
+    #[arg(long)]
+    pub allow_empty: bool,
 }
 
 impl PrepSettings {
@@ -147,6 +151,7 @@ impl PrepSettings {
             auto_envelope: false,
             mem_limit: self.mem_limit.map(crate::cli::mem_limit),
             format_version: self.format_version,
+            allow_empty: self.allow_empty,
         };
         opts.check().map_err(prep_error)?;
         Ok(opts)

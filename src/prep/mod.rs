@@ -61,6 +61,11 @@ pub struct PrepOptions {
     /// [`FORMAT_VERSION`], the default): version 2 is read by cdvol
     /// builds before byte planes (`prep --format-version 2`).
     pub format_version: u32,
+    /// Write a file whose classification selects no cell (it renders
+    /// empty) instead of refusing it with [`PrepError::Empty`]. The
+    /// library's default is true; `cdvol prep` and `prep-batch` refuse
+    /// unless `--allow-empty` is given.
+    pub allow_empty: bool,
 }
 
 impl PrepOptions {
@@ -77,6 +82,7 @@ impl PrepOptions {
             mem_limit: None,
             auto_envelope: false,
             format_version: FORMAT_VERSION,
+            allow_empty: true,
         }
     }
 
@@ -287,6 +293,18 @@ pub enum PrepError {
         ny: u64,
         limit: String,
     },
+    /// The classification selects no cell: the file would render empty.
+    /// Refused after the first pass, before anything is written, unless
+    /// [`PrepOptions::allow_empty`].
+    #[error(
+        "{source_desc}: {warning}; nothing written. Choose a classification inside the data \
+         range (`cdvol info` or `cdvol histogram` of a packed file shows it), or pass \
+         --allow-empty to write the empty file"
+    )]
+    Empty {
+        source_desc: String,
+        warning: SelectionWarning,
+    },
     /// A [`PrepOptions`] field is out of range: the field, its value, and
     /// what was expected.
     #[error("{field} {value}: {msg}")]
@@ -491,6 +509,20 @@ pub fn prep(
     summary.raw_min = range.map(|r| r.0);
     summary.raw_max = range.map(|r| r.1);
     summary.histogram = values.finish(meta.rescale);
+    if summary.one_cells == 0 && !opts.allow_empty {
+        return Err(PrepError::Empty {
+            source_desc: meta.origin_desc.clone(),
+            warning: SelectionWarning {
+                one_cells: 0,
+                cells: summary.cells,
+                classification: describe_classification(cls),
+                range: range.map(|(a, b)| {
+                    let (a, b) = (meta.rescale.apply(a), meta.rescale.apply(b));
+                    [a.min(b), a.max(b)]
+                }),
+            },
+        });
+    }
     let (storage, codes) = choose_encoding(meta.dtype, range);
     // Pass 1's slice buffers are not needed any more: free them before
     // pass 2 allocates its slabs (docs/RELIABILITY.md, "Memory").

@@ -46,7 +46,16 @@ spacings: 0.9 0.9 2\nendian: little\nencoding: gzip\n\n"
 
 fn batch(input: &Path, out: &Path, extra: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_cdvol"))
-        .args(["prep-batch", "-q", "--iso", "300", "--brick", "8"])
+        // --allow-empty: some of the mixed inputs have no sample at 300.
+        .args([
+            "prep-batch",
+            "-q",
+            "--iso",
+            "300",
+            "--brick",
+            "8",
+            "--allow-empty",
+        ])
         .arg(input)
         .arg("-o")
         .arg(out)

@@ -269,8 +269,33 @@ fn histogram_plots_png_and_svg_and_refuses_other_extensions() {
 fn prep_warns_when_the_iso_selects_no_cells_or_nearly_all() {
     let ct = real_ct();
     let dir = tempfile::tempdir().unwrap();
+    // No cell: refused before anything is written (issue 51, item 5).
     let out = cdvol()
         .args(["prep", "--iso", "5000"])
+        .arg(&ct)
+        .arg("-o")
+        .arg(dir.path().join("empty.cdv"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    for w in [
+        "iso 5000 selects no cells",
+        "the data range is -1024 .. 2986",
+        "nothing written",
+        "--allow-empty",
+    ] {
+        assert!(err.contains(w), "{w:?} not in {err}");
+    }
+    assert!(!dir.path().join("empty.cdv").exists());
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "no temporary left"
+    );
+    // --allow-empty writes it, with the warning.
+    let out = cdvol()
+        .args(["prep", "--iso", "5000", "--allow-empty"])
         .arg(&ct)
         .arg("-o")
         .arg(dir.path().join("empty.cdv"))
@@ -335,7 +360,7 @@ fn prep_batch_reports_inputs_whose_classification_is_empty() {
     write_stack(&input, "mr", [16, 16, 10], "u8", &mr, ["1", "1", "1"], "");
     let out = dir.path().join("out");
     let run = cdvol()
-        .args(["prep-batch", "-q", "--iso", "300"])
+        .args(["prep-batch", "-q", "--iso", "300", "--allow-empty"])
         .arg(&input)
         .arg("-o")
         .arg(&out)

@@ -26,7 +26,7 @@ fn ct(path: &Path, dims: [usize; 3]) {
 
 fn batch(input: &Path, out: &Path, extra: &[&str]) -> Output {
     let o = Command::new(env!("CARGO_BIN_EXE_cdvol"))
-        .args(["prep-batch", "-q"])
+        .args(["prep-batch", "-q", "--allow-empty"])
         .arg(input)
         .arg("-o")
         .arg(out)

@@ -39,7 +39,10 @@ fn a_prep_past_the_memory_limit_is_refused_with_the_figure() {
     assert!(!d.path().join("huge.cdv").exists());
 
     // A small prep under an explicit limit of 1 MiB: refused, naming it.
-    std::fs::write(d.path().join("s.raw"), vec![0u8; 16 * 16 * 4]).unwrap();
+    // One sample at the iso value, so the classification selects cells.
+    let mut s = vec![0u8; 16 * 16 * 4];
+    s[16 * 16 + 16 + 1] = 9;
+    std::fs::write(d.path().join("s.raw"), s).unwrap();
     std::fs::write(
         d.path().join("s.json"),
         r#"{"data": "s.raw", "dims": [16, 16, 4], "dtype": "u8", "x": 1, "y": 1, "z": 1}"#,

@@ -104,7 +104,7 @@ fn run_limited(dir: &Path, args: &str) -> (Output, Duration) {
 /// Prep of `dir/in` must fail with exit code 1 (not a signal, not a
 /// panic), quickly, naming `file` and `field`, and write nothing.
 fn refused(dir: &Path, file: &str, field: &str) -> String {
-    let (out, took) = run_limited(dir, "prep -q in -o out.cdv --iso 100");
+    let (out, took) = run_limited(dir, "prep -q in -o out.cdv --iso=-995");
     let e = String::from_utf8_lossy(&out.stderr).into_owned();
     assert_eq!(
         out.status.code(),
@@ -170,7 +170,7 @@ fn nesting_up_to_the_bound_is_read() {
     for f in &files {
         nest(f, cdvol::input::dicom::MAX_NESTING);
     }
-    let (out, _) = run_limited(d.path(), "prep -q in -o out.cdv --iso 100");
+    let (out, _) = run_limited(d.path(), "prep -q in -o out.cdv --iso=-995");
     assert!(
         out.status.success(),
         "{}",
@@ -271,7 +271,7 @@ fn a_batch_prepares_the_good_series_beside_hostile_ones() {
     nest(&nested[0], 100_000);
     let (out, took) = run_limited(
         d.path(),
-        "prep-batch -q in -o out --iso 100 --brick 8 --jobs 2",
+        "prep-batch -q in -o out --iso=-995 --brick 8 --jobs 2",
     );
     let e = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "some inputs failed: {e}");
