@@ -128,14 +128,44 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
         }
         Command::PrepBatch(a) => prep_batch(a, progress)?,
         Command::Info(a) => {
-            let vol = PackedVolume::open(&a.file)?;
-            let info = Info::of(&vol);
-            let mut out = std::io::stdout().lock();
-            if a.json {
-                serde_json::to_writer_pretty(&mut out, &info)?;
-                writeln!(out)?;
+            use cdvol::input::kind::{sniff, Kind};
+            let kind = if a.file.is_dir() {
+                Some("DICOM series")
             } else {
-                write!(out, "{}", info.to_text())?;
+                match sniff(&a.file) {
+                    Ok(Kind::Packed) | Err(_) => None,
+                    Ok(k) => Some(k.name()),
+                }
+            };
+            let mut out = std::io::stdout().lock();
+            match kind {
+                // A packed file (or one that cannot be read: its error).
+                None => {
+                    let vol = PackedVolume::open(&a.file)?;
+                    let info = Info::of(&vol);
+                    if a.json {
+                        serde_json::to_writer_pretty(&mut out, &info)?;
+                        writeln!(out)?;
+                    } else {
+                        write!(out, "{}", info.to_text())?;
+                    }
+                }
+                // An input, before prep.
+                Some(kind) => {
+                    let src = cdvol::input::open(&a.file).map_err(cli::input_error)?;
+                    let info = cdvol::input::describe::InputInfo::of(
+                        &a.file,
+                        kind,
+                        src.as_ref(),
+                        progress,
+                    )?;
+                    if a.json {
+                        serde_json::to_writer_pretty(&mut out, &info)?;
+                        writeln!(out)?;
+                    } else {
+                        write!(out, "{}", info.to_text())?;
+                    }
+                }
             }
         }
         Command::Histogram(a) => {

@@ -38,7 +38,7 @@ pub enum Command {
     /// Prepare every volume under a directory (DICOM series, NRRD, NIfTI,
     /// raw sidecars) into OUT_DIR, resuming where a previous run stopped.
     PrepBatch(PrepBatchArgs),
-    /// Describe a packed file.
+    /// Describe a packed file, or an input before prep.
     Info(InfoArgs),
     /// Plot a packed file's value histogram (PNG or SVG, by the
     /// extension of -o) with the presets' value ranges and the file's

@@ -192,6 +192,9 @@ pub fn phantom_error(e: cdvol::tools::phantom::PhantomError) -> anyhow::Error {
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
+    /// A packed file, or an input before prep (a DICOM directory, NRRD,
+    /// NIfTI or raw-stack sidecar: its grid, sample type, orientation and
+    /// value range).
     pub file: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]

@@ -5,8 +5,10 @@
 //! of raw sample values at a time. Nothing downstream knows the file format.
 //! Today the raw stack with a JSON sidecar ([`sidecar`]) implements it.
 
+pub mod describe;
 pub mod dicom;
 pub mod gz;
+pub mod kind;
 pub mod nifti;
 pub mod nrrd;
 pub mod raw;
@@ -179,16 +181,24 @@ pub fn open_with(
         what: "expected a volume file or a DICOM directory",
         source,
     })?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
-        nrrd::open(path)
-    } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
-        nifti::open(path)
-    } else {
-        Ok(Box::new(raw::RawSource::open(path)?))
+    // By content, not by name (kind.rs).
+    let kind = kind::sniff(path).map_err(|source| InputError::Io {
+        path: path.to_path_buf(),
+        what: "cannot read the input",
+        source,
+    })?;
+    match kind {
+        kind::Kind::Nrrd => nrrd::open(path),
+        kind::Kind::Nifti => nifti::open(path),
+        kind::Kind::Sidecar => Ok(Box::new(raw::RawSource::open(path)?)),
+        kind::Kind::Packed => Err(InputError::Unsupported {
+            path: path.to_path_buf(),
+            what: "a cdvol packed file, already prepared (render, info or export it)",
+        }),
+        kind::Kind::Unsupported(what) => Err(InputError::Unsupported {
+            path: path.to_path_buf(),
+            what,
+        }),
     }
 }
 
@@ -267,6 +277,9 @@ pub enum InputError {
         actual: String,
         limit: u64,
     },
+    /// A file of a kind cdvol does not read, named by its content.
+    #[error("{}: {what}: {}", path.display(), kind::READS)]
+    Unsupported { path: PathBuf, what: &'static str },
     /// An I/O error on a named file.
     #[error("{}: {what}: {source}", path.display())]
     Io {

@@ -45,6 +45,7 @@ mod hostile_dicom;
 mod hostile_outputs;
 mod hostile_readers;
 mod hostile_serve;
+mod input_kinds;
 mod layout;
 mod mip;
 mod no_debug_text;
