@@ -389,6 +389,29 @@ pub(crate) fn check_render(
                 .into(),
         });
     }
+    if let Method::Dda {
+        kind:
+            kind @ (crate::render::traverse::DistKind::Cityblock
+            | crate::render::traverse::DistKind::Chamfer),
+        ..
+    } = opts.method
+    {
+        if !vol.header().dda {
+            return Err(RenderError::Incompatible {
+                path: vol.path().to_path_buf(),
+                msg: format!(
+                    "traversal {} needs the {} distance planes, and this file was prepared \
+                     without them: prepare it again with `cdvol prep --dda`, or use \
+                     dda-chessboard, cd or fvt",
+                    opts.method.name(),
+                    match kind {
+                        crate::render::traverse::DistKind::Cityblock => "city-block",
+                        _ => "chamfer 3-4-5",
+                    }
+                ),
+            });
+        }
+    }
     if opts.method.needs_regular_grid() {
         if let Some(k) = (0..3).find(|&k| !vol.header().axes[k].is_uniform()) {
             return Err(RenderError::Incompatible {

@@ -273,3 +273,46 @@ proptest! {
         prop_assert_eq!(read_back(&dda, &values).codes, read_back(&plain, &values).codes);
     }
 }
+
+/// A traversal the file cannot serve is refused by name (issue 51, item
+/// 7): `--traversal dda-chamfer` (or `dda-cityblock`) on a file prepared
+/// without `--dda` used to run silently.
+#[test]
+fn dda_traversals_without_their_planes_are_refused_by_name() {
+    use crate::common::{cdvol, fails, ok, write_stack};
+    let d = tempfile::tempdir().unwrap();
+    let v: Vec<f64> = (0..8 * 8 * 8).map(|i| ((i * 37) % 101) as f64).collect();
+    write_stack(d.path(), "v", [8, 8, 8], "u8", &v, ["1", "1", "1"], "");
+    let prep = |out: &str, extra: &[&str]| {
+        ok(cdvol()
+            .current_dir(d.path())
+            .args(["prep", "-q", "v.json", "-o", out, "--iso", "90"])
+            .args(extra));
+    };
+    prep("plain.cdv", &[]);
+    prep("dda.cdv", &["--dda"]);
+    for t in ["dda-chamfer", "dda-cityblock"] {
+        let render = |file: &str| {
+            let mut c = cdvol();
+            c.current_dir(d.path()).args([
+                "render",
+                "-q",
+                file,
+                "-o",
+                "x.png",
+                "--width",
+                "16",
+                "--height",
+                "16",
+                "--traversal",
+                t,
+            ]);
+            c
+        };
+        let e = fails(&mut render("plain.cdv"));
+        for w in ["plain.cdv", t, "--dda"] {
+            assert!(e.contains(w), "{w:?} not in {e}");
+        }
+        ok(&mut render("dda.cdv"));
+    }
+}
