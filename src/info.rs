@@ -91,10 +91,14 @@ impl Info {
             format_version: h.format_version,
             source: h.source.clone(),
             notes: h.notes.clone(),
-            orientation: h
-                .orientation
-                .as_ref()
-                .map_or_else(|| "unknown".to_string(), |o| o.describe()),
+            orientation: h.orientation.as_ref().map_or_else(
+                || {
+                    "unknown: the file does not say which way its axes point in the \
+                         patient, left and right included; named views are refused"
+                        .to_string()
+                },
+                |o| o.describe(),
+            ),
             orientation_axes_lps: h.orientation.as_ref().map(|o| o.axes_lps),
             dims: h.dims,
             cells: h.cells(),

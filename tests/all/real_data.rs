@@ -253,3 +253,46 @@ fn real_ct_as_dicom_nrrd_and_nifti() {
         &["need 131072 bytes of pixel data", "Rows/Columns"],
     );
 }
+
+/// README's account of the real CT's axes (issue 51, item 8), checked
+/// against its anatomy: tooth enamel, the densest tissue (above 1800 HU),
+/// sits at the front and the bottom of the head, so row 0 is the back of
+/// the head (+y anterior) and slice 0 the jaw (+z superior). Before,
+/// README said the rows ran from the face to the back of the head and
+/// advised `"orientation": "LPS"`, under which `--view anterior` showed
+/// the back of the head.
+#[test]
+fn the_real_ct_faces_plus_y_with_the_jaw_at_slice_0() {
+    use cdvol::input::SliceSource;
+    let src = cdvol::input::raw::RawSource::open(&crate::common::real_ct()).unwrap();
+    let [nx, ny, nz] = src.meta().dims();
+    let mut slice = vec![0.0; nx * ny];
+    let (mut teeth, mut bone) = ([0.0; 3], [0.0; 3]);
+    let (mut n_teeth, mut n_bone) = (0.0, 0.0);
+    for z in 0..nz {
+        src.read_slice(z, &mut slice).unwrap();
+        for (i, &v) in slice.iter().enumerate() {
+            let p = [(i % nx) as f64, (i / nx) as f64, z as f64];
+            if v > 1800.0 {
+                (0..3).for_each(|k| teeth[k] += p[k]);
+                n_teeth += 1.0;
+            }
+            if v > 300.0 {
+                (0..3).for_each(|k| bone[k] += p[k]);
+                n_bone += 1.0;
+            }
+        }
+    }
+    let teeth = teeth.map(|s| s / n_teeth);
+    let bone = bone.map(|s| s / n_bone);
+    assert!(n_teeth > 100.0, "{n_teeth} enamel samples");
+    // In front of the skull's centre by over a quarter of the rows, and
+    // in the lowest tenth of the slices.
+    assert!(
+        teeth[1] > bone[1] + 0.25 * ny as f64,
+        "teeth y {} bone y {}",
+        teeth[1],
+        bone[1]
+    );
+    assert!(teeth[2] < 0.1 * nz as f64, "teeth z {} of {nz}", teeth[2]);
+}
