@@ -169,6 +169,7 @@ impl<'v> Engine<'v> {
     pub fn render(&self, req: &ViewRequest) -> Result<Rendered, Failure> {
         let served = &self.files[req.file.min(self.files.len().saturating_sub(1))];
         let vol = &served.vol;
+        req.check_cost(vol)?;
         let mut opts = req.options(self.cache_bytes)?;
         opts.method = crate::render::default_method(vol);
         let spec = req.camera(vol)?;

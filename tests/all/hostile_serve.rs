@@ -12,7 +12,7 @@ use std::path::Path;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::serve::head;
+use crate::serve::{bone, head};
 
 /// A running `cdvol serve` under a 4 GiB address-space limit, killed
 /// when dropped.
@@ -191,4 +191,33 @@ fn too_many_connections_get_503_and_the_server_lives() {
     drop(held);
     std::thread::sleep(Duration::from_millis(300));
     srv.alive("too many connections");
+}
+
+/// Issue 51, item 10: a request is bounded by its estimated cost, not
+/// only by each parameter. A 1024^2 composite at 0.05 mm (every parameter
+/// within its own range) held the server for 14.6 s; it is refused at
+/// once with the estimate, and the same view at the default step renders.
+#[test]
+fn a_costly_composite_is_refused_with_its_estimate() {
+    let d = tempfile::tempdir().unwrap();
+    head(d.path());
+    let mut srv = Serve::start(&bone(d.path()));
+    let t = Instant::now();
+    let (status, text) = exchange(
+        &srv.addr,
+        b"GET /api/image?mode=composite&preset=ct-bone&w=1024&h=1024&step=0.05 HTTP/1.0\r\n\
+          Host: localhost\r\n\r\n",
+    );
+    assert_eq!(status, 400, "{text}");
+    for w in ["samples", "above the bound", "raise step"] {
+        assert!(text.contains(w), "{w:?} not in {text}");
+    }
+    assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+    let (status, text) = exchange(
+        &srv.addr,
+        b"GET /api/image?mode=composite&preset=ct-bone&w=256&h=256 HTTP/1.0\r\n\
+          Host: localhost\r\n\r\n",
+    );
+    assert_eq!(status, 200, "{text}");
+    srv.alive("a costly request");
 }

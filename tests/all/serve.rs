@@ -130,7 +130,7 @@ pub(super) fn head(dir: &Path) -> PathBuf {
 
 /// The phantom of [`head`] (made first) prepared with the ct-bone
 /// preset's transfer function, for composite renders.
-fn bone(dir: &Path) -> PathBuf {
+pub(super) fn bone(dir: &Path) -> PathBuf {
     let out = dir.join("head-bone.cdv");
     common::ok(
         cdvol()
