@@ -91,14 +91,10 @@ impl Info {
             format_version: h.format_version,
             source: h.source.clone(),
             notes: h.notes.clone(),
-            orientation: h.orientation.as_ref().map_or_else(
-                || {
-                    "unknown: the file does not say which way its axes point in the \
-                         patient, left and right included; named views are refused"
-                        .to_string()
-                },
-                |o| o.describe(),
-            ),
+            orientation: h
+                .orientation
+                .as_ref()
+                .map_or_else(|| "unknown".to_string(), |o| o.describe()),
             orientation_axes_lps: h.orientation.as_ref().map(|o| o.axes_lps),
             dims: h.dims,
             cells: h.cells(),
@@ -157,7 +153,13 @@ impl Info {
         for n in &self.notes {
             let _ = writeln!(o, "             {n}");
         }
-        let _ = writeln!(o, "orientation  {}", self.orientation);
+        let unknown = if self.orientation == "unknown" {
+            ": the file does not say which way its axes point in the patient, left and right \
+             included; named views are refused"
+        } else {
+            ""
+        };
+        let _ = writeln!(o, "orientation  {}{unknown}", self.orientation);
         let _ = writeln!(
             o,
             "dims         {} x {} x {} samples, {} x {} x {} cells",
