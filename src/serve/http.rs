@@ -10,7 +10,8 @@
 //! announces a body (`Content-Length` above 0 or any
 //! `Transfer-Encoding`) is answered 413 and its connection closed without
 //! reading the body, since no route takes one; a connection idle for
-//! [`IDLE`] is closed, and a response that cannot be written within
+//! [`IDLE`], or whose head is not whole within [`IDLE`] of its first
+//! byte, is closed, and a response that cannot be written within
 //! [`WRITE_TIMEOUT`] is dropped. Status and page requests have threads of
 //! their own, so they are answered while renders queue for the render
 //! slot.
@@ -158,10 +159,15 @@ impl<'v> Server<'v> {
         }
         let mut buf: Vec<u8> = Vec::with_capacity(1024);
         let mut idle = Duration::ZERO;
+        // When the head in hand began: a head must be whole within IDLE of
+        // its first byte, so a client sending a byte every few seconds
+        // cannot hold a connection.
+        let mut head_since: Option<std::time::Instant> = None;
         loop {
             match parse_head(&buf) {
                 Ok(Some((len, head))) => {
                     buf.drain(..len);
+                    head_since = (!buf.is_empty()).then(std::time::Instant::now);
                     let (reply, close) = if head.body {
                         let r = text(
                             413,
@@ -186,6 +192,11 @@ impl<'v> Server<'v> {
             if self.stop.load(Ordering::Relaxed) {
                 return;
             }
+            if head_since.is_some_and(|t| t.elapsed() >= IDLE) {
+                let late = text(408, &format!("no whole request head within {IDLE:?}"));
+                let _ = send(&stream, &late, true);
+                return;
+            }
             let mut chunk = [0u8; 4096];
             let room = (MAX_HEAD - buf.len()).min(chunk.len());
             match stream.read(&mut chunk[..room]) {
@@ -193,6 +204,7 @@ impl<'v> Server<'v> {
                 Ok(n) => {
                     buf.extend_from_slice(&chunk[..n]);
                     idle = Duration::ZERO;
+                    head_since.get_or_insert_with(std::time::Instant::now);
                 }
                 Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
                     idle += POLL;
@@ -384,6 +396,7 @@ fn reason(status: u16) -> &'static str {
         403 => "Forbidden",
         404 => "Not Found",
         405 => "Method Not Allowed",
+        408 => "Request Timeout",
         409 => "Conflict",
         413 => "Content Too Large",
         431 => "Request Header Fields Too Large",

@@ -221,3 +221,34 @@ fn a_costly_composite_is_refused_with_its_estimate() {
     assert_eq!(status, 200, "{text}");
     srv.alive("a costly request");
 }
+
+/// A client that drips a head one byte at a time cannot hold a
+/// connection: the head must be whole within `IDLE` (10 s) of its first
+/// byte, else 408 and the connection closes.
+#[test]
+fn a_head_dripped_byte_by_byte_is_cut_off() {
+    let d = tempfile::tempdir().unwrap();
+    let mut srv = Serve::start(&head(d.path()));
+    let mut s = TcpStream::connect(&srv.addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_millis(50))).unwrap();
+    s.write_all(b"GET /api/status HTTP/1.1\r\nX-Drip: ")
+        .unwrap();
+    let t = Instant::now();
+    let mut got = Vec::new();
+    while t.elapsed() < Duration::from_secs(20) {
+        if s.write_all(b"a").is_err() {
+            break;
+        }
+        let mut b = [0u8; 512];
+        match s.read(&mut b) {
+            Ok(0) => break,
+            Ok(n) => got.extend_from_slice(&b[..n]),
+            Err(_) => {}
+        }
+        std::thread::sleep(Duration::from_millis(950));
+    }
+    let text = String::from_utf8_lossy(&got);
+    assert!(text.starts_with("HTTP/1.1 408"), "{text}");
+    assert!(t.elapsed() < Duration::from_secs(15), "{:?}", t.elapsed());
+    srv.alive("a dripped head");
+}
