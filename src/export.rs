@@ -130,7 +130,7 @@ fn data_files_of(path: &Path) -> Vec<PathBuf> {
 /// ([`crate::fsutil::check_outputs`]).
 pub fn check_packed_outputs(vol: &PackedVolume, outputs: &[PathBuf]) -> Result<(), OutputError> {
     crate::fsutil::check_outputs(outputs, &[vol.path().to_path_buf()], None)?;
-    crate::fsutil::check_not_sources(
+    check_not_sources(
         outputs,
         &packed_sources(vol.path(), vol.header()),
         vol.path(),
@@ -321,4 +321,29 @@ fn push_value(out: &mut Vec<u8>, dtype: Dtype, v: f64) {
         Dtype::F32 => out.extend_from_slice(&(v as f32).to_le_bytes()),
         Dtype::F64 => out.extend_from_slice(&v.to_le_bytes()),
     }
+}
+
+/// Checks that none of `outputs` is one of `sources`, the files the
+/// packed file `packed` was prepared from (same device and inode, as
+/// [`check_outputs`](crate::fsutil::check_outputs) compares). Sources that do not exist are left out.
+pub fn check_not_sources(
+    outputs: &[PathBuf],
+    sources: &[PathBuf],
+    packed: &Path,
+) -> Result<(), crate::fsutil::OutputError> {
+    use std::os::unix::fs::MetadataExt;
+    let ids = crate::fsutil::identities(sources);
+    for out in outputs {
+        let Ok(m) = std::fs::metadata(out) else {
+            continue;
+        };
+        if let Some((_, scan)) = ids.iter().find(|(id, _)| *id == (m.dev(), m.ino())) {
+            return Err(crate::fsutil::OutputError::IsSource {
+                output: out.clone(),
+                scan: scan.to_path_buf(),
+                packed: packed.to_path_buf(),
+            });
+        }
+    }
+    Ok(())
 }

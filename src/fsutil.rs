@@ -328,6 +328,19 @@ pub fn dir_of(target: &Path) -> PathBuf {
     }
 }
 
+/// The (device, inode) of each of `paths` that exists, with its path:
+/// what names the same file however it is spelled (symlinks, hard links).
+pub fn identities(paths: &[PathBuf]) -> Vec<((u64, u64), &Path)> {
+    paths
+        .iter()
+        .filter_map(|p| {
+            std::fs::metadata(p)
+                .ok()
+                .map(|m| ((m.dev(), m.ino()), p.as_path()))
+        })
+        .collect()
+}
+
 /// Checks, before any work, that every one of `outputs` can be written
 /// and replaces none of the command's `inputs` (every file it reads;
 /// `source` describes the volume they make, for the message).
@@ -340,14 +353,7 @@ pub fn check_outputs(
     inputs: &[PathBuf],
     source: Option<&str>,
 ) -> Result<(), OutputError> {
-    let ids: Vec<((u64, u64), &Path)> = inputs
-        .iter()
-        .filter_map(|p| {
-            std::fs::metadata(p)
-                .ok()
-                .map(|m| ((m.dev(), m.ino()), p.as_path()))
-        })
-        .collect();
+    let ids = identities(inputs);
     let mut names: Vec<(PathBuf, &Path)> = Vec::new();
     let mut probed: HashSet<PathBuf> = HashSet::new();
     for out in outputs {
@@ -428,37 +434,6 @@ pub fn check_outputs(
                 dir: dir.clone(),
                 source,
             })?;
-        }
-    }
-    Ok(())
-}
-
-/// Checks that none of `outputs` is one of `sources`, the files the
-/// packed file `packed` was prepared from (same device and inode, as
-/// [`check_outputs`] compares). Sources that do not exist are left out.
-pub fn check_not_sources(
-    outputs: &[PathBuf],
-    sources: &[PathBuf],
-    packed: &Path,
-) -> Result<(), OutputError> {
-    let ids: Vec<((u64, u64), &Path)> = sources
-        .iter()
-        .filter_map(|p| {
-            std::fs::metadata(p)
-                .ok()
-                .map(|m| ((m.dev(), m.ino()), p.as_path()))
-        })
-        .collect();
-    for out in outputs {
-        let Ok(m) = std::fs::metadata(out) else {
-            continue;
-        };
-        if let Some((_, scan)) = ids.iter().find(|(id, _)| *id == (m.dev(), m.ino())) {
-            return Err(OutputError::IsSource {
-                output: out.clone(),
-                scan: scan.to_path_buf(),
-                packed: packed.to_path_buf(),
-            });
         }
     }
     Ok(())

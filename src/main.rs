@@ -227,7 +227,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             if let Some(tf) = &a.tf {
                 check_outputs(&outputs, std::slice::from_ref(tf), None)?;
             }
-            cdvol::fsutil::check_not_sources(
+            cdvol::export::check_not_sources(
                 &outputs,
                 &cdvol::export::packed_sources(vol.path(), vol.header()),
                 vol.path(),

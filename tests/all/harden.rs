@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{cdvol, dicom_series, run};
+use crate::common::{cdvol, dicom_series, has_all, run, snapshot};
 
 fn ok(c: &mut Command) -> String {
     let o = run(c, Duration::from_secs(60));
@@ -31,12 +31,6 @@ fn refused(c: &mut Command) -> String {
         String::from_utf8_lossy(&o.stdout)
     );
     String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn has_all(text: &str, words: &[&str]) {
-    for w in words {
-        assert!(text.contains(w), "expected {w:?} in: {text}");
-    }
 }
 
 /// A small CT phantom `NAME.json` + `NAME.raw` in `dir`.
@@ -62,25 +56,6 @@ fn render(file: &Path) -> Command {
     c.args(["-q", "render", "--width", "24", "--height", "20"])
         .arg(file);
     c
-}
-
-/// Every file's bytes under `dir` (recursively), to compare before/after.
-fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            let m = std::fs::symlink_metadata(&p).unwrap();
-            if m.is_dir() {
-                stack.push(p);
-            } else if m.is_file() {
-                out.push((p.clone(), std::fs::read(&p).unwrap()));
-            }
-        }
-    }
-    out.sort();
-    out
 }
 
 fn partials(dir: &Path) -> Vec<String> {

@@ -5,30 +5,15 @@
 //! docs/RELIABILITY.md ("Option bounds") names the test.
 
 use std::path::Path;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
 
 use cdvol::progress::NoProgress;
 use cdvol::tools::phantom;
 
 /// Runs `c` for 20 s at most; requires a non-zero exit and returns stderr.
 fn refused_quickly(c: &mut Command) -> String {
-    let mut child = c
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if t0.elapsed() > Duration::from_secs(20) {
-            child.kill().unwrap();
-            let _ = child.wait();
-            panic!("{c:?} still running after 20 s");
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    let o = child.wait_with_output().unwrap();
+    let o = crate::common::run(c, Duration::from_secs(20));
     assert!(
         !o.status.success(),
         "{c:?} succeeded, expected a refusal: {}",

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use crate::common::{cdvol, run};
+use crate::common::{cdvol, has_all, run, snapshot};
 
 fn ok(c: &mut Command) -> String {
     let o = run(c, Duration::from_secs(60));
@@ -39,12 +39,6 @@ fn refused(c: &mut Command) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-fn has_all(text: &str, words: &[&str]) {
-    for w in words {
-        assert!(text.contains(w), "expected {w:?} in: {text}");
-    }
-}
-
 /// No Debug formatting in a message meant for people.
 fn plain(text: &str) {
     for w in ["Some(", "None", "{ ", "Error {", "Os {"] {
@@ -68,25 +62,6 @@ fn prep(input: &Path, out: &Path) {
         .arg(input)
         .arg("-o")
         .arg(out));
-}
-
-/// Every file's bytes under `dir` (recursively), to compare before/after.
-fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            let m = std::fs::symlink_metadata(&p).unwrap();
-            if m.is_dir() {
-                stack.push(p);
-            } else if m.is_file() {
-                out.push((p.clone(), std::fs::read(&p).unwrap()));
-            }
-        }
-    }
-    out.sort();
-    out
 }
 
 // ---------------------------------------------------------------------------

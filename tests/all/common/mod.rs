@@ -464,3 +464,29 @@ pub fn run(c: &mut Command, limit: std::time::Duration) -> std::process::Output 
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
 }
+
+/// Every file's bytes under `dir` (recursively), to compare before/after.
+pub fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            let m = std::fs::symlink_metadata(&p).unwrap();
+            if m.is_dir() {
+                stack.push(p);
+            } else if m.is_file() {
+                out.push((p.clone(), std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Requires every one of `words` in `text`.
+pub fn has_all(text: &str, words: &[&str]) {
+    for w in words {
+        assert!(text.contains(w), "expected {w:?} in: {text}");
+    }
+}
