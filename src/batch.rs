@@ -659,9 +659,8 @@ fn one(input: &BatchInput, out: &Path, opts: &PrepOptions) -> BatchRow {
                 input.path.display()
             )
         })?;
-        let (opts, modality) = opts.resolved(src.as_ref()).map_err(|e| e.to_string())?;
-        let opts = &opts;
-        row.modality = modality;
+        let opts = &opts.resolved(src.as_ref()).map_err(|e| e.to_string())?;
+        row.modality = opts.decided.as_ref().and_then(|d| d.note.clone());
         match verdict(&out, &stamp, opts) {
             Verdict::Skip(v) => Ok((*v, false)),
             Verdict::Redo(why) => {

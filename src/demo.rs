@@ -1,15 +1,17 @@
 //! `cdvol demo`: the whole pipeline once, on generated data. Writes the
 //! CT-like head (variable slice thickness, paper section 4.3's data set 2)
 //! and a sphere scene of the paper's section 5.1, prepares both, and
-//! renders the head as a shaded bone surface with shadows, a traversal
-//! cost map and a skin-and-bone composite.
+//! renders the head as a shaded bone surface with shadows, a
+//! skin-and-bone composite, a maximum intensity projection and a
+//! traversal cost map, then lays the four side by side, labelled, in
+//! `contact-sheet.png` (README's picture, `docs/demo-contact-sheet.png`).
 //!
 //! Binary side (declared by main.rs, not the library): it is a scripted
 //! session for a person at a terminal, printing as it goes, and uses only
 //! the library's public API plus `tools::phantom`, so nothing in the
 //! library needs it and the library exposes no printing routine.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
@@ -18,16 +20,17 @@ use cdvol::format::reader::PackedVolume;
 use cdvol::info::Info;
 use cdvol::prep::{prep, PrepOptions, PrepReport};
 use cdvol::progress::Progress;
-use cdvol::render::camera::Camera;
+use cdvol::render::camera::orbit_dirs;
+use cdvol::render::framing::{self, Framing};
 use cdvol::render::shade::HitMethod;
-use cdvol::render::traverse::TGrid;
 use cdvol::render::{default_method, render, Mode, RenderOptions};
 use cdvol::tools::phantom;
 
 use crate::print_prep;
 
 /// `cdvol demo`: generates the CT-like head and a sphere scene, prepares
-/// them, renders the head three ways and prints what was written.
+/// them, renders the head four ways, lays the renders out on a contact
+/// sheet and prints what was written.
 pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create demo directory", dir.display()))?;
@@ -81,40 +84,11 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     print!("{}", Info::of(&vol).to_text());
     println!();
 
-    // Renders of the head: shaded bone with shadows, the traversal cost
-    // map, and a composite of skin and bone from a transfer-function prep.
-    let grid = TGrid::<f64>::new(&vol.header().axes);
-    let camera = Camera::orbit(grid.bounds(), 35.0, 15.0, None, None, 768, 768)
-        .map_err(anyhow::Error::msg)?;
-    let mut outputs = Vec::new();
-    let mut show = |name: &str, vol: &PackedVolume, mode: Mode| -> Result<()> {
-        // The defaults of `cdvol render`: 32-pixel tiles, 512 MiB cache,
-        // f64.
-        let opts = RenderOptions::new(mode, default_method(vol));
-        let (frame, stats) = render(vol, &camera, &opts, progress)?;
-        let path = dir.join(format!("{name}.png"));
-        cdvol::render::save(&frame, &path).map_err(anyhow::Error::msg)?;
-        println!(
-            "render    {} ({} rays, {:.1} steps per ray, {} of {} bricks read, {:.2} s)",
-            path.display(),
-            stats.rays,
-            stats.steps as f64 / stats.rays.max(1) as f64,
-            stats.bricks_distinct,
-            stats.bricks_total,
-            stats.seconds_total
-        );
-        outputs.push(path);
-        Ok(())
-    };
-    show(
-        "head-surface",
-        &vol,
-        Mode::Surface {
-            hit: HitMethod::Newton,
-            shadows: true,
-        },
-    )?;
-    show("head-cost", &vol, Mode::Cost)?;
+    // Renders of the head: shaded bone with shadows, a composite of skin
+    // and bone from a transfer-function prep, a MIP and the traversal
+    // cost map; each with its label on the contact sheet. First the
+    // composite's file, classified by its transfer function (skin faint,
+    // bone brighter).
     let tf = TransferFunction {
         points: vec![
             TfPoint {
@@ -151,16 +125,66 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     let r = prep_file(&head, &tf_packed, &opts, progress)?;
     print_prep(&tf_packed, &r)?;
     let tf_vol = PackedVolume::open(&tf_packed)?;
+    let composite = Mode::Composite { tf, step_mm: 0.5 };
+    // One camera for all four, framed as `cdvol render` frames a view:
+    // the box of the composite's object (the skin, the outermost).
+    let framing = Framing::of(
+        &tf_vol,
+        &RenderOptions::new(composite.clone(), default_method(&tf_vol)),
+    );
+    let camera = framing::orbit(&framing, orbit_dirs(35.0, 15.0), None, None, 768, 768)
+        .map_err(anyhow::Error::msg)?;
+    let mut outputs: Vec<(PathBuf, &str)> = Vec::new();
+    let mut show =
+        |name: &str, label: &'static str, vol: &PackedVolume, mode: Mode| -> Result<()> {
+            // The defaults of `cdvol render`: 32-pixel tiles, 512 MiB cache,
+            // f64.
+            let opts = RenderOptions::new(mode, default_method(vol));
+            let (frame, stats) = render(vol, &camera, &opts, progress)?;
+            let path = dir.join(format!("{name}.png"));
+            cdvol::render::save(&frame, &path).map_err(anyhow::Error::msg)?;
+            println!(
+                "render    {} ({} rays, {:.1} steps per ray, {} of {} bricks read, {:.2} s)",
+                path.display(),
+                stats.rays,
+                stats.steps as f64 / stats.rays.max(1) as f64,
+                stats.bricks_distinct,
+                stats.bricks_total,
+                stats.seconds_total
+            );
+            outputs.push((path, label));
+            Ok(())
+        };
+    show(
+        "head-surface",
+        "bone surface, shadows",
+        &vol,
+        Mode::Surface {
+            hit: HitMethod::Newton,
+            shadows: true,
+        },
+    )?;
     show(
         "head-composite",
+        "skin and bone, composite",
         &tf_vol,
-        Mode::Composite { tf, step_mm: 0.5 },
+        composite,
     )?;
+    show("head-mip", "maximum intensity (MIP)", &vol, Mode::Mip)?;
+    show("head-cost", "traversal cost map", &vol, Mode::Cost)?;
+    let sheet = dir.join("contact-sheet.png");
+    let (w, h) = contact_sheet(&outputs, &sheet)?;
+    println!(
+        "sheet     {} ({w} x {h}, the renders side by side)",
+        sheet.display()
+    );
     println!();
     println!(
         "Images: {}",
         outputs
             .iter()
+            .map(|(p, _)| p)
+            .chain([&sheet])
             .map(|p| p.display().to_string())
             .collect::<Vec<_>>()
             .join(", ")
@@ -170,6 +194,71 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
         head_packed.display()
     );
     Ok(())
+}
+
+/// Contact sheet tiles: renders scaled to this height.
+const TILE: u32 = 256;
+/// Space around and between the tiles.
+const GAP: u32 = 6;
+/// The band under each tile that holds its label.
+const LABEL_BAND: u32 = 26;
+
+/// Lays `images` out in one row on a dark grey sheet, each scaled to
+/// [`TILE`] pixels high with its label centred under it (the plots' font,
+/// `tools::font`), and writes the sheet to `out` as PNG. Returns its
+/// width and height.
+fn contact_sheet(images: &[(PathBuf, &str)], out: &Path) -> Result<(u32, u32)> {
+    use image::imageops::{self, FilterType};
+    use plotters::prelude::*;
+    use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+    let mut tiles = Vec::new();
+    for (path, label) in images {
+        let img = image::open(path)
+            .with_context(|| format!("{}: cannot read the render back", path.display()))?
+            .to_rgb8();
+        let tw = (u64::from(img.width()) * u64::from(TILE) / u64::from(img.height().max(1))) as u32;
+        tiles.push((
+            imageops::resize(&img, tw.max(1), TILE, FilterType::Triangle),
+            *label,
+        ));
+    }
+    let w = GAP + tiles.iter().map(|(t, _)| t.width() + GAP).sum::<u32>();
+    let h = GAP + TILE + LABEL_BAND;
+    let mut sheet = image::RgbImage::from_pixel(w, h, image::Rgb([30, 30, 30]));
+    let mut x = GAP;
+    for (tile, _) in &tiles {
+        imageops::replace(&mut sheet, tile, i64::from(x), i64::from(GAP));
+        x += tile.width() + GAP;
+    }
+    cdvol::tools::font::register();
+    {
+        let root = BitMapBackend::with_buffer(sheet.as_mut(), (w, h)).into_drawing_area();
+        let style = ("sans-serif", 16)
+            .into_font()
+            .color(&RGBColor(235, 235, 235))
+            .pos(Pos::new(HPos::Center, VPos::Center));
+        let mut x = GAP;
+        for (tile, label) in &tiles {
+            let at = (
+                (x + tile.width() / 2) as i32,
+                (GAP + TILE + LABEL_BAND / 2) as i32,
+            );
+            root.draw_text(label, &style, at)
+                .map_err(|e| anyhow::anyhow!("{}: label {label:?}: {e}", out.display()))?;
+            x += tile.width() + GAP;
+        }
+        root.present()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
+    }
+    let mut png = Vec::new();
+    use image::codecs::png::{CompressionType, FilterType as PngFilter, PngEncoder};
+    use image::ImageEncoder;
+    PngEncoder::new_with_quality(&mut png, CompressionType::Best, PngFilter::Adaptive)
+        .write_image(sheet.as_raw(), w, h, image::ExtendedColorType::Rgb8)
+        .with_context(|| format!("{}: PNG encoding", out.display()))?;
+    cdvol::fsutil::write_atomic(out, &png)?;
+    Ok((w, h))
 }
 
 /// Opens `input` and prepares it into `output`.

@@ -31,6 +31,13 @@ pub struct Info {
     pub orientation: String,
     /// The directions behind it (LPS), when known.
     pub orientation_axes_lps: Option<[[f64; 3]; 3]>,
+    /// `CT` or `MR`, and where that came from (`modality_source`).
+    pub modality: String,
+    pub modality_source: String,
+    /// The values MR presets are placed on (docs/PRESETS.md).
+    pub landmarks: Option<crate::format::landmarks::Landmarks>,
+    /// The file's default look: the preset it was prepared with.
+    pub look: Option<String>,
     pub dims: [u64; 3],
     pub cells: [u64; 3],
     pub axes: [AxisInfo; 3],
@@ -70,6 +77,16 @@ pub struct Info {
     pub selection_warning: Option<String>,
 }
 
+/// `x` to about four significant digits, for the text form.
+fn short(x: f64) -> String {
+    match x.abs() {
+        a if a >= 1000.0 => format!("{x:.0}"),
+        a if a >= 10.0 => format!("{x:.1}"),
+        a if a >= 0.1 => format!("{x:.3}"),
+        _ => format!("{x:.3e}"),
+    }
+}
+
 impl Info {
     pub fn of(vol: &PackedVolume) -> Info {
         let h: &Header = vol.header();
@@ -96,6 +113,10 @@ impl Info {
                 .as_ref()
                 .map_or_else(|| "unknown".to_string(), |o| o.describe()),
             orientation_axes_lps: h.orientation.as_ref().map(|o| o.axes_lps),
+            modality: h.modality().modality.name().into(),
+            modality_source: h.modality().source,
+            landmarks: h.landmarks(),
+            look: h.look.clone(),
             dims: h.dims,
             cells: h.cells(),
             axes,
@@ -104,7 +125,7 @@ impl Info {
             codes: h.codes,
             classification: serde_json::to_value(&h.classification).unwrap_or_default(),
             classification_text: h.classification.to_string(),
-            envelope: EnvelopeInfo::of(&h.classification),
+            envelope: EnvelopeInfo::of(&h.classification, &crate::look::offered(h)),
             brick_size: h.brick_size,
             bricks: h.bricks,
             brick_count: h.brick_count(),
@@ -160,6 +181,29 @@ impl Info {
             ""
         };
         let _ = writeln!(o, "orientation  {}{unknown}", self.orientation);
+        let _ = writeln!(
+            o,
+            "modality     {} ({})",
+            self.modality, self.modality_source
+        );
+        if let Some(l) = &self.landmarks {
+            let _ = writeln!(
+                o,
+                "landmarks    threshold {} (object above), object p50 {}, p95 {}, p99 {}; \
+                 MR presets are placed on them ({})",
+                short(l.threshold),
+                short(l.p50),
+                short(l.p95),
+                short(l.p99),
+                l.measured_on
+            );
+        }
+        if let Some(look) = &self.look {
+            let _ = writeln!(
+                o,
+                "look         {look} (prep --preset; render and serve use it by default)"
+            );
+        }
         let _ = writeln!(
             o,
             "dims         {} x {} x {} samples, {} x {} x {} cells",
@@ -383,7 +427,9 @@ pub struct EnvelopeInfo {
 }
 
 impl EnvelopeInfo {
-    fn of(c: &crate::classify::Classification) -> EnvelopeInfo {
+    /// What renders from a file classified by `c`, of the presets it
+    /// `offers` ([`crate::look::offered`]).
+    fn of(c: &crate::classify::Classification, offers: &[crate::presets::Preset]) -> EnvelopeInfo {
         use crate::classify::Classification;
         let statement = match c {
             Classification::Iso { iso } => {
@@ -402,7 +448,7 @@ impl EnvelopeInfo {
                 )
             }
         };
-        let (composite_presets, surface_presets) = crate::presets::covered(c);
+        let (composite_presets, surface_presets) = crate::presets::covered(c, offers);
         EnvelopeInfo {
             statement,
             composite_presets,

@@ -56,6 +56,7 @@ pub mod identity;
 pub mod info;
 pub mod input;
 pub mod json;
+pub mod look;
 pub mod memory;
 pub mod orient;
 pub mod prep;

@@ -217,6 +217,17 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 info.bytes as f64 / 1048576.0
             );
         }
+        Command::Phantom(PhantomCmd::Mr(a)) => {
+            let info =
+                phantom::mr(&a.output, &(&a).into(), progress).map_err(cli::phantom_error)?;
+            println!(
+                "wrote {} and {} ({:.1} MiB); the outer surface is at iso {}",
+                a.output.display(),
+                info.raw_path.display(),
+                info.bytes as f64 / 1048576.0,
+                info.surface_iso
+            );
+        }
         Command::Render(a) => {
             let vol = PackedVolume::open(&a.file)?;
             let job = a.job(&vol)?;

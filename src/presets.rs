@@ -40,6 +40,43 @@ impl Modality {
     }
 }
 
+/// A landmark of a file's value histogram (`format::histogram::Landmarks`)
+/// that an MR preset's values are placed on: MR intensities have no
+/// absolute scale, so a preset's numbers mean something only relative to
+/// the file's own background and tissue.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Landmark {
+    /// The boundary between background (air, noise) and the object.
+    Threshold,
+    /// The median of the object's values (those at or above the threshold).
+    P50,
+    /// The 95th percentile of the object's values.
+    P95,
+    /// The 99th percentile of the object's values.
+    P99,
+}
+
+impl Landmark {
+    pub fn name(self) -> &'static str {
+        match self {
+            Landmark::Threshold => "threshold",
+            Landmark::P50 => "p50",
+            Landmark::P95 => "p95",
+            Landmark::P99 => "p99",
+        }
+    }
+}
+
+/// One anchor of a preset's fit: the preset's `value` is placed at the
+/// file's landmark `to`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Anchor {
+    pub value: f64,
+    pub to: Landmark,
+}
+
 /// A MIP grey window: values `level - width / 2 .. level + width / 2`
 /// map to black .. white.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -77,9 +114,19 @@ pub struct Preset {
     /// A MIP window, where a source gives one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub window: Option<MipWindow>,
+    /// How the preset's values move to a file's scale (MR presets): the
+    /// affine map that takes each anchor's value to the file's landmark
+    /// ([`Preset::fitted`]). `None`: the values are absolute (HU).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<[Anchor; 2]>,
     /// The published curves `tf` was converted from.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub source_curves: Option<SourceCurves>,
+    /// Where cdvol departs from the source, and why: keys `color` (the
+    /// colours are not the source curves'; their opacities still are)
+    /// and `shade` (shading differs from the source's).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub changes: BTreeMap<String, String>,
     /// Where each figure comes from: the keys `tf`, `shade`, and `iso` and
     /// `window` where present, each naming a repository, file, commit and
     /// preset.
@@ -226,6 +273,44 @@ impl Preset {
         }
     }
 
+    /// This preset placed on a file whose landmarks are `at` (the file's
+    /// value of each [`Landmark`]): every value of the transfer function,
+    /// the iso value and the window go through the affine map that takes
+    /// the two anchors' values to their landmarks; opacities and colours
+    /// stay. Presets without a fit, or landmarks that do not increase
+    /// with the anchors, come back unchanged. The copy has no fit (it is
+    /// placed) and no source curves (its values are no longer theirs).
+    pub fn fitted(&self, at: impl Fn(Landmark) -> f64) -> Preset {
+        let Some([a, b]) = self.fit else {
+            return self.clone();
+        };
+        let (ya, yb) = (at(a.to), at(b.to));
+        if !(ya.is_finite() && yb.is_finite() && yb > ya) {
+            return self.clone();
+        }
+        let slope = (yb - ya) / (b.value - a.value);
+        let map = |x: f64| ya + (x - a.value) * slope;
+        let mut p = self.clone();
+        for q in &mut p.tf.points {
+            q.value = map(q.value);
+        }
+        p.iso = p.iso.map(map);
+        p.window = p.window.map(|w| MipWindow {
+            width: w.width * slope,
+            level: map(w.level),
+        });
+        p.fit = None;
+        p.source_curves = None;
+        p
+    }
+
+    /// The iso value of this preset's surface: its own where a source (or
+    /// its fit) gives one, else the lowest value its transfer function
+    /// gives opacity, where what it shows begins.
+    pub fn surface_iso(&self) -> Option<f64> {
+        self.iso.or_else(|| self.tf.iso_floor())
+    }
+
     /// The hull of values with non-zero opacity ([`TransferFunction::support`]).
     pub fn support(&self) -> Option<(f64, f64)> {
         self.tf.support()
@@ -276,12 +361,52 @@ impl Preset {
                 );
             }
         }
+        match (self.modality, self.fit) {
+            (Modality::Mr, None) => {
+                return bad(
+                    "fit",
+                    "missing".into(),
+                    "two anchors (MR values have no scale)",
+                )
+            }
+            (_, Some([a, b]))
+                if !(a.value.is_finite()
+                    && b.value.is_finite()
+                    && a.value < b.value
+                    && a.to < b.to) =>
+            {
+                return bad(
+                    "fit",
+                    format!(
+                        "{} -> {}, {} -> {}",
+                        a.value,
+                        a.to.name(),
+                        b.value,
+                        b.to.name()
+                    ),
+                    "finite anchor values and landmarks, both increasing",
+                );
+            }
+            _ => {}
+        }
         let mut need = vec!["tf", "shade"];
+        if self.fit.is_some() {
+            need.push("fit");
+        }
         if self.iso.is_some() {
             need.push("iso");
         }
         if self.window.is_some() {
             need.push("window");
+        }
+        for (k, why) in &self.changes {
+            if !matches!(k.as_str(), "color" | "shade") || why.trim().is_empty() {
+                return bad(
+                    &format!("changes.{k}"),
+                    why.clone(),
+                    "a reason under the key color or shade",
+                );
+            }
         }
         for k in need {
             if self.sources.get(k).is_none_or(|s| s.trim().is_empty()) {
@@ -316,8 +441,9 @@ impl Preset {
                 let rgb = curve_at(&col, x);
                 let got_a = self.tf.opacity(x);
                 let got_rgb = tf_color(&self.tf, x);
+                let own_colour = self.changes.contains_key("color");
                 let close = (a - got_a).abs() <= 1e-9
-                    && rgb.iter().zip(got_rgb).all(|(p, q)| (p - q).abs() <= 1e-9);
+                    && (own_colour || rgb.iter().zip(got_rgb).all(|(p, q)| (p - q).abs() <= 1e-9));
                 if !close {
                     return bad(
                         "tf.points",
@@ -347,9 +473,10 @@ fn tf_color(tf: &TransferFunction, x: f64) -> [f64; 3] {
 /// iso values, where an item is an iso value, a preset (its transfer
 /// function's lowest value with opacity, see
 /// [`TransferFunction::iso_floor`], and its surface iso value) or a
-/// modality (`ct`, `mr`: all of its presets). Returns the iso value and
-/// the presets it covers.
-pub fn envelope(items: &[String]) -> Result<(f64, Vec<String>), PresetError> {
+/// modality (`ct`, `mr`: all of its presets). `presets` are the presets
+/// as they apply to the file ([`all`], MR ones [`Preset::fitted`] to it).
+/// Returns the iso value and the presets it covers.
+pub fn envelope(items: &[String], presets: &[Preset]) -> Result<(f64, Vec<String>), PresetError> {
     let mut iso = f64::INFINITY;
     let mut covers = Vec::new();
     for item in items.iter().map(|i| i.trim()) {
@@ -359,16 +486,11 @@ pub fn envelope(items: &[String]) -> Result<(f64, Vec<String>), PresetError> {
                 continue;
             }
         }
+        let of = |m: Modality| presets.iter().filter(|p| p.modality == m).collect();
         let group: Vec<&Preset> = match item.to_ascii_lowercase().as_str() {
-            "ct" => all()
-                .iter()
-                .filter(|p| p.modality == Modality::Ct)
-                .collect(),
-            "mr" => all()
-                .iter()
-                .filter(|p| p.modality == Modality::Mr)
-                .collect(),
-            _ => match all().iter().find(|p| p.name.eq_ignore_ascii_case(item)) {
+            "ct" => of(Modality::Ct),
+            "mr" => of(Modality::Mr),
+            _ => match presets.iter().find(|p| p.name.eq_ignore_ascii_case(item)) {
                 Some(p) => vec![p],
                 None => {
                     return Err(PresetError::EnvelopeItem {
@@ -395,13 +517,14 @@ pub fn envelope(items: &[String]) -> Result<(f64, Vec<String>), PresetError> {
     Ok((iso, covers))
 }
 
-/// What a file classified by `c` renders without another prep: the
-/// presets whose transfer function fits (composite) and those whose iso
-/// value fits (surface), by name.
-pub fn covered(c: &Classification) -> (Vec<String>, Vec<String>) {
+/// What a file classified by `c` renders without another prep, of
+/// `presets` (as they apply to the file): the presets whose transfer
+/// function fits (composite) and those whose iso value fits (surface),
+/// by name.
+pub fn covered(c: &Classification, presets: &[Preset]) -> (Vec<String>, Vec<String>) {
     let mut composite = Vec::new();
     let mut surface = Vec::new();
-    for p in all() {
+    for p in presets {
         let tf_ok = match c {
             Classification::Iso { iso } => !p.tf.nonzero_on(f64::MIN, iso.next_down()),
             Classification::TransferFunction { tf } => p.tf.outside(tf).is_none(),
@@ -409,7 +532,7 @@ pub fn covered(c: &Classification) -> (Vec<String>, Vec<String>) {
         if tf_ok {
             composite.push(p.name.clone());
         }
-        if p.iso.is_some_and(|v| c.holds_iso(v)) {
+        if p.surface_iso().is_some_and(|v| c.holds_iso(v)) {
             surface.push(p.name.clone());
         }
     }
@@ -460,13 +583,42 @@ mod tests {
         p.tf.points[2].opacity += 0.01;
         let e = p.check().unwrap_err().to_string();
         assert!(e.contains("tf.points"), "{e}");
-        let mut p = get("ct-mip").unwrap();
+        let mut p = get("ct-bone").unwrap();
         p.sources.remove("window");
         assert!(p
             .check()
             .unwrap_err()
             .to_string()
             .contains("sources.window"));
+        // MR presets need their fit, in increasing order.
+        let mut p = get("mr-brain").unwrap();
+        p.fit = None;
+        assert!(p.check().unwrap_err().to_string().contains("fit"));
+        let mut p = get("mr-brain").unwrap();
+        p.fit.as_mut().unwrap().swap(0, 1);
+        assert!(p.check().unwrap_err().to_string().contains("fit"));
+    }
+
+    #[test]
+    fn fitting_maps_the_anchors_to_the_landmarks() {
+        let p = get("mr-default").unwrap();
+        let [a, b] = p.fit.unwrap();
+        let at = |l: Landmark| match l {
+            Landmark::Threshold => 100.0,
+            Landmark::P50 => 400.0,
+            Landmark::P95 => 700.0,
+            Landmark::P99 => 900.0,
+        };
+        let q = p.fitted(at);
+        let find = |pr: &Preset, v: f64| pr.tf.points.iter().position(|x| x.value == v);
+        let (ia, ib) = (find(&p, a.value).unwrap(), find(&p, b.value).unwrap());
+        assert_eq!(q.tf.points[ia].value, at(a.to));
+        assert_eq!(q.tf.points[ib].value, at(b.to));
+        assert_eq!(q.iso, Some(at(a.to)), "mr-default's iso is its low anchor");
+        assert_eq!(q.tf.points[ia].opacity, p.tf.points[ia].opacity);
+        q.tf.check().unwrap();
+        // CT presets stay as published.
+        assert_eq!(get("ct-bone").unwrap().fitted(at), get("ct-bone").unwrap());
     }
 
     #[test]

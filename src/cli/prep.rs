@@ -38,8 +38,9 @@ pub struct PrepSettings {
     /// without another prep. Items: iso values, presets, or a modality
     /// (`ct`, `mr`: all its presets), comma-separated; e.g. `--envelope ct`
     /// or `--envelope ct-bone,ct-muscle,500`. `auto`: the envelope of the
-    /// input's modality, CT or MR, guessed from its middle slice (values
-    /// below -500 mean CT) — per input in prep-batch.
+    /// input's modality, CT or MR (as the input says, --modality, or
+    /// guessed from its values), MR presets placed on the input's values
+    /// — per input in prep-batch.
     #[arg(
         long,
         value_name = "ITEMS",
@@ -53,9 +54,18 @@ pub struct PrepSettings {
     #[arg(long, value_name = "FILE", conflicts_with = "preset")]
     pub classify_tf: Option<PathBuf>,
     /// A named preset's transfer function (`cdvol presets` lists them),
-    /// as --classify-tf with that function.
+    /// as --classify-tf with that function, placed on the input's values
+    /// when it is an MR preset; the file's default look in render and
+    /// serve. A preset of another modality than the input's is refused.
     #[arg(long, value_name = "NAME")]
     pub preset: Option<String>,
+    /// The input's modality, when it does not say (NIfTI, NRRD, raw) and
+    /// the guess from its values (below -500: CT) is wrong.
+    #[arg(long, value_enum)]
+    pub modality: Option<ModalityArg>,
+    /// Take a preset of another modality than the input's.
+    #[arg(long)]
+    pub force: bool,
     /// Cells per brick edge (multiple of 4).
     #[arg(long, default_value_t = 32)]
     pub brick: usize,
@@ -100,30 +110,30 @@ impl PrepSettings {
     /// The checked prep options; errors name the flags.
     pub fn to_options(&self) -> anyhow::Result<cdvol::prep::PrepOptions> {
         use cdvol::classify::{Classification, TransferFunction};
-        if self.envelope.len() == 1 && self.envelope[0].eq_ignore_ascii_case("auto") {
-            let mut o = self.with(Classification::Iso { iso: 0.0 })?;
-            o.auto_envelope = true;
-            return Ok(o);
-        }
-        if !self.envelope.is_empty() {
-            let (iso, _) = cdvol::presets::envelope(&self.envelope)
+        let auto = self.envelope.len() == 1 && self.envelope[0].eq_ignore_ascii_case("auto");
+        if !self.envelope.is_empty() && !auto {
+            // Checked now, placed on the input's values by prep.
+            cdvol::presets::envelope(&self.envelope, cdvol::presets::all())
                 .map_err(|e| anyhow::anyhow!("option --envelope: {e}"))?;
-            return self.with(Classification::Iso { iso });
         }
-        let classification = match (self.iso, &self.classify_tf, &self.preset) {
-            (Some(iso), None, None) => {
+        if let Some(name) = &self.preset {
+            cdvol::presets::get(name).map_err(|e| anyhow::anyhow!("option --preset: {e}"))?;
+        }
+        let classification = match (self.iso, &self.classify_tf) {
+            _ if !self.envelope.is_empty() || self.preset.is_some() => {
+                // Replaced by prep once it has seen the input.
+                Classification::Iso { iso: 0.0 }
+            }
+            (Some(iso), None) => {
                 if !iso.is_finite() {
                     anyhow::bail!("option --iso: {iso}, expected a finite number");
                 }
                 Classification::Iso { iso }
             }
-            (None, Some(tf), None) => Classification::TransferFunction {
+            (None, Some(tf)) => Classification::TransferFunction {
                 tf: TransferFunction::load(tf)?,
             },
-            (None, None, Some(name)) => cdvol::presets::get(name)
-                .map_err(|e| anyhow::anyhow!("option --preset: {e}"))?
-                .classification(),
-            (None, None, None) => anyhow::bail!(
+            (None, None) => anyhow::bail!(
                 "prep needs --iso T, --classify-tf FILE, --preset NAME or --envelope ITEMS to \
                  decide which cells are objects"
             ),
@@ -131,7 +141,12 @@ impl PrepSettings {
                 "--iso, --classify-tf and --preset each choose the classification: give one"
             ),
         };
-        self.with(classification)
+        let mut opts = self.with(classification)?;
+        opts.envelope = self.envelope.clone();
+        opts.preset = self.preset.clone();
+        opts.modality = self.modality.map(Into::into);
+        opts.force = self.force;
+        Ok(opts)
     }
 
     /// The checked prep options with `classification`.
@@ -140,21 +155,35 @@ impl PrepSettings {
         classification: cdvol::classify::Classification,
     ) -> anyhow::Result<cdvol::prep::PrepOptions> {
         let opts = cdvol::prep::PrepOptions {
-            classification,
             brick_size: self.brick,
             zstd_level: self.zstd_level,
             aniso: self.aniso,
             dda: self.dda,
             gradient_halo: self.gradient_halo,
             temp_dir: self.temp_dir.clone(),
-            stamp: None,
-            auto_envelope: false,
             mem_limit: self.mem_limit.map(crate::cli::mem_limit),
             format_version: self.format_version,
             allow_empty: self.allow_empty,
+            ..cdvol::prep::PrepOptions::new(classification)
         };
         opts.check().map_err(prep_error)?;
         Ok(opts)
+    }
+}
+
+/// `--modality`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModalityArg {
+    Ct,
+    Mr,
+}
+
+impl From<ModalityArg> for cdvol::presets::Modality {
+    fn from(m: ModalityArg) -> Self {
+        match m {
+            ModalityArg::Ct => cdvol::presets::Modality::Ct,
+            ModalityArg::Mr => cdvol::presets::Modality::Mr,
+        }
     }
 }
 

@@ -7,6 +7,7 @@ use clap::{Args, ValueEnum};
 
 use cdvol::classify::TransferFunction;
 use cdvol::format::reader::PackedVolume;
+use cdvol::presets::Preset;
 use cdvol::render::camera::CameraError;
 use cdvol::render::job::{CameraSpec, JobError, RenderJob, View};
 use cdvol::render::shade::{HitMethod, HitParams};
@@ -94,8 +95,11 @@ pub struct RenderArgs {
           default_missing_value = "auto",
           value_parser = cdvol::render::scalebar::ScaleBar::parse)]
     pub scale_bar: Option<cdvol::render::scalebar::ScaleBar>,
-    #[arg(long, value_enum, default_value = "surface")]
-    pub mode: ModeArg,
+    /// What the image shows. Default: surface, or for a file prepared with
+    /// `--preset` (its look, see `info`) and no --iso, --tf or --preset
+    /// given, that preset's mode: composite, or MIP for the MIP presets.
+    #[arg(long, value_enum)]
+    pub mode: Option<ModeArg>,
     /// Ray generator (paper section 5): chessboard distance, single-cell
     /// steps, CD with anisotropic codes (files prepared with --aniso), an
     /// octree, the 3D DDA with city-block / chessboard / chamfer leaps
@@ -150,6 +154,15 @@ pub struct RenderArgs {
     /// its window in MIP mode.
     #[arg(long, conflicts_with = "tf")]
     pub preset: Option<String>,
+    /// Place an MR preset between these two values of the file instead of
+    /// its landmarks (`info` shows them): the preset's low anchor (its
+    /// threshold, where its opacity begins) at LO, its high one at HI.
+    #[arg(long, value_name = "LO,HI", value_parser = parse_range, requires = "preset")]
+    pub preset_range: Option<[f64; 2]>,
+    /// Take a preset of another modality than the file's (`info` says
+    /// which it is and where that came from).
+    #[arg(long)]
+    pub force: bool,
     /// Transfer function (JSON) for --mode composite.
     #[arg(long)]
     pub tf: Option<PathBuf>,
@@ -313,11 +326,51 @@ impl RenderArgs {
         }
     }
 
+    /// The preset of this render on `vol`: `--preset` (refused when it is
+    /// of another modality than the file's, unless `--force`), or the
+    /// file's look when no `--preset`, `--tf` or `--iso` is given; placed
+    /// on the file's values ([`cdvol::look`]).
+    pub fn preset(&self, vol: &PackedVolume) -> anyhow::Result<Option<Preset>> {
+        let h = vol.header();
+        Ok(match &self.preset {
+            Some(name) => Some(
+                match self.preset_range {
+                    Some([lo, hi]) => cdvol::look::preset_in(h, name, self.force, [lo, hi]),
+                    None => cdvol::look::preset(h, name, self.force),
+                }
+                .map_err(|e| anyhow::anyhow!("option --preset: {e}"))?,
+            ),
+            None if self.tf.is_none() && self.iso.is_none() => cdvol::look::default_look(h),
+            None => None,
+        })
+    }
+
+    /// `--mode`, or without it surface, or the mode of the file's look
+    /// (`preset` came from it when `--preset` is absent).
+    pub fn mode_arg(&self, preset: Option<&Preset>) -> ModeArg {
+        match (self.mode, preset) {
+            (Some(m), _) => m,
+            (None, Some(p)) if self.preset.is_none() => {
+                if p.window.is_some() && p.name.ends_with("-mip") {
+                    ModeArg::Mip
+                } else {
+                    ModeArg::Composite
+                }
+            }
+            (None, _) => ModeArg::Surface,
+        }
+    }
+
     /// The mode, with the hit method, shadows and transfer function it
     /// takes (the composite mode parses `tf_text`, the text of `--tf`).
-    pub fn mode(&self, tf_text: Option<&str>) -> anyhow::Result<Mode> {
+    pub fn mode(
+        &self,
+        mode: ModeArg,
+        preset: Option<&Preset>,
+        tf_text: Option<&str>,
+    ) -> anyhow::Result<Mode> {
         let hit = self.hit.into();
-        Ok(match self.mode {
+        Ok(match mode {
             ModeArg::Surface => Mode::Surface {
                 hit,
                 shadows: self.shadows,
@@ -326,9 +379,9 @@ impl RenderArgs {
             ModeArg::Cost => Mode::Cost,
             ModeArg::Depth => Mode::Depth { hit },
             ModeArg::Composite => {
-                let tf = match (self.tf.as_deref().zip(tf_text), self.preset()?) {
+                let tf = match (self.tf.as_deref().zip(tf_text), preset) {
                     (Some((tf, text)), _) => TransferFunction::from_text(tf, text)?,
-                    (None, Some(p)) => p.tf,
+                    (None, Some(p)) => p.tf.clone(),
                     (None, None) => {
                         anyhow::bail!("--mode composite needs --tf FILE or --preset NAME")
                     }
@@ -341,46 +394,34 @@ impl RenderArgs {
         })
     }
 
-    /// The `--preset`, looked up.
-    pub fn preset(&self) -> anyhow::Result<Option<cdvol::presets::Preset>> {
-        Ok(match &self.preset {
-            Some(name) => Some(cdvol::presets::get(name)?),
-            None => None,
-        })
-    }
-
     /// The scene's iso value: `--iso`, or the preset's in surface, depth
-    /// and cost modes.
-    pub fn iso(&self) -> anyhow::Result<Option<f64>> {
-        let Some(p) = self.preset()? else {
+    /// and cost modes ([`cdvol::look::surface_iso`]).
+    pub fn iso(
+        &self,
+        vol: &PackedVolume,
+        mode: ModeArg,
+        preset: Option<&Preset>,
+    ) -> anyhow::Result<Option<f64>> {
+        let Some(p) = preset else {
             return Ok(self.iso);
         };
-        if !matches!(self.mode, ModeArg::Surface | ModeArg::Depth | ModeArg::Cost) {
+        if !matches!(mode, ModeArg::Surface | ModeArg::Depth | ModeArg::Cost) {
             return Ok(None);
         }
-        match p.iso {
+        match cdvol::look::surface_iso(vol.header(), p) {
             Some(v) => Ok(Some(v)),
-            None => {
-                let with: Vec<&str> = cdvol::presets::all()
-                    .iter()
-                    .filter(|q| q.iso.is_some())
-                    .map(|q| q.name.as_str())
-                    .collect();
-                anyhow::bail!(
-                    "preset {} has no iso value for --mode {}; presets with one: {} \
-                     (or render it with --mode composite)",
-                    p.name,
-                    format!("{:?}", self.mode).to_lowercase(),
-                    with.join(", ")
-                )
-            }
+            None => anyhow::bail!(
+                "preset {} has no iso value for --mode {}; render it with --mode composite",
+                p.name,
+                format!("{mode:?}").to_lowercase(),
+            ),
         }
     }
 
     /// The MIP window of `--window` and `--level`.
-    pub fn window(&self) -> anyhow::Result<Window> {
+    pub fn window(&self, preset: Option<&Preset>) -> anyhow::Result<Window> {
         Ok(match (self.window.as_str(), self.level) {
-            ("auto", None) => match self.preset()?.and_then(|p| p.window) {
+            ("auto", None) => match preset.and_then(|p| p.window) {
                 Some(w) => Window::Fixed {
                     width: w.width,
                     level: w.level,
@@ -409,11 +450,16 @@ impl RenderArgs {
     /// The composite look: the --tf file's `shade` and
     /// `gradient_opacity` keys (from `tf_text`, its text), `--shade` on
     /// top.
-    pub fn look(&self, tf_text: Option<&str>) -> anyhow::Result<CompositeLook> {
-        let mut look = match (self.tf.as_deref().zip(tf_text), self.mode) {
+    pub fn look(
+        &self,
+        mode: ModeArg,
+        preset: Option<&Preset>,
+        tf_text: Option<&str>,
+    ) -> anyhow::Result<CompositeLook> {
+        let mut look = match (self.tf.as_deref().zip(tf_text), mode) {
             (Some((tf, text)), ModeArg::Composite) => CompositeLook::from_text(tf, text)?,
             (None, ModeArg::Composite) => CompositeLook {
-                shade: self.preset()?.is_some_and(|p| p.shade),
+                shade: preset.is_some_and(|p| p.shade),
                 ..CompositeLook::default()
             },
             _ => CompositeLook::default(),
@@ -465,8 +511,11 @@ impl RenderArgs {
             },
             _ => anyhow::bail!("--eye, --target and --up go together: give all three or none"),
         };
+        let preset = self.preset(vol)?;
+        let preset = preset.as_ref();
+        let mode = self.mode_arg(preset);
         // Read once: mode and look both come from this text.
-        let tf_text = match self.mode {
+        let tf_text = match mode {
             ModeArg::Composite => self.tf_text()?,
             _ => None,
         };
@@ -480,7 +529,7 @@ impl RenderArgs {
                 height: self.height,
             },
             options: RenderOptions {
-                mode: self.mode(tf_text)?,
+                mode: self.mode(mode, preset, tf_text)?,
                 method: self.method(vol),
                 tile: self.tile,
                 cache_bytes: self.cache_mb.saturating_mul(1 << 20),
@@ -494,13 +543,13 @@ impl RenderArgs {
                 sampling: self.sample_precision.into(),
                 sample_batches: self.sample_batches == OnOff::On,
                 early_stop: self.early_stop,
-                look: self.look(tf_text)?,
-                window: self.window()?,
+                look: self.look(mode, preset, tf_text)?,
+                window: self.window(preset)?,
                 normals: match self.normals {
                     NormalsArg::Smooth => cdvol::render::Normals::Smooth,
                     NormalsArg::Cell => cdvol::render::Normals::Cell,
                 },
-                iso: self.iso()?,
+                iso: self.iso(vol, mode, preset)?,
                 unrounded: self.bit_depth != cdvol::render::Bits::Eight,
                 cull: !self.no_cull,
             },
@@ -521,6 +570,21 @@ impl RenderArgs {
             mem_limit: self.mem_limit.map(crate::cli::mem_limit),
             scale_bar: self.scale_bar,
         })
+    }
+}
+
+/// `LO,HI`: two finite numbers, LO < HI.
+fn parse_range(s: &str) -> Result<[f64; 2], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: {e}"))?;
+    match v[..] {
+        [lo, hi] if lo.is_finite() && hi.is_finite() && lo < hi => Ok([lo, hi]),
+        _ => Err(format!(
+            "{s:?}: expected LO,HI, two finite numbers with LO < HI"
+        )),
     }
 }
 

@@ -289,6 +289,9 @@ pub enum PhantomCmd {
     Spheres(SpheresArgs),
     /// A CT-like head with slices thin in the middle and 4x thicker on top.
     Ct(CtArgs),
+    /// A T1-weighted-like MR head: arbitrary intensity scale, bias field,
+    /// Rician noise (the air is a Rayleigh floor), optionally skull-stripped.
+    Mr(MrArgs),
 }
 
 #[derive(Args, Debug)]
@@ -368,6 +371,67 @@ pub struct CtArgs {
     /// head's proportions on tall stacks).
     #[arg(long, default_value_t = 1.0)]
     pub z_scale: f64,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum MrType {
+    U16,
+    I16,
+    F32,
+}
+
+impl From<MrType> for cdvol::tools::phantom::MrDtype {
+    fn from(t: MrType) -> Self {
+        match t {
+            MrType::U16 => cdvol::tools::phantom::MrDtype::U16,
+            MrType::I16 => cdvol::tools::phantom::MrDtype::I16,
+            MrType::F32 => cdvol::tools::phantom::MrDtype::F32,
+        }
+    }
+}
+
+impl From<&MrArgs> for cdvol::tools::phantom::MrOptions {
+    fn from(a: &MrArgs) -> Self {
+        cdvol::tools::phantom::MrOptions {
+            dims: a.dims,
+            dtype: a.dtype.into(),
+            scale: a.scale,
+            noise: a.noise,
+            bias: a.bias,
+            skull_stripped: a.skull_stripped,
+            seed: a.seed,
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct MrArgs {
+    /// Output sidecar (raw data goes beside it).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Samples per axis, NX,NY,NZ, over a 192 mm cube (1.5 x 1.5 x 2 mm
+    /// at the default).
+    #[arg(long, default_value = "128,128,96", value_parser = parse_dims,
+          allow_hyphen_values = true)]
+    pub dims: [usize; 3],
+    /// The white matter intensity; other tissues are fractions of it (fat
+    /// 1.2, grey matter 0.68, CSF 0.25, bone 0.07).
+    #[arg(long, default_value_t = 713.0)]
+    pub scale: f64,
+    /// Noise sigma per complex component, as a fraction of the scale.
+    #[arg(long, default_value_t = 0.03)]
+    pub noise: f64,
+    /// Amplitude of the multiplicative bias field (0.12: +-12 %).
+    #[arg(long, default_value_t = 0.12)]
+    pub bias: f64,
+    /// Brain only: every sample outside the brain is exactly 0.
+    #[arg(long)]
+    pub skull_stripped: bool,
+    /// Sample type.
+    #[arg(long, value_enum, default_value = "u16")]
+    pub dtype: MrType,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
 }
 
 #[derive(Args, Debug)]

@@ -9,6 +9,7 @@
 
 pub mod brick;
 pub mod histogram;
+pub mod landmarks;
 pub mod planes;
 pub mod reader;
 pub mod word;
@@ -127,6 +128,15 @@ pub struct Summary {
     pub histogram: Option<histogram::ValueHistogram>,
 }
 
+/// The imaging modality of a file's data and where that was learnt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModalityRecord {
+    pub modality: crate::presets::Modality,
+    /// Where it came from: the input's header (DICOM Modality, a sidecar's
+    /// `modality`), `--modality`, or a guess from the values, said as such.
+    pub source: String,
+}
+
 /// The JSON header (see docs/FORMAT.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Header {
@@ -175,10 +185,54 @@ pub struct Header {
     /// made by `prep` and in older files.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub input: Option<crate::identity::InputStamp>,
+    /// The data's modality (CT, MR) and where that came from; absent in
+    /// older files, whose modality is guessed from their values.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub modality: Option<ModalityRecord>,
+    /// The values' landmarks that MR presets are placed on
+    /// ([`landmarks::Landmarks`]); absent in older files, which take them
+    /// from the value histogram.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub landmarks: Option<landmarks::Landmarks>,
+    /// The preset the file was prepared with (`prep --preset`): its
+    /// default look in `render` and `serve`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub look: Option<String>,
     pub summary: Summary,
 }
 
 impl Header {
+    /// The file's modality: the recorded one, or for older files a guess
+    /// from the value range (values below -500 are air in HU: CT).
+    pub fn modality(&self) -> ModalityRecord {
+        if let Some(m) = &self.modality {
+            return m.clone();
+        }
+        let (lo, _) = self.value_range().unwrap_or((0.0, 0.0));
+        let modality = if lo < -500.0 {
+            crate::presets::Modality::Ct
+        } else {
+            crate::presets::Modality::Mr
+        };
+        ModalityRecord {
+            modality,
+            source: format!(
+                "guessed: the file does not record one, and its smallest value {lo} is {} -500",
+                if lo < -500.0 { "below" } else { "not below" }
+            ),
+        }
+    }
+
+    /// The landmarks MR presets are placed on: the recorded ones, else
+    /// those of the value histogram; `None` without either.
+    pub fn landmarks(&self) -> Option<landmarks::Landmarks> {
+        if let Some(l) = &self.landmarks {
+            return Some(l.clone());
+        }
+        let h = self.summary.histogram.as_ref()?;
+        landmarks::Landmarks::of(h, "the file's value histogram")
+    }
+
     /// Smallest and largest sample value in rescaled units (NaN left
     /// out), from the summary; `None` when every sample is NaN.
     pub fn value_range(&self) -> Option<(f64, f64)> {

@@ -39,6 +39,10 @@ pub struct InputInfo {
     /// Smallest and largest data value (rescaled), NaN left out; `None`
     /// when every sample is NaN.
     pub value_range: Option<[f64; 2]>,
+    /// CT or MR, and where that came from: what the input states, or a
+    /// guess from the smallest value (below -500, air in HU: CT), as
+    /// `prep` decides it (`prep --modality` overrides).
+    pub modality: String,
     pub nan_samples: u64,
     /// What the reader noticed (slice gaps, warnings).
     pub notes: Vec<String>,
@@ -98,6 +102,16 @@ impl InputInfo {
                     .into(),
             },
             value_range: (lo <= hi).then_some([lo, hi]),
+            modality: match src.modality() {
+                Some((m, place)) => format!("{m} ({place})"),
+                None if lo < -500.0 => {
+                    format!("CT (guessed: the smallest value {lo} is below -500, air in HU)")
+                }
+                None => format!(
+                    "MR (guessed: the smallest value {lo} is not below -500; prep --modality \
+                     ct if it is CT)"
+                ),
+            },
             nan_samples: nan,
             notes: src.report(),
         })
@@ -116,6 +130,7 @@ impl InputInfo {
             let _ = writeln!(o, "             {n}");
         }
         let _ = writeln!(o, "orientation  {}", self.orientation);
+        let _ = writeln!(o, "modality     {}", self.modality);
         let d = self.axes.each_ref().map(|a| a.samples);
         let _ = writeln!(o, "dims         {} x {} x {} samples", d[0], d[1], d[2]);
         for (name, a) in ["x", "y", "z"].iter().zip(&self.axes) {

@@ -53,6 +53,8 @@ struct SliceInfo {
     position: [f64; 3],
     bits: u16,
     signed: bool,
+    /// Modality (0008,0060), when present.
+    modality: Option<String>,
     rescale: [f64; 2],
     frames: u32,
     samples_per_pixel: u16,
@@ -65,6 +67,8 @@ pub struct DicomSource {
     files: Vec<PathBuf>,
     slice_bytes: usize,
     report: Vec<String>,
+    /// The first slice's Modality.
+    modality: Option<String>,
 }
 
 impl DicomSource {
@@ -262,6 +266,7 @@ fn header_of(path: &Path) -> Result<Header, InputError> {
         position: [position[0], position[1], position[2]],
         bits,
         signed: int(tags::PIXEL_REPRESENTATION, "PixelRepresentation", Some(0))? == 1,
+        modality: s(tags::MODALITY, "Modality").ok().filter(|m| !m.is_empty()),
         rescale: [
             opt_float(tags::RESCALE_SLOPE, "RescaleSlope", 1.0)?,
             opt_float(tags::RESCALE_INTERCEPT, "RescaleIntercept", 0.0)?,
@@ -564,7 +569,9 @@ pub fn open_files(
             .map_err(|e| err(&first.path, "ImageOrientationPatient", e.to_string()))?,
         ),
     };
+    let modality = slices.first().and_then(|s| s.modality.clone());
     let src = DicomSource {
+        modality,
         meta,
         files: slices.into_iter().map(|s| s.path).collect(),
         slice_bytes: nx * ny * dtype.size(),
@@ -614,6 +621,11 @@ impl SliceSource for DicomSource {
 
     fn report(&self) -> Vec<String> {
         self.report.clone()
+    }
+
+    fn modality(&self) -> Option<(String, String)> {
+        let m = self.modality.clone()?;
+        Some((m, "DICOM Modality (0008,0060)".into()))
     }
 
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {

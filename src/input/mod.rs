@@ -217,6 +217,13 @@ pub trait SliceSource: Send + Sync {
         Vec::new()
     }
 
+    /// The modality the input states, as it states it (`CT`, `MR`, ...),
+    /// with where it says so (`DICOM Modality (0008,0060)`); `None` when
+    /// it does not say (NIfTI and NRRD have no such field).
+    fn modality(&self) -> Option<(String, String)> {
+        None
+    }
+
     /// Every file the source reads: the header or sidecar, then the data
     /// files it names (or a DICOM series' slices). Prep refuses an output
     /// that is one of them.

@@ -222,6 +222,7 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
                 grid,
                 rescale,
                 orientation: meta.orientation,
+                modality: None,
             })?),
             notes,
         )

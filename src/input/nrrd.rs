@@ -65,6 +65,7 @@ pub fn open(path: &Path) -> Result<Box<dyn SliceSource>, InputError> {
             grid: h.grid,
             rescale: Rescale::IDENTITY,
             orientation: h.orientation,
+            modality: None,
         };
         Ok(Box::new(RawSource::from_sidecar(sidecar)?))
     }

@@ -194,6 +194,11 @@ impl SliceSource for RawSource {
         self.notes.clone()
     }
 
+    fn modality(&self) -> Option<(String, String)> {
+        let m = self.sidecar.modality.clone()?;
+        Some((m, "the sidecar's modality".into()))
+    }
+
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {
         let (map, range) = self.slice_range(z);
         decode_samples(

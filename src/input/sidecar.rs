@@ -30,6 +30,8 @@ pub struct Sidecar {
     pub rescale: Rescale,
     /// Optional key `orientation`: which way the axes point in the patient.
     pub orientation: Option<crate::orient::Orientation>,
+    /// Optional key `modality`: `"CT"` or `"MR"`.
+    pub modality: Option<String>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -325,6 +327,13 @@ pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
         grid: Grid { axes },
         rescale,
         orientation: parse_orientation(path, get("orientation"))?,
+        modality: match get("modality") {
+            None | Some(Value::Null) => None,
+            Some(Value::String(m)) if matches!(m.to_ascii_uppercase().as_str(), "CT" | "MR") => {
+                Some(m.to_ascii_uppercase())
+            }
+            Some(v) => return Err(err("modality", format!("{v}, expected \"CT\" or \"MR\""))),
+        },
     })
 }
 

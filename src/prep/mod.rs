@@ -24,7 +24,10 @@ use crate::input::{InputError, SliceSource};
 use crate::progress::Progress;
 use crate::with_word;
 
+mod decide;
 mod slab;
+
+pub use decide::{guess_modality, modality, sampled_landmarks, Decided, LANDMARK_SLICES};
 
 use slab::{emit_slab, BrickOut, SlabCtx, SlabScratch};
 
@@ -52,11 +55,22 @@ pub struct PrepOptions {
     /// Bytes prep may plan to use ([`prep_memory`]); None: the default,
     /// [`crate::memory::default_limit`] (3/4 of RAM).
     pub mem_limit: Option<u64>,
-    /// `--envelope auto`: classify by the envelope of the input's modality
-    /// (all CT or all MR presets, [`crate::presets::envelope`]), the
-    /// modality guessed from the data ([`guess_modality`]); replaces
+    /// `--envelope ITEMS`: classify by the iso value that holds every item
+    /// (iso values, presets, `ct`, `mr`; [`crate::presets::envelope`]), or
+    /// with `auto` alone, every preset of the input's modality; replaces
     /// `classification` ([`PrepOptions::resolved`]).
-    pub auto_envelope: bool,
+    pub envelope: Vec<String>,
+    /// `--preset NAME`: classify by the preset's transfer function, placed
+    /// on the input's values when it is an MR preset, and record it as
+    /// the file's default look; replaces `classification`.
+    pub preset: Option<String>,
+    /// `--modality`: the input's modality, over what it says or a guess.
+    pub modality: Option<crate::presets::Modality>,
+    /// `--force`: take a preset of another modality than the input's.
+    pub force: bool,
+    /// What [`PrepOptions::resolved`] decided for the input (`None` until
+    /// then; prep resolves options that are not).
+    pub decided: Option<Decided>,
     /// Format version to write ([`OLDEST_WRITE_VERSION`] to
     /// [`FORMAT_VERSION`], the default): version 2 is read by cdvol
     /// builds before byte planes (`prep --format-version 2`).
@@ -80,35 +94,14 @@ impl PrepOptions {
             temp_dir: None,
             stamp: None,
             mem_limit: None,
-            auto_envelope: false,
+            envelope: Vec::new(),
+            preset: None,
+            modality: None,
+            force: false,
+            decided: None,
             format_version: FORMAT_VERSION,
             allow_empty: true,
         }
-    }
-
-    /// These options for `src`: with [`PrepOptions::auto_envelope`], the
-    /// classification of its modality's envelope, and the modality with
-    /// the reason it was chosen; otherwise unchanged.
-    pub fn resolved(
-        &self,
-        src: &dyn SliceSource,
-    ) -> Result<(PrepOptions, Option<String>), PrepError> {
-        if !self.auto_envelope {
-            return Ok((self.clone(), None));
-        }
-        let (m, why) = guess_modality(src)?;
-        let group = m.name().to_ascii_lowercase();
-        let (iso, _) = crate::presets::envelope(&[group]).map_err(|e| PrepError::Option {
-            field: "envelope",
-            value: "auto".into(),
-            msg: e.to_string(),
-        })?;
-        let opts = PrepOptions {
-            classification: Classification::Iso { iso },
-            auto_envelope: false,
-            ..self.clone()
-        };
-        Ok((opts, Some(format!("{} ({why}): iso {iso}", m.name()))))
     }
 
     /// Checks the ranges [`prep`] needs before it reads anything:
@@ -345,7 +338,9 @@ pub fn prep_memory(meta: &crate::input::VolumeMeta, opts: &PrepOptions) -> (u64,
     let w = meta.dtype.size() as u64;
     let w_wide = meta.dtype.size().max(meta.dtype.widened().size()) as u64;
     let s = b.min(nz.saturating_sub(1)) + 1;
-    let tf = matches!(opts.classification, Classification::TransferFunction { .. });
+    // A preset classifies by its transfer function once resolved.
+    let tf = matches!(opts.classification, Classification::TransferFunction { .. })
+        || opts.preset.is_some();
     let dda = |x: u64| if opts.dda { x } else { 0 };
     let pass1 = 8 + if tf { 32 } else { 2 } + 1 + 2 + dda(3);
     let pass2 = 2 + dda(3 + 2 * b) + s + s * w_wide + s * w + 8;
@@ -375,8 +370,6 @@ pub fn prep(
 ) -> Result<PrepReport, PrepError> {
     let t0 = Instant::now();
     opts.check()?;
-    let (opts, _) = opts.resolved(src)?;
-    let opts = &opts;
     let meta = src.meta().clone();
     crate::fsutil::check_outputs(&[out.to_path_buf()], &src.files(), Some(&meta.origin_desc))?;
     let (per_sample, needed) = prep_memory(&meta, opts);
@@ -407,6 +400,10 @@ pub fn prep(
             ),
         )));
     }
+    // Decided after the checks above: it reads slices (the modality's
+    // guess, an MR preset's landmarks).
+    let opts = &opts.resolved(src)?;
+    let decided = opts.decided.as_ref();
     let b = opts.brick_size;
     let [nx, ny, nz] = meta.dims();
     let [ncx, ncy, ncz] = meta.grid.cells();
@@ -549,6 +546,14 @@ pub fn prep(
         notes: src.report(),
         orientation: meta.orientation.clone(),
         input: opts.stamp.clone(),
+        modality: decided.map(|d| d.modality.clone()),
+        landmarks: decided.and_then(|d| d.landmarks.clone()).or_else(|| {
+            // An MR file records the landmarks of its whole histogram.
+            let mr = decided.is_some_and(|d| d.modality.modality == crate::presets::Modality::Mr);
+            let h = summary.histogram.as_ref().filter(|_| mr)?;
+            crate::format::landmarks::Landmarks::of(h, "the file's value histogram")
+        }),
+        look: decided.and_then(|d| d.look.clone()),
         summary: Summary::default(),
     };
     if header.max_payload_len() > crate::format::MAX_PAYLOAD_LEN {
@@ -694,30 +699,4 @@ fn or_planes(a: &[u8], b: &[u8], obj: &mut [u8]) -> u64 {
             n
         })
         .sum()
-}
-
-/// The modality of `src`'s data for `--envelope auto`: CT when the middle
-/// slice holds values below -500 after rescaling (air in Hounsfield units
-/// is -1000; MR intensities are not negative), else MR. One slice is read.
-/// Returns the modality and the figure that decided it.
-pub fn guess_modality(
-    src: &dyn SliceSource,
-) -> Result<(crate::presets::Modality, String), PrepError> {
-    let meta = src.meta();
-    let [nx, ny, nz] = meta.dims();
-    let z = nz / 2;
-    let mut buf = vec![0.0f64; nx * ny];
-    src.read_slice(z, &mut buf)?;
-    let r = meta.rescale;
-    let lo = buf
-        .iter()
-        .map(|&v| v * r.slope + r.intercept)
-        .filter(|v| !v.is_nan())
-        .fold(f64::INFINITY, f64::min);
-    let m = if lo < -500.0 {
-        crate::presets::Modality::Ct
-    } else {
-        crate::presets::Modality::Mr
-    };
-    Ok((m, format!("smallest value of slice {z}: {lo}")))
 }

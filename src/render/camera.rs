@@ -137,7 +137,9 @@ impl Camera {
     /// Orbits the centre of the box `[lo, hi]`: azimuth about +z (0 looks
     /// along +y, i.e. at the face of a supine head), elevation above the
     /// xy plane. Orthographic views frame the whole volume unless
-    /// `frame_mm` is given; the eye stays outside the volume.
+    /// `frame_mm` is given; the eye stays outside the volume. (`cdvol
+    /// render` and `cdvol serve` frame the object instead:
+    /// [`super::framing`].)
     pub fn orbit(
         bounds: ([f64; 3], [f64; 3]),
         az_deg: f64,

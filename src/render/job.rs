@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use super::cache::BrickCache;
 use super::camera::{orbit_dirs, Camera, CameraError, Projection};
 use super::error::RenderError;
+use super::framing::Framing;
 use super::options::Mode;
 use super::options::RenderOptions;
 use super::output::{image_files, stage_on, Bits, ImageSpec, SaveError};
@@ -27,9 +28,10 @@ use crate::progress::Progress;
 /// Where the camera stands.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum View {
-    /// Around the volume centre ([`Camera::orbit`]), degrees: in patient
-    /// axes (LPS: 0,0 looks at the face, head up) when the file records
-    /// its orientation, else in the file's sample axes.
+    /// Around the centre of the object's box (the volume's for a scene
+    /// with no 1-cell; render/framing.rs), degrees: in patient axes (LPS:
+    /// 0,0 looks at the face, head up) when the file records its
+    /// orientation, else in the file's sample axes.
     Orbit { az_deg: f64, el_deg: f64 },
     /// A view in patient terms; needs a file that records its orientation.
     Named(NamedView),
@@ -49,25 +51,94 @@ pub struct CameraSpec {
     /// Perspective with this vertical field of view in degrees; `None`
     /// for orthographic.
     pub persp_fov_deg: Option<f64>,
-    /// Orthographic frame height in mm (default: the whole volume).
+    /// Orthographic frame height in mm (default: the object fits,
+    /// render/framing.rs).
     pub frame_mm: Option<f64>,
     pub width: u32,
     pub height: u32,
 }
 
 impl CameraSpec {
-    /// The camera over the box `bounds` (mm), turned by `az_turn_deg` of
-    /// azimuth (turntables; 0 for a single image). With an `orientation`,
-    /// orbits and named views are in patient axes: placed in LPS, then
-    /// turned into sample axes through the nearest signed permutation
-    /// (and mirrored when the sample axes are mirrored in the patient);
-    /// eye, target and up stay in sample-axis mm.
+    /// What this camera frames on `vol` for `opts`'s scene
+    /// (render/framing.rs): the object's box ([`Framing::of`]), fitted to
+    /// the directions of all `frames` frames of a turntable over
+    /// `orbit_deg` degrees (1 and 0 for a single image), so that one frame
+    /// fits them all; only the volume for an exact eye (no brick read).
+    pub fn framing(
+        &self,
+        vol: &PackedVolume,
+        opts: &RenderOptions,
+        frames: u32,
+        orbit_deg: f64,
+        orientation: Option<&Orientation>,
+    ) -> Result<Framing, CameraError> {
+        if let View::LookAt { .. } = self.view {
+            return Ok(Framing::volume(
+                TGrid::<f64>::new(&vol.header().axes).bounds(),
+            ));
+        }
+        let framing = Framing::of(vol, opts);
+        if framing.object.is_none() {
+            return Ok(framing);
+        }
+        // More frames are refused later (`outputs`).
+        let n = frames.clamp(1, MAX_FRAMES);
+        let dirs = (0..n)
+            .map(|f| match f {
+                0 => self.direction(0.0, orientation),
+                _ => self.direction(orbit_deg * f as f64 / n as f64, orientation),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(framing.fitted(&dirs, self.persp_fov_deg, self.width, self.height))
+    }
+
+    /// The camera for `framing`, turned by `az_turn_deg` of azimuth
+    /// (turntables; 0 for a single image). Orbits and named views look at
+    /// the centre of the object's box with the frame `framing` fits
+    /// ([`super::framing::orbit`]; `frame_mm` when given). With an
+    /// `orientation`, orbits and named views are in patient axes: placed
+    /// in LPS, then turned into sample axes through the nearest signed
+    /// permutation (and mirrored when the sample axes are mirrored in the
+    /// patient). Eye, target and up stay in sample-axis mm, an
+    /// orthographic frame defaulting to the volume's diagonal.
     pub fn place(
         &self,
-        bounds: ([f64; 3], [f64; 3]),
+        framing: &Framing,
         az_turn_deg: f64,
         orientation: Option<&Orientation>,
     ) -> Result<Camera, CameraError> {
+        if let View::LookAt { eye, target, up } = self.view {
+            let projection = match self.persp_fov_deg {
+                Some(fov_deg) => Projection::Persp { fov_deg },
+                None => {
+                    let (lo, hi) = framing.volume;
+                    let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+                    Projection::Ortho {
+                        frame_mm: self.frame_mm.unwrap_or(diag * 1.02),
+                    }
+                }
+            };
+            return Camera::look_at(eye, target, up, projection, self.width, self.height);
+        }
+        let map = orientation.map_or(AxisMap::IDENTITY, Orientation::nearest);
+        let cam = super::framing::orbit(
+            framing,
+            self.direction(az_turn_deg, orientation)?,
+            self.persp_fov_deg,
+            self.frame_mm,
+            self.width,
+            self.height,
+        )?;
+        Ok(if map.det() < 0.0 { cam.mirrored() } else { cam })
+    }
+
+    /// The direction from the centre to the eye and the up vector of an
+    /// orbit or named view turned by `az_turn_deg`, in sample axes.
+    fn direction(
+        &self,
+        az_turn_deg: f64,
+        orientation: Option<&Orientation>,
+    ) -> Result<super::framing::Dir, CameraError> {
         let (back, up) = match (self.view, orientation) {
             (View::Named(v), None) => return Err(CameraError::NoOrientation { view: v.name() }),
             (View::Named(v), Some(_)) => {
@@ -82,56 +153,12 @@ impl CameraSpec {
                     (back, up)
                 }
             }
-            (View::Orbit { az_deg, el_deg }, Some(_)) => orbit_dirs(az_deg + az_turn_deg, el_deg),
-            (View::Orbit { .. } | View::LookAt { .. }, None) | (View::LookAt { .. }, Some(_)) => {
-                return self.place_in_samples(bounds, az_turn_deg)
-            }
+            (View::Orbit { az_deg, el_deg }, _) => orbit_dirs(az_deg + az_turn_deg, el_deg),
+            // `place` places exact eyes itself.
+            (View::LookAt { .. }, _) => orbit_dirs(az_turn_deg, 0.0),
         };
         let map = orientation.map_or(AxisMap::IDENTITY, Orientation::nearest);
-        let cam = Camera::orbit_dir(
-            bounds,
-            map.to_sample(back),
-            map.to_sample(up),
-            self.persp_fov_deg,
-            self.frame_mm,
-            self.width,
-            self.height,
-        )?;
-        Ok(if map.det() < 0.0 { cam.mirrored() } else { cam })
-    }
-
-    /// The camera in the file's sample axes, as for a file without
-    /// orientation.
-    fn place_in_samples(
-        &self,
-        bounds: ([f64; 3], [f64; 3]),
-        az_turn_deg: f64,
-    ) -> Result<Camera, CameraError> {
-        match self.view {
-            View::LookAt { eye, target, up } => {
-                let projection = match self.persp_fov_deg {
-                    Some(fov_deg) => Projection::Persp { fov_deg },
-                    None => {
-                        let (lo, hi) = bounds;
-                        let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
-                        Projection::Ortho {
-                            frame_mm: self.frame_mm.unwrap_or(diag * 1.02),
-                        }
-                    }
-                };
-                Camera::look_at(eye, target, up, projection, self.width, self.height)
-            }
-            View::Orbit { az_deg, el_deg } => Camera::orbit(
-                bounds,
-                az_deg + az_turn_deg,
-                el_deg,
-                self.persp_fov_deg,
-                self.frame_mm,
-                self.width,
-                self.height,
-            ),
-            View::Named(v) => Err(CameraError::NoOrientation { view: v.name() }),
-        }
+        Ok((map.to_sample(back), map.to_sample(up)))
     }
 }
 
@@ -337,12 +364,15 @@ pub fn run(
     job: &RenderJob,
     progress: &dyn Progress,
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
-    let bounds = TGrid::<f64>::new(&vol.header().axes).bounds();
     if job.frames > 1 && matches!(job.camera.view, View::LookAt { .. }) {
         return Err(JobError::TurntableLookAt { frames: job.frames });
     }
     let orientation = vol.header().orientation.as_ref();
-    let camera = job.camera.place(bounds, 0.0, orientation)?;
+    // One frame for all of a turntable's frames (render/framing.rs).
+    let framing = job
+        .camera
+        .framing(vol, &job.options, job.frames, job.orbit_deg, orientation)?;
+    let camera = job.camera.place(&framing, 0.0, orientation)?;
     if job.template && job.shard.is_some() {
         return Err(JobError::TemplateShard);
     }
@@ -420,7 +450,7 @@ pub fn run(
     crate::fsutil::check_outputs(&job.outputs()?, &[vol.path().to_path_buf()], None)?;
     let work = || {
         if job.frames > 1 {
-            turntable(vol, job, bounds, progress)
+            turntable(vol, job, &framing, progress)
         } else if let Some(shard) = job.shard {
             part(vol, job, &camera, shard, progress)
         } else {
@@ -522,7 +552,7 @@ fn part(
 fn turntable(
     vol: &PackedVolume,
     job: &RenderJob,
-    bounds: ([f64; 3], [f64; 3]),
+    framing: &Framing,
     progress: &dyn Progress,
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
     let (mut set, mut total, mut per_frame) = (FileSet::new(), Stats::default(), Vec::new());
@@ -534,7 +564,7 @@ fn turntable(
             continue;
         }
         let cam = job.camera.place(
-            bounds,
+            framing,
             job.orbit_deg * f as f64 / job.frames as f64,
             vol.header().orientation.as_ref(),
         )?;

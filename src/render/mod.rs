@@ -16,6 +16,7 @@
 //! output.rs      pixels -> coloured Frame -> PNG
 //! stats.rs       counters of a render (`--stats`)
 //! shard.rs       parts of a sharded render: write, read, assemble
+//! framing.rs     the default frame: the box of the scene's 1-cells
 //! job.rs         a whole `cdvol render` job: camera framing,
 //!                turntables, numbered frames, part files
 //! template/      template-based CD (section 4.2.2), its own renderer:
@@ -34,7 +35,9 @@ mod clock;
 mod colour;
 mod cull;
 mod error;
+pub mod framing;
 pub mod gradient;
+pub mod grain;
 mod held;
 pub mod hit;
 mod integrate;

@@ -299,7 +299,14 @@ impl<'v> Server<'v> {
             .enumerate()
             .map(|(i, f)| {
                 let h = f.vol.header();
+                let m = h.modality();
+                let offered: Vec<serde_json::Value> =
+                    crate::look::offered(h).iter().map(preset_json).collect();
                 serde_json::json!({
+                    "modality": m.modality.name(),
+                    "modality_source": m.source,
+                    "look": h.look,
+                    "presets": offered,
                     "index": i,
                     "name": f.name,
                     "oriented": h.orientation.is_some(),
@@ -308,17 +315,8 @@ impl<'v> Server<'v> {
                 })
             })
             .collect();
-        let presets: Vec<serde_json::Value> = crate::presets::all()
-            .iter()
-            .map(|p| {
-                serde_json::json!({
-                    "name": p.name, "modality": p.modality.name(),
-                    "description": p.description, "iso": p.iso,
-                    "window": p.window.map(|w| [w.width, w.level]),
-                    "support": p.support(),
-                })
-            })
-            .collect();
+        let presets: Vec<serde_json::Value> =
+            crate::presets::all().iter().map(preset_json).collect();
         serde_json::json!({
             "files": files,
             "presets": presets,
@@ -327,6 +325,17 @@ impl<'v> Server<'v> {
             "cache_mb": self.engine.cache_bytes >> 20,
         })
     }
+}
+
+/// A preset as the page reads it: `iso` is its surface iso
+/// ([`crate::presets::Preset::surface_iso`]), `window` `[width, level]`.
+fn preset_json(p: &crate::presets::Preset) -> serde_json::Value {
+    serde_json::json!({
+        "name": p.name, "modality": p.modality.name(),
+        "description": p.description, "iso": p.surface_iso(),
+        "window": p.window.map(|w| [w.width, w.level]),
+        "support": p.support(),
+    })
 }
 
 /// The request head at the start of `buf` and its length, `None` while

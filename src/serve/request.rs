@@ -8,6 +8,7 @@
 //! text of the URL ever names a path.
 
 use crate::format::reader::PackedVolume;
+use crate::format::Header;
 use crate::orient::NamedView;
 use crate::render::camera::Camera;
 use crate::render::job::{CameraSpec, View};
@@ -99,7 +100,8 @@ pub struct ViewRequest {
     pub view: Option<NamedView>,
     pub az_deg: f64,
     pub el_deg: f64,
-    /// Orthographic frame height (zoom), mm; `None`: the whole volume.
+    /// Orthographic frame height (zoom), mm; `None`: the object fits
+    /// (render/framing.rs).
     pub frame_mm: Option<f64>,
     /// Pan in mm along the image's right and up.
     pub pan_mm: Option<[f64; 2]>,
@@ -212,15 +214,19 @@ impl ViewRequest {
 
     /// The render options: `cdvol render`'s defaults with this request's
     /// mode, scene and window.
-    pub fn options(&self, cache_bytes: usize) -> Result<RenderOptions, RequestError> {
+    pub fn options(&self, h: &Header, cache_bytes: usize) -> Result<RenderOptions, RequestError> {
+        // The named preset placed on the file (refused when it is of the
+        // other modality), or for a composite without one, the file's look.
         let preset = match &self.preset {
-            Some(p) => Some(crate::presets::get(p).map_err(|_| {
-                bad(
-                    "preset",
-                    p,
-                    format!("a preset: {}", crate::presets::names()),
-                )
+            Some(p) => Some(crate::look::preset(h, p, false).map_err(|e| RequestError::Bad {
+                name: "preset",
+                value: p.clone(),
+                expected: match e {
+                    crate::look::LookError::WrongModality { .. } => e.to_string(),
+                    _ => format!("a preset: {}", crate::look::offered_names(h)),
+                },
             })?),
+            None if self.mode == "composite" || self.iso.is_none() => crate::look::default_look(h),
             None => None,
         };
         let mode = match self.mode.as_str() {
@@ -248,7 +254,7 @@ impl ViewRequest {
         if let Some(p) = &preset {
             match self.mode.as_str() {
                 "surface" | "cost" => {
-                    o.iso = Some(p.iso.ok_or_else(|| RequestError::Bad {
+                    o.iso = Some(crate::look::surface_iso(h, p).ok_or_else(|| RequestError::Bad {
                         name: "preset",
                         value: p.name.clone(),
                         expected: format!("a preset with an iso value for mode={}", self.mode),
@@ -349,10 +355,12 @@ impl ViewRequest {
         Ok(())
     }
 
-    /// `spec` placed against `vol`.
+    /// `spec` placed against `vol`, framing this request's scene as
+    /// `cdvol render` does (render/framing.rs).
     pub fn place(&self, vol: &PackedVolume, spec: &CameraSpec) -> Result<Camera, RequestError> {
-        let bounds = TGrid::<f64>::new(&vol.header().axes).bounds();
-        spec.place(bounds, 0.0, vol.header().orientation.as_ref())
+        let orientation = vol.header().orientation.as_ref();
+        spec.framing(vol, &self.options(vol.header(), 0)?, 1, 0.0, orientation)
+            .and_then(|framing| spec.place(&framing, 0.0, orientation))
             .map_err(|e| self.bad_view(e.to_string()))
     }
 

@@ -16,8 +16,9 @@ const S: f64 = 2.0;
 /// The patient box the phantom fills (LPS mm, both ends sampled).
 const LO: [f64; 3] = [-50.0, -50.0, -60.0];
 const HI: [f64; 3] = [50.0, 50.0, 60.0];
-/// Image size, and the frame in mm (2 mm a pixel, centred on the box
-/// centre, which is the patient origin).
+/// Image size, and the frame in mm (2 mm a pixel; views centre on the
+/// object's box, render/framing.rs, and [`mask`] moves the patient origin,
+/// the volume's centre, to the image's centre).
 const PX: u32 = 80;
 const FRAME: f64 = 160.0;
 
@@ -216,7 +217,8 @@ fn prep(input: &Path, out: &Path) {
 }
 
 /// Renders `vol` (surface) with `view` (`None`: the default) and returns
-/// the foreground mask, row 0 at the top.
+/// the foreground mask, row 0 at the top, moved by whole pixels so that
+/// the volume's centre (the patient origin) lies at the image's centre.
 fn mask(vol: &Path, view: Option<&str>, out: &Path) -> Vec<Vec<bool>> {
     let mut c = cdvol();
     c.args(["render", "-q"]).arg(vol).arg("-o").arg(out);
@@ -228,9 +230,70 @@ fn mask(vol: &Path, view: Option<&str>, out: &Path) -> Vec<Vec<bool>> {
     ok(&mut c);
     let img = image::open(out).unwrap().to_luma8();
     let bg = img.get_pixel(0, 0)[0];
-    (0..PX)
-        .map(|y| (0..PX).map(|x| img.get_pixel(x, y)[0] != bg).collect())
+    let [sx, sy] = origin_px(vol, view);
+    let px = PX as i64;
+    (0..px)
+        .map(|y| {
+            (0..px)
+                .map(|x| {
+                    let (x, y) = (x + sx, y + sy);
+                    (0..px).contains(&x)
+                        && (0..px).contains(&y)
+                        && img.get_pixel(x as u32, y as u32)[0] != bg
+                })
+                .collect()
+        })
         .collect()
+}
+
+/// Where the volume's centre lies in `vol`'s image with `view`, in whole
+/// pixels right of and below the image's centre, the camera placed by the
+/// library as `cdvol render` places it.
+fn origin_px(vol: &Path, view: Option<&str>) -> [i64; 2] {
+    use cdvol::render::job::{CameraSpec, View};
+    let v = cdvol::format::reader::PackedVolume::open(vol).unwrap();
+    let h = v.header();
+    let view = match view {
+        Some(n) if cdvol::orient::NamedView::parse(n).is_some() => {
+            View::Named(cdvol::orient::NamedView::parse(n).unwrap())
+        }
+        Some(a) => {
+            let (az, el) = a.split_once(',').unwrap();
+            View::Orbit {
+                az_deg: az.parse().unwrap(),
+                el_deg: el.parse().unwrap(),
+            }
+        }
+        None => View::Orbit {
+            az_deg: 0.0,
+            el_deg: 0.0,
+        },
+    };
+    let spec = CameraSpec {
+        view,
+        persp_fov_deg: None,
+        frame_mm: Some(FRAME),
+        width: PX,
+        height: PX,
+    };
+    let opts = cdvol::render::RenderOptions::new(
+        cdvol::render::Mode::Surface {
+            hit: cdvol::render::shade::HitMethod::Int,
+            shadows: false,
+        },
+        cdvol::render::traverse::Method::Cd { min_leap: 1 },
+    );
+    let o = h.orientation.as_ref();
+    let framing = spec.framing(&v, &opts, 1, 0.0, o).unwrap();
+    let cam = spec.place(&framing, 0.0, o).unwrap();
+    let (lo, hi) = cdvol::render::traverse::TGrid::<f64>::new(&h.axes).bounds();
+    let c = glam::DVec3::from_array(std::array::from_fn(|k| 0.5 * (lo[k] + hi[k])));
+    let p = c - cam.eye;
+    let mm_px = FRAME / PX as f64;
+    [
+        (p.dot(cam.right) / mm_px).round() as i64,
+        (-p.dot(cam.up) / mm_px).round() as i64,
+    ]
 }
 
 /// Foreground pixels whose centre lies beyond `mm` from the image centre

@@ -256,8 +256,9 @@ fn iso_outside_the_envelope_is_refused_with_the_prep_command() {
 }
 
 /// `render --preset`: the preset's iso value in surface mode, its window
-/// in MIP mode, its transfer function in composite mode; a preset without
-/// an iso value is refused in surface mode, naming those with one.
+/// in MIP mode (the image's own for the MIP presets), its transfer
+/// function in composite mode; a preset without an iso value draws the
+/// surface where its transfer function's opacity begins.
 #[test]
 fn render_presets_are_their_settings() {
     let dir = tempfile::tempdir().unwrap();
@@ -269,8 +270,7 @@ fn render_presets_are_their_settings() {
         .arg("-o")
         .arg(&cdv));
     let bone = cdvol::presets::get("ct-bone").unwrap();
-    let mip = cdvol::presets::get("ct-mip").unwrap();
-    let w = mip.window.unwrap();
+    let w = bone.window.unwrap();
     let render = |name: &str, args: &[String]| {
         let out = dir.path().join(name);
         ok(cdvol()
@@ -288,6 +288,10 @@ fn render_presets_are_their_settings() {
     );
     assert_eq!(
         render("pm.png", &s(&["--mode", "mip", "--preset", "ct-mip"])),
+        render("am.png", &s(&["--mode", "mip"]))
+    );
+    assert_eq!(
+        render("bm.png", &s(&["--mode", "mip", "--preset", "ct-bone"])),
         render(
             "wm.png",
             &s(&[
@@ -315,16 +319,11 @@ fn render_presets_are_their_settings() {
         ),
         render("tc.png", &shaded)
     );
-    let e = fails(
-        cdvol()
-            .args(["render", "-q", "--preset", "ct-lung"])
-            .arg(&cdv)
-            .arg("-o")
-            .arg(dir.path().join("x.png")),
-    );
-    assert!(
-        e.contains("ct-lung has no iso value") && e.contains("ct-bone"),
-        "{e}"
+    let lung = cdvol::presets::get("ct-lung").unwrap();
+    assert_eq!(lung.iso, None);
+    assert_eq!(
+        render("pl.png", &s(&["--preset", "ct-lung"])),
+        render("il.png", &s(&["--iso", &lung.tf.iso_floor().unwrap().to_string()]))
     );
 }
 
@@ -341,7 +340,8 @@ fn one_envelope_prep_serves_every_ct_preset() {
         .arg(&head)
         .arg("-o")
         .arg(&cdv));
-    let (iso, covers) = cdvol::presets::envelope(&["ct".to_string()]).unwrap();
+    let (iso, covers) =
+        cdvol::presets::envelope(&["ct".to_string()], cdvol::presets::all()).unwrap();
     let ct: Vec<_> = cdvol::presets::all()
         .iter()
         .filter(|p| p.modality == cdvol::presets::Modality::Ct)
@@ -430,14 +430,15 @@ fn batch_envelope_auto_picks_each_inputs_modality() {
         .or_else(|| first["inputs"].as_array())
         .unwrap()
         .clone();
-    let (ct_iso, _) = cdvol::presets::envelope(&["ct".into()]).unwrap();
-    let (mr_iso, _) = cdvol::presets::envelope(&["mr".into()]).unwrap();
-    for (name, modality, iso) in [("head.json", "CT", ct_iso), ("mr.json", "MR", mr_iso)] {
+    for (name, modality, group) in [("head.json", "CT", "ct"), ("mr.json", "MR", "mr")] {
         let row = rows.iter().find(|r| r["input"] == name).unwrap();
         let m = row["modality"].as_str().unwrap();
         assert!(m.starts_with(modality), "{name}: {m}");
         let vol =
             PackedVolume::open(std::path::Path::new(row["output"].as_str().unwrap())).unwrap();
+        // MR presets are placed on the landmarks prep recorded.
+        let placed = cdvol::look::placed(vol.header());
+        let (iso, _) = cdvol::presets::envelope(&[group.into()], &placed).unwrap();
         assert_eq!(
             vol.header().classification,
             Classification::Iso { iso },

@@ -486,8 +486,7 @@ fn cli_shards_assemble_and_turntables() {
     ));
     assert!(err.contains("0 <= K < N"));
 
-    // A turntable of 5 frames, whole and split over 2 shards of frames;
-    // frame f is the single render at azimuth 25 + f * 72.
+    // A turntable of 5 frames, whole and split over 2 shards of frames.
     ok(&mut render_cli(&vp, &d.join("tt.png"), &["--frames", "5"]));
     std::fs::create_dir(d.join("split")).unwrap();
     for k in 0..2 {
@@ -501,12 +500,21 @@ fn cli_shards_assemble_and_turntables() {
         let name = format!("tt.{f:04}.png");
         assert_eq!(png(&name), png(&format!("split/{name}")), "frame {f}");
     }
+    // Its frames share one frame, fitted to all five directions
+    // (render/framing.rs); given the same --frame, frame f is the single
+    // render at azimuth 25 + f * 72.
+    let frame = ["--frame", "40"];
+    ok(&mut render_cli(
+        &vp,
+        &d.join("ttf.png"),
+        &["--frames", "5", frame[0], frame[1]],
+    ));
     ok(&mut render_at(
         &vp,
         &d.join("f3.png"),
         25.0 + 3.0 * 72.0,
-        &[],
+        &frame,
     ));
-    assert_eq!(png("f3.png"), png("tt.0003.png"));
+    assert_eq!(png("f3.png"), png("ttf.0003.png"));
     assert_ne!(png("tt.0000.png"), png("tt.0003.png"));
 }

@@ -4,7 +4,10 @@
 # (playwright-core, which drives the installed browser and downloads
 # none), prepares the real CT, and runs view-test.mjs twice: one client
 # at 1024^2 (the refined frame must equal `cdvol render`; latency and
-# drag fps reported), and four clients at once (peak RSS reported).
+# drag fps reported), and four clients at once (peak RSS reported); then
+# page-test.mjs: refusals over the image with the image kept, a refused
+# value marked and not sticking, the command following the controls, the
+# preset menu following the file (issue 51, item 10).
 #
 # usage: tools/browser/ci.sh [CDVOL] [CT_SIDECAR]   (defaults:
 #        target/debug/cdvol as `cargo test` left it, target/ct/cranium.json)
@@ -34,3 +37,14 @@ trap 'rm -rf "$work"' EXIT
 node view-test.mjs --cdvol "$cdvol" --file "$work/ct.cdv" --size 1024 --out "$work/one"
 node view-test.mjs --cdvol "$cdvol" --file "$work/ct.cdv" --size 512 --clients 4 \
     --drags 2 --cache-mb 64 --out "$work/four"
+# The CT is prepared at iso 300: page-test's refused iso is 200. Its
+# second file is the MR phantom prepared with the MR preset mr-default
+# (the file's look), so switching files switches the preset menu's
+# modality; the CT again where the binary has no MR phantom.
+second=$work/ct.cdv
+if "$cdvol" phantom mr --help >/dev/null 2>&1; then
+    "$cdvol" -q phantom mr -o "$work/mr.json" --dims 96,96,72 >/dev/null
+    "$cdvol" -q prep "$work/mr.json" --preset mr-default -o "$work/mr.cdv" >/dev/null
+    second=$work/mr.cdv
+fi
+node page-test.mjs --cdvol "$cdvol" --file "$work/ct.cdv" --file2 "$second" --out "$work/page"

@@ -11,22 +11,18 @@
 //        [--mode surface] [--cache-mb 512] [--clients 1] [--drags 3]
 //        [--steps 30] [--out DIR] [--json results.json]
 //
-// Exit status 1 when the page fails: no frame, an error shown, or the
-// screenshot differs from `cdvol render`. Timings are reported, not
+// Exit status 1 when the page fails: no frame, an error shown, the
+// screenshot differs from `cdvol render`, or the page's "cdvol render
+// command" is not the server's for the frame shown. Timings are reported, not
 // judged (they depend on the machine); docs/BENCHMARKS.md records them.
 
-import { spawn, execFileSync } from "node:child_process";
+import { execFileSync } from "node:child_process";
 import { mkdtempSync, readFileSync, writeFileSync, mkdirSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
-import { chromium } from "playwright-core";
+import { launch, parseArgs, startServer, substitutePage } from "./common.mjs";
 
-const args = Object.fromEntries(
-  process.argv.slice(2).reduce((acc, a, i, all) => {
-    if (a.startsWith("--")) acc.push([a.slice(2), all[i + 1]]);
-    return acc;
-  }, []),
-);
+const args = parseArgs(process.argv.slice(2));
 const opt = {
   cdvol: resolve(args.cdvol ?? "target/debug/cdvol"),
   file: resolve(args.file ?? ""),
@@ -40,29 +36,14 @@ const opt = {
   out: args.out ? resolve(args.out) : mkdtempSync(join(tmpdir(), "cdvol-browser-")),
   json: args.json,
   chromium: args["chromium"] ?? "/usr/bin/chromium",
+  // Another page.html than the binary's (common.mjs, substitutePage).
+  page: args.page ? resolve(args.page) : null,
 };
 mkdirSync(opt.out, { recursive: true });
 
 function fail(msg) {
   console.error("view-test: FAILED: " + msg);
   process.exitCode = 1;
-}
-
-// `cdvol serve` on a free port; resolves to {proc, url}.
-function startServer() {
-  const proc = spawn(opt.cdvol, ["serve", opt.file, "--bind", "127.0.0.1:0",
-    "--cache-mb", String(opt.cacheMb)], { stdio: ["ignore", "ignore", "pipe"] });
-  return new Promise((ok, no) => {
-    let err = "";
-    proc.stderr.on("data", (d) => {
-      err += d;
-      proc.stderrText = err.slice(-4000);
-      // Wait for the whole line: a pipe may deliver it in pieces.
-      const m = err.match(/listening on (http:\/\/\S+)\r?\n/);
-      if (m) ok({ proc, url: m[1] });
-    });
-    proc.on("exit", (c) => no(new Error(`cdvol serve exited ${c}: ${err}`)));
-  });
 }
 
 // Peak resident memory of `pid` in MiB (VmHWM).
@@ -100,6 +81,7 @@ async function drag(page, box, steps, dy) {
 
 async function openPage(browser, url) {
   const ctx = await browser.newContext({ viewport: { width: 360 + opt.size, height: Math.max(900, opt.size + 40) } });
+  await substitutePage(ctx, opt.page);
   const page = await ctx.newPage();
   const errors = [], consoleLines = [];
   page.on("pageerror", (e) => errors.push(String(e)));
@@ -156,13 +138,24 @@ async function comparePngs(page, a, b) {
 }
 
 // The `cdvol render` arguments of the view in the page's URL hash: the
-// test's own reading, not the server's command line.
-function renderArgs(hash) {
+// test's own reading, not the server's command line. `info` is
+// /api/info: in surface and cost mode a typed iso value wins over the
+// preset, and a preset counts only when it has an iso value
+// (docs/SERVE.md, "The page").
+function renderArgs(hash, info) {
   const q = new URLSearchParams(hash.replace(/^#/, ""));
   const size = q.get("size") ?? "512";  // the page leaves defaults out
-  const a = ["--mode", q.get("mode") ?? "surface", "--width", size, "--height", size];
+  const mode = q.get("mode") ?? "surface";
+  const a = ["--mode", mode, "--width", size, "--height", size];
   a.push("--view", q.get("view") ?? `${q.get("az") ?? 0},${q.get("el") ?? 0}`);
-  for (const [k, flag] of [["frame", "--frame"], ["preset", "--preset"], ["iso", "--iso"], ["hit", "--hit"]]) {
+  const presets = info.files[+(q.get("file") ?? 0)].presets ?? info.presets;
+  const preset = presets.find((p) => p.name === q.get("preset"));
+  if (mode === "surface" || mode === "cost") {
+    if (q.get("preset") && !q.get("iso") && preset?.iso != null) a.push("--preset", q.get("preset"));
+  } else if (q.get("preset")) a.push("--preset", q.get("preset"));
+  const iso = mode === "surface" || mode === "cost" || (mode === "mip" && !q.get("preset"));
+  if (q.get("iso") && iso) a.push("--iso", q.get("iso"));
+  for (const [k, flag] of [["frame", "--frame"], ["hit", "--hit"]]) {
     if (q.get(k)) a.push(flag, q.get(k));
   }
   if (q.get("shadows") === "1") a.push("--shadows");
@@ -173,16 +166,9 @@ function renderArgs(hash) {
 let server = null;  // for the failure report
 
 async function main() {
-  const { proc, url } = await startServer();
+  const { proc, url } = await startServer(opt.cdvol, [opt.file], ["--cache-mb", String(opt.cacheMb)]);
   server = proc;
-  // launch() gives Chromium a fresh temporary profile (--user-data-dir)
-  // of its own and removes it on close.
-  const browser = await chromium.launch({
-    executablePath: opt.chromium,
-    headless: true,
-    args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-      "--disable-background-networking", "--disable-component-update", "--disable-sync"],
-  });
+  const browser = await launch(opt.chromium);
   const rss = { anon: 0, file: 0 };
   const result = { file: opt.file, size: opt.size, mode: opt.mode, clients: opt.clients, cache_mb: opt.cacheMb };
   try {
@@ -239,7 +225,8 @@ async function main() {
     result.url_hash = hash;
     const shot = await page.locator("#view").screenshot({ path: join(opt.out, "page.png") });
     const ref = join(opt.out, "render.png");
-    execFileSync(opt.cdvol, ["render", opt.file, "-o", ref, ...renderArgs(hash)], { stdio: "inherit" });
+    const info = await (await fetch(url + "api/info")).json();
+    execFileSync(opt.cdvol, ["render", opt.file, "-o", ref, ...renderArgs(hash, info)], { stdio: "inherit" });
     result.compare = await comparePngs(page, shot, readFileSync(ref));
     const c = result.compare;
     if (!c.sameSize) fail(`screenshot and render differ in size: ${c.size}`);
@@ -292,6 +279,12 @@ async function main() {
         window.fetch = real;
       }
     });
+    // The page's command is the server's for the full frame shown.
+    result.command = await page.evaluate(() => ({
+      page: document.getElementById("cmd").textContent, server: window.__cdvol.lastFull.stats.command }));
+    if (result.command.page !== result.command.server) {
+      fail(`the page's command "${result.command.page}" is not the server's "${result.command.server}"`);
+    }
     if (!result.abort_mid_body.held) fail("the mid-body abort was not exercised");
     if (result.abort_mid_body.error_shown) fail("the aborted frame showed: " + result.abort_mid_body.error_shown);
     for (const p of pages) if (p.errors.length) fail("page errors: " + p.errors.join("; "));

@@ -36,6 +36,9 @@ fn header(
         notes: Vec::new(),
         orientation: None,
         input: None,
+        modality: None,
+        landmarks: None,
+        look: None,
         summary: Default::default(),
     }
 }

@@ -17,8 +17,14 @@
 //!   z like the paper's data set 2 (section 4.3: thin slices through the
 //!   central part of the skull, 4x thicker ones at the top). Tissue
 //!   boundaries are partial-volume ramps about 1.5 sample spacings wide.
+//! - [`mr`]: a T1-weighted-like MR head on an arbitrary intensity scale
+//!   (white matter = `scale`): scalp fat bright, skull and CSF dark, grey
+//!   below white matter, a folded cortex, ventricles, eyes; partial-volume
+//!   boundaries, a smooth bias field and Rician noise (the air is a
+//!   Rayleigh floor, not 0), optionally skull-stripped (exact 0 outside
+//!   the brain).
 //!
-//! Both write to temporary files beside the target and rename them into
+//! All write to temporary files beside the target and rename them into
 //! place together at the end (fsutil::FileSet), so a failure leaves
 //! nothing partial behind. Slices are
 //! computed in batches, rows in parallel (rayon), and written sequentially.
@@ -26,6 +32,7 @@
 //! ```text
 //! spheres.rs  the sphere scenes and their spacing specs
 //! ct.rs       the CT-like head
+//! mr.rs       the MR head
 //! here        errors, the shared writer (temporary files, slices in
 //!             batches, the sidecar) and the seeded generator
 //! ```
@@ -42,9 +49,11 @@ use crate::fsutil::{OutputError, WriteError};
 use crate::progress::Progress;
 
 mod ct;
+mod mr;
 mod spheres;
 
 pub use ct::{ct, CtDtype, CtInfo, CtOptions};
+pub use mr::{mr, MrDtype, MrInfo, MrOptions, MR_SURFACE_ISO};
 pub use spheres::{
     load_spheres, parse_spacing3, spheres, SpacingError, SpacingSpec, Sphere, SpheresInfo,
     SpheresOptions,
