@@ -123,8 +123,9 @@ pub struct Preset {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub source_curves: Option<SourceCurves>,
     /// Where cdvol departs from the source, and why: keys `color` (the
-    /// colours are not the source curves'; their opacities still are)
-    /// and `shade` (shading differs from the source's).
+    /// colours are not the source curves'), `opacity` (the opacities are
+    /// not) and `shade` (shading differs from the source's); the check
+    /// against the source curves skips what is changed.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub changes: BTreeMap<String, String>,
     /// Where each figure comes from: the keys `tf`, `shade`, and `iso` and
@@ -400,11 +401,11 @@ impl Preset {
             need.push("window");
         }
         for (k, why) in &self.changes {
-            if !matches!(k.as_str(), "color" | "shade") || why.trim().is_empty() {
+            if !matches!(k.as_str(), "color" | "opacity" | "shade") || why.trim().is_empty() {
                 return bad(
                     &format!("changes.{k}"),
                     why.clone(),
-                    "a reason under the key color or shade",
+                    "a reason under the key color, opacity or shade",
                 );
             }
         }
@@ -442,7 +443,8 @@ impl Preset {
                 let got_a = self.tf.opacity(x);
                 let got_rgb = tf_color(&self.tf, x);
                 let own_colour = self.changes.contains_key("color");
-                let close = (a - got_a).abs() <= 1e-9
+                let own_opacity = self.changes.contains_key("opacity");
+                let close = (own_opacity || (a - got_a).abs() <= 1e-9)
                     && (own_colour || rgb.iter().zip(got_rgb).all(|(p, q)| (p - q).abs() <= 1e-9));
                 if !close {
                     return bad(

@@ -95,6 +95,9 @@ pub struct Rendered {
     pub content_type: &'static str,
     pub width: u32,
     pub height: u32,
+    /// The height of the view in mm (orthographic), as placed: the page
+    /// zooms and pans from it.
+    pub frame_mm: Option<f64>,
     /// Seconds rendering (tiles and colouring), encoding, and waiting for
     /// the render slot.
     pub seconds_render: f64,
@@ -245,6 +248,10 @@ impl<'v> Engine<'v> {
             content_type,
             width: frame.width,
             height: frame.height,
+            frame_mm: match camera.projection {
+                crate::render::camera::Projection::Ortho { frame_mm } => Some(frame_mm),
+                crate::render::camera::Projection::Persp { .. } => None,
+            },
             seconds_render,
             seconds_encode: t1.elapsed().as_secs_f64(),
             seconds_wait,

@@ -218,14 +218,16 @@ impl ViewRequest {
         // The named preset placed on the file (refused when it is of the
         // other modality), or for a composite without one, the file's look.
         let preset = match &self.preset {
-            Some(p) => Some(crate::look::preset(h, p, false).map_err(|e| RequestError::Bad {
-                name: "preset",
-                value: p.clone(),
-                expected: match e {
-                    crate::look::LookError::WrongModality { .. } => e.to_string(),
-                    _ => format!("a preset: {}", crate::look::offered_names(h)),
-                },
-            })?),
+            Some(p) => Some(
+                crate::look::preset(h, p, false).map_err(|e| RequestError::Bad {
+                    name: "preset",
+                    value: p.clone(),
+                    expected: match e {
+                        crate::look::LookError::WrongModality { .. } => e.to_string(),
+                        _ => format!("a preset: {}", crate::look::offered_names(h)),
+                    },
+                })?,
+            ),
             None if self.mode == "composite" || self.iso.is_none() => crate::look::default_look(h),
             None => None,
         };
@@ -254,11 +256,17 @@ impl ViewRequest {
         if let Some(p) = &preset {
             match self.mode.as_str() {
                 "surface" | "cost" => {
-                    o.iso = Some(crate::look::surface_iso(h, p).ok_or_else(|| RequestError::Bad {
-                        name: "preset",
-                        value: p.name.clone(),
-                        expected: format!("a preset with an iso value for mode={}", self.mode),
-                    })?)
+                    o.iso =
+                        Some(
+                            crate::look::surface_iso(h, p).ok_or_else(|| RequestError::Bad {
+                                name: "preset",
+                                value: p.name.clone(),
+                                expected: format!(
+                                    "a preset with an iso value for mode={}",
+                                    self.mode
+                                ),
+                            })?,
+                        )
                 }
                 "mip" => {
                     if let Some(w) = p.window {

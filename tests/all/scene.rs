@@ -323,7 +323,10 @@ fn render_presets_are_their_settings() {
     assert_eq!(lung.iso, None);
     assert_eq!(
         render("pl.png", &s(&["--preset", "ct-lung"])),
-        render("il.png", &s(&["--iso", &lung.tf.iso_floor().unwrap().to_string()]))
+        render(
+            "il.png",
+            &s(&["--iso", &lung.tf.iso_floor().unwrap().to_string()])
+        )
     );
 }
 

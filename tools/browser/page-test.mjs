@@ -22,6 +22,8 @@
 //                      the file's presets (`files[i].presets` of /api/info)
 //   file-switch-preset  selecting file 1 selects its `look`, else keeps the
 //                      preset only if file 1 offers it
+//   zoom-from-placed-frame  the first wheel notch zooms 10 % out from the
+//                      frame the server placed (`frame_mm` of its stats)
 //   surface-preset-without-iso  surface mode with a preset that has no iso
 //                      value (an MR composite preset on a server before
 //                      issue 51) renders
@@ -253,6 +255,15 @@ async function main() {
       orbitCmd[0] !== orbitCmd[1] ? `page "${orbitCmd[0]}" server "${orbitCmd[1]}"`
         : panCmd[0] !== panCmd[1] || !panCmd[1].includes("--eye") ? `page "${panCmd[0]}" server "${panCmd[1]}"`
         : "an orbit and a pan");
+
+    // The first wheel notch zooms from the frame the server placed (it
+    // fits the object), not from the whole volume's.
+    const placed = await page.evaluate(() => window.__cdvol.lastFull.stats.frame_mm);
+    const zoom = await answerTo(page, () => page.mouse.wheel(0, 100));
+    const asked = +zoom.query.get("frame");
+    check("zoom-from-placed-frame", placed > 0 && Math.abs(asked / (placed * 1.1) - 1) < 0.01,
+      `frame ${asked} after one notch from the placed ${placed} mm`);
+    await waitFull(page, await version(page));
 
     // The preset menu follows the file.
     const menu0 = await presetMenu(page);
