@@ -58,7 +58,10 @@ fn packed_tf(
 /// order; a sample counts when the cell holding it (per axis the largest
 /// `j` with `S[j] <= p`) has a vertex range on which the transfer
 /// function has opacity; trilinear value in f64, exact table entry,
-/// front-to-back until the opacity exceeds 0.99.
+/// front-to-back until the opacity exceeds 0.99. Where a sample whose
+/// opacity is not faint follows a faint one, the lattice restarts at the
+/// onset between them, or at the top of the ramp the ray then crosses
+/// within a step (integrate/refine.rs).
 fn oracle_pixel(
     cam: &Camera,
     x: u32,
@@ -85,12 +88,12 @@ fn oracle_pixel(
             t1 = t1.min(ta.max(tb));
         }
     }
-    let mut col = [0.0; 3];
-    let mut alpha = 0.0;
-    let mut k = (t0 / step).ceil();
-    while k * step < t1 {
-        let t = k * step;
-        k += 1.0;
+    // The value at `t`: none outside the grid and in cells on whose
+    // vertex range the transfer function is transparent.
+    let value_at = |t: f64| -> Option<f64> {
+        if !(t0..=t1).contains(&t) {
+            return None;
+        }
         let p: [f64; 3] = std::array::from_fn(|a| ray.origin[a] + t * ray.dir[a]);
         let cell: [usize; 3] = std::array::from_fn(|a| {
             pos[a].partition_point(|&s| s <= p[a]).clamp(1, dims[a] - 1) - 1
@@ -109,19 +112,83 @@ fn oracle_pixel(
                 (a.min(x), b.max(x))
             });
         if !tf.nonzero_on(lo, hi) {
-            continue;
+            return None;
         }
         let u: [f64; 3] = std::array::from_fn(|a| {
             let (s0, s1) = (pos[a][cell[a]], pos[a][cell[a] + 1]);
             ((p[a] - s0) / (s1 - s0)).clamp(0.0, 1.0)
         });
         let l = |a: f64, b: f64, w: f64| a + w * (b - a);
-        let v = l(
+        Some(l(
             l(l(f[0], f[1], u[0]), l(f[2], f[3], u[0]), u[1]),
             l(l(f[4], f[5], u[0]), l(f[6], f[7], u[0]), u[1]),
             u[2],
-        );
+        ))
+    };
+    let alpha_at = |v: Option<f64>| v.map_or(0.0, |v| exact_sample(&tf, step, v).1);
+    let mut col = [0.0; 3];
+    let mut alpha = 0.0;
+    let mut k = (t0 / step).ceil();
+    // Onsets: the last sample was faint (opacity below 1/8 per mm), and
+    // from which lattice index a sample after it is refined.
+    let faint = 1.0 - (1.0 - 0.125f64).powf(step);
+    let (mut clear, mut from) = (true, f64::NEG_INFINITY);
+    while k * step < t1 {
+        let t = k * step;
+        let ks = k;
+        k += 1.0;
+        let Some(v) = value_at(t) else {
+            clear = true;
+            continue;
+        };
         let (rgb, a) = exact_sample(&tf, step, v);
+        if a == 0.0 {
+            clear = true;
+            continue;
+        }
+        if a >= faint && clear && ks > from {
+            // An onset: the lattice restarts where the opacity reaches
+            // the faint threshold (to 1/64 of the step), or, when the ray
+            // passes the transfer function's next point within a step,
+            // at that point (to 1/1024) after a partial sample for the
+            // ramp between.
+            let onset_at = |t: f64| alpha_at(value_at(t)) >= faint;
+            let onset = bisect((t - step, t), 6, &onset_at);
+            let mut top = None;
+            if let Some(need) = value_at(onset.1).and_then(|v_on| ramp_top(&tf, step, faint, v_on))
+            {
+                let past = |t: f64| alpha_at(value_at(t)) >= need;
+                let end = onset.1 + step;
+                if past(t) {
+                    top = Some(bisect((onset.0, t), 10, &past).1);
+                } else if past(end) {
+                    top = Some(bisect((onset.1, end), 10, &past).1);
+                }
+            }
+            match top {
+                Some(top) if top > onset.1 => {
+                    let mid = 0.5 * (onset.1 + top);
+                    if let Some(v) = value_at(mid) {
+                        let (rgb, a) = exact_sample(&tf, step, v);
+                        let b = 1.0 - (1.0 - a).powf((top - onset.1) / step);
+                        let w = 1.0 - alpha;
+                        for c in 0..3 {
+                            col[c] += w * rgb[c] * b;
+                        }
+                        alpha += w * b;
+                        if alpha > 0.99 {
+                            break;
+                        }
+                    }
+                    k = top / step;
+                }
+                Some(top) => k = top / step,
+                None => k = onset.1 / step,
+            }
+            from = k + 1.5;
+            continue;
+        }
+        clear = a < faint;
         let w = 1.0 - alpha;
         for c in 0..3 {
             col[c] += w * rgb[c] * a;
@@ -132,6 +199,40 @@ fn oracle_pixel(
         }
     }
     col
+}
+
+/// `(lo, hi)` after `iters` bisection steps towards where `yes` turns
+/// true.
+fn bisect((mut lo, mut hi): (f64, f64), iters: u32, yes: &dyn Fn(f64) -> bool) -> (f64, f64) {
+    for _ in 0..iters {
+        let mid = 0.5 * (lo + hi);
+        if yes(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    (lo, hi)
+}
+
+/// The top of the ramp a ray climbs at an onset with value `v`: the end
+/// of `tf`'s segment holding `v` towards which its opacity rises, as the
+/// opacity a sample needs to be past it (its own less 1e-3 of it);
+/// `None` outside the points, on a flat segment, or when that is
+/// `faint`.
+fn ramp_top(tf: &TransferFunction, step: f64, faint: f64, v: f64) -> Option<f64> {
+    let p = &tf.points;
+    let j = p.iter().position(|q| q.value > v)?;
+    let (lo, hi) = (p.get(j.checked_sub(1)?)?, &p[j]);
+    let top = if hi.opacity > lo.opacity {
+        hi
+    } else if hi.opacity < lo.opacity {
+        lo
+    } else {
+        return None;
+    };
+    let need = (1.0 - 1e-3) * exact_sample(tf, step, top.value).1;
+    (need >= faint).then_some(need)
 }
 
 /// The oracle's 24 x 24 image, 8-bit RGB.

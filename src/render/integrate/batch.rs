@@ -35,12 +35,12 @@ use std::cell::Cell;
 
 use glam::{Vec3A, Vec4};
 
-use super::Ctx;
+use super::refine::Onset;
 use crate::render::cache::{Codes, RBrick};
 use crate::render::lut::TfLut;
 use crate::render::options::CompositeLook;
 use crate::render::samples::{gather8, Corners, Samples};
-use crate::render::traverse::{Ray, Real, OBJECT};
+use crate::render::traverse::{Ray, OBJECT};
 
 /// Samples per batch.
 pub(super) const LANES: usize = 8;
@@ -208,6 +208,9 @@ pub(super) enum End {
     Leap,
     /// The ray became opaque.
     Stop,
+    /// The next sample is an onset ([`Onset::how`]): the marcher
+    /// refines it (refine.rs); nothing of it is composited.
+    Onset,
     /// Only between [`lanes`] and [`run`]: the batch at the sample
     /// returned needs the gradients of a cell of the brick
     /// ([`Again::missing`]) that its gradient plane has not set (nothing
@@ -246,6 +249,9 @@ pub(super) struct Batches<'a> {
     /// smooth gradient's length), when the look has any.
     pub gradient_opacity: Option<&'a CompositeLook>,
     pub stop: f32,
+    /// The marcher's onset state: read at the first sample, left as the
+    /// last sample taken leaves it.
+    pub onset: &'a Onset,
     /// Only [`run`]'s retry sets it; every caller gives the default.
     pub again: Again<'a>,
 }
@@ -470,8 +476,12 @@ fn lanes<const GRAD: bool, const RECT: bool>(
     let mut colour = *acc;
     let mut through = x.again.through.unwrap_or(1.0 - acc.w);
     let clear = 1.0 - x.stop;
+    // Whether the last sample was faint, for onsets (refine.rs).
+    let (mut gap, from) = (x.onset.clear.get(), x.onset.from.get());
+    let faint = x.onset.faint as f32;
     let mut taken = 0u64;
     loop {
+        let batch_gap = gap;
         let t = (k + taken as f64) * x.step;
         let base: [f32; 3] = std::array::from_fn(|a| (q0[a] + t * qd[a]) as f32);
         // Each lane's cell and local coordinates: `floor(q)` as the
@@ -554,37 +564,53 @@ fn lanes<const GRAD: bool, const RECT: bool>(
         // Front to back, in order, by transmittance: one multiplication
         // carries from sample to sample (`a + (1 - a) s` would be three).
         // With gradients, the samples are weighted and lit first
-        // ([`shaded`]); that may end the batch early.
-        let lit = if GRAD {
-            let (lit, upto) = shaded(x, b, &object, &value, &u, &local, &code_at, n);
+        // ([`shaded`]); that may end the batch early, to be taken again
+        // from the same onset state.
+        let (lit, tf_w) = if GRAD {
+            let (lit, tf_w, upto) = shaded(x, b, &object, &value, &u, &local, &code_at, n);
             if upto < n {
+                x.onset.clear.set(batch_gap);
                 return missed(x, acc, colour, through, local[upto], taken);
             }
-            lit
+            (lit, tf_w)
         } else {
-            [Vec4::ZERO; LANES]
+            ([Vec4::ZERO; LANES], [0f32; LANES])
         };
         for j in 0..n {
+            // The sample, and the table's opacity: transparent, faint, or
+            // an onset after faint ones.
             let s = if GRAD {
-                lit[j]
+                lit[j].with_w(tf_w[j])
             } else if object[j] {
                 x.lut.sample32(value[j])
             } else {
-                continue;
+                Vec4::ZERO
             };
-            if s.w == 0.0 {
-                continue;
+            if s.w < faint {
+                gap = true;
+                if s.w == 0.0 {
+                    continue;
+                }
+            } else {
+                if gap && k + (taken + j as u64) as f64 > from {
+                    *acc = colour.with_w(1.0 - through);
+                    return (taken + j as u64, End::Onset);
+                }
+                gap = false;
             }
+            let s = if GRAD { lit[j] } else { s };
             colour += s * through;
             through *= 1.0 - s.w;
             if through < clear {
                 *acc = colour.with_w(1.0 - through);
+                x.onset.clear.set(gap);
                 return (taken + j as u64 + 1, End::Stop);
             }
         }
         taken += n as u64;
         if n < LANES {
             *acc = colour.with_w(1.0 - through);
+            x.onset.clear.set(gap);
             return (taken, end);
         }
     }
@@ -616,7 +642,8 @@ fn missed(
 /// brick, `code_at`: its index in the code plane), or from
 /// [`Again::given`] for a cell the plane has not set, scaled by the
 /// gradient opacity and shaded by [`light`], as `Look::apply` does each.
-/// Also how many lanes it lit: fewer than `n` when neither holds a
+/// Also the table's opacities before the gradient opacity scales them,
+/// and how many lanes it lit: fewer than `n` when neither holds a
 /// sample's cell's gradients.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
@@ -629,13 +656,15 @@ fn shaded(
     local: &[[u32; 3]; LANES],
     code_at: &[usize; LANES],
     n: usize,
-) -> ([Vec4; LANES], usize) {
+) -> ([Vec4; LANES], [f32; LANES], usize) {
     let mut lit = [Vec4::ZERO; LANES];
     for j in 0..n {
         if object[j] {
             lit[j] = x.lut.sample32(value[j]);
         }
     }
+    // The table's opacities, before the gradient opacity scales them.
+    let tf_w = lit.map(|s| s.w);
     // Per lane the gradient's squared length and its dot product with the
     // direction to the eye, as `Look::apply` computes them.
     let (mut len2, mut dot) = ([0f32; LANES], [0f32; LANES]);
@@ -679,7 +708,7 @@ fn shaded(
             lit[j] = (s * k[j] + Vec4::splat(spec[j] * s.w)).with_w(s.w);
         }
     }
-    (lit, upto)
+    (lit, tf_w, upto)
 }
 
 /// The gradients `given` holds for the cell at `code_at` in the code
@@ -729,56 +758,6 @@ fn light(len2: &[f32; LANES], dot: &[f32; LANES]) -> ([f32; LANES], [f32; LANES]
         spec[j] = if on { 0.25 * re32 } else { 0.0 };
     }
     (k, spec)
-}
-
-/// The cell along axis `a` of the ray's sample at `t`, found forward
-/// from cell `from` (that of an earlier sample) exactly as the run
-/// marcher's plane crossings (`ahead(a, i) <= t`) would find it; `None`
-/// when the ray leaves the volume first. It jumps to the cell the
-/// position names ([`IndexMap`]) and corrects by the
-/// planes, so the batches' samples cost no crossing each.
-pub(super) fn cell_at<T: Real>(
-    ctx: &Ctx<T>,
-    ray: &Ray,
-    a: usize,
-    from: u32,
-    t: f64,
-    ahead: &impl Fn(usize, u32) -> f64,
-) -> Option<u32> {
-    let d = ray.dir[a];
-    if d == 0.0 {
-        return Some(from);
-    }
-    let n = (ctx.coords[a].len() - 1) as u32;
-    let guess = ctx
-        .index_map
-        .as_ref()
-        .map_or(from, |m| m.cell(a, ray.origin[a] + t * d, n));
-    let mut c;
-    if d > 0.0 {
-        c = guess.max(from);
-        while ahead(a, c) <= t {
-            c += 1;
-            if c >= n {
-                return None;
-            }
-        }
-        while c > from && ahead(a, c - 1) > t {
-            c -= 1;
-        }
-    } else {
-        c = guess.min(from);
-        while ahead(a, c) <= t {
-            if c == 0 {
-                return None;
-            }
-            c -= 1;
-        }
-        while c < from && ahead(a, c + 1) > t {
-            c += 1;
-        }
-    }
-    Some(c)
 }
 
 #[cfg(test)]

@@ -281,7 +281,8 @@ proptest! {
         let (vals, codes) = (&sc.vals, &sc.codes);
         let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
         let lut = TfLut::new(&tf(), step);
-        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None, again: Default::default() };
+        let off = Onset::off();
+        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None, onset: &off, again: Default::default() };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, None) else {
             return Err(TestCaseError::reject("a sample on a cell face"));
         };
@@ -386,10 +387,12 @@ proptest! {
             shade: look != 1,
             gradient_opacity: vec![p(2.0, 0.1), p(15.0, 1.0), p(40.0, 0.4)],
         };
+        let off = Onset::off();
         let x = Batches {
             map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32,
             shade: (look != 1).then_some(to_eye),
             gradient_opacity: (look != 0).then_some(&go),
+            onset: &off,
             again: Default::default(),
         };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, Some(&grads)) else {
@@ -464,6 +467,7 @@ fn batches_taken_again_keep_the_carried_transmittance() {
         none.grads = GradPlane::inner(&g32, c);
         let lut = TfLut::new(&tf(), 0.07);
         let e = Vec3A::new(0.3, -0.5, 0.8).normalize();
+        let off = Onset::off();
         let x = Batches {
             map: &sc.map,
             ray: &sc.ray,
@@ -473,6 +477,7 @@ fn batches_taken_again_keep_the_carried_transmittance() {
             stop: 1.0,
             shade: Some(e),
             gradient_opacity: None,
+            onset: &off,
             again: Default::default(),
         };
         let (want, acc, _) = run_one(&x, &full, Some(&g32), false);
@@ -532,4 +537,82 @@ fn index_maps_find_the_cells_of_positions() {
     let fine = vec![0.0, 1e-9, 1000.0];
     assert!(IndexMap::of([&fine, &u, &u], [false, true, true]).is_none());
     assert!(IndexMap::of([&[0.0][..], &u, &u], [true; 3]).is_none());
+}
+
+/// Onsets (refine.rs): with the marcher's state on, the batches stop at
+/// the first sample with opacity after a transparent one and composite
+/// nothing of it, shaded or not, in either build; a sample the marcher
+/// restarted at is not an onset; the state left is the last sample's.
+#[test]
+fn batches_stop_at_onsets() {
+    let cells = [8u32, 1, 1];
+    let mut sc = scene(
+        cells,
+        [0; 3],
+        [true; 3],
+        [1.0; 3],
+        [0.0; 3],
+        [0.01, 0.5, 0.5],
+        [1.0, 0.0, 0.0],
+        &mut rng(1),
+    );
+    // Transparent (10, below the table's 20) up to x = 3, then 100.
+    let c = cells.map(|c| c as usize + 1);
+    sc.vals = (0..c[0] * c[1] * c[2])
+        .map(|i| if i % c[0] <= 3 { 10.0 } else { 100.0 })
+        .collect();
+    sc.codes = vec![OBJECT; 8];
+    let samples = c[0] * c[1] * c[2];
+    let g32 = vec![glam::Vec3::new(1.0, 0.5, 0.2); samples];
+    let mut b = brick(
+        [0; 3],
+        cells,
+        Samples::F32(sc.vals.clone()),
+        sc.codes.clone(),
+    );
+    b.grads = GradPlane::inner(&g32, c.map(|n| n - 1));
+    let step = 0.3;
+    let lut = TfLut::new(&tf(), step);
+    // The value passes 20 at x = 3 + 1/9, the ray starts at x = 0.08:
+    // the first sample beyond.
+    let first = ((3.0 + 1.0 / 9.0 - 0.08) / step).ceil() as u64;
+    for shade in [None, Some(Vec3A::Z)] {
+        for avx2 in [false, true] {
+            let on = Onset::new(1e-9);
+            let x = Batches {
+                map: &sc.map,
+                ray: &sc.ray,
+                step,
+                lut: &lut,
+                resume: 2,
+                stop: 0.99,
+                shade,
+                gradient_opacity: None,
+                onset: &on,
+                again: Default::default(),
+            };
+            let (got, acc, _) = run_one(&x, &b, Some(&g32), avx2);
+            assert_eq!(got, (first, End::Onset), "{shade:?} {avx2}");
+            assert_eq!(acc, Vec4::ZERO);
+            // Restarted there: the batches composite on to the brick's end.
+            on.restarted(first as f64);
+            let mut src = One {
+                b: &b,
+                grads: Some(&g32),
+                asked: Vec::new(),
+            };
+            let mut acc = Vec4::ZERO;
+            let (n, end) = run_on(&x, &mut src, first as f64, &mut acc, avx2);
+            assert!(end != End::Onset && n > 0 && acc.w > 0.0, "{n} {end:?}");
+            assert!(!on.clear.get(), "the last sample had opacity");
+            // Off: no onset, the samples composited as before.
+            let off = Onset::off();
+            let y = Batches {
+                onset: &off,
+                ..x.clone()
+            };
+            let (got, acc, _) = run_one(&y, &b, Some(&g32), avx2);
+            assert!(got.1 != End::Onset && acc.w > 0.0);
+        }
+    }
 }

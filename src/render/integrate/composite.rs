@@ -1,7 +1,8 @@
 //! Composite mode: front-to-back compositing of a transfer function
 //! (tabulated for the step by lut.rs) at samples `t = k * step_mm` along
-//! the ray, stopping once the ray's opacity exceeds
-//! [`RenderOptions::early_stop`](crate::render::RenderOptions::early_stop)
+//! the ray, the lattice restarted where the opacity rises sharply (at
+//! onsets, refine.rs: no wood grain), stopping once the ray's opacity
+//! exceeds [`RenderOptions::early_stop`](crate::render::RenderOptions::early_stop)
 //! (0.99). Cells the ray only clips between two samples are not read.
 //!
 //! Two samplers, [`RenderOptions::sampling`](crate::render::RenderOptions::sampling):
@@ -18,6 +19,7 @@
 use glam::{Vec3, Vec3A, Vec4};
 
 use super::batch::{self, trilinear_vec, Batches, End};
+use super::refine::{cell_at, faint, first_sample, part, part32, rephase, How, Onset, Took};
 use super::{Ctx, Px};
 use crate::render::cache::{Accessor, RBrick};
 use crate::render::clock::Clock;
@@ -46,13 +48,14 @@ pub(super) fn composite<T: Real>(
         lut,
         look: Look::new(&ctx.opts.look, ctx.opts.normals, ray),
         stop: ctx.opts.early_stop,
+        faint: faint(ctx),
         c: None,
         ce: None,
         vg: None,
         col: [0.0; 3],
         alpha: 0.0,
     };
-    let counts = march(ctx, ray, t_start, acc, clock, step, &mut s);
+    let counts = march(ctx, ray, t_start, acc, clock, lut, step, &mut s);
     px.hit = s.alpha > 0.0;
     px.alpha = s.alpha as f32;
     px.rgb = s.col.map(|x| x as f32);
@@ -114,6 +117,7 @@ fn march32<T: Real, const LOOK: bool>(
         step,
         look,
         stop: ctx.opts.early_stop as f32,
+        faint: faint(ctx) as f32,
         c: Trilinear32 { f: [0.0; 8] },
         u: Vec3::ZERO,
         du: Vec3::ZERO,
@@ -122,7 +126,7 @@ fn march32<T: Real, const LOOK: bool>(
         acc: Vec4::ZERO,
         batches,
     };
-    let counts = march(ctx, ray, t_start, acc, clock, step, &mut s);
+    let counts = march(ctx, ray, t_start, acc, clock, lut, step, &mut s);
     px.hit = s.acc.w > 0.0;
     px.alpha = s.acc.w;
     px.rgb = s.acc.truncate().to_array();
@@ -146,17 +150,19 @@ trait Sampler {
         g: Option<[Vec3A; 8]>,
         t: f64,
     );
-    /// The sample at `t` (in the cell last entered); `Stop` once opaque.
-    fn sample(&mut self, t: f64) -> Flow;
+    /// The sample at `t` (in the cell last entered), taken as `how`
+    /// says: faint or composited (`Stop` once opaque), or left for the
+    /// marcher to refine (refine.rs).
+    fn sample(&mut self, t: f64, how: How) -> Took;
     /// Whether [`Sampler::batch`] takes samples several at a time.
     fn batches(&self) -> bool {
         false
     }
     /// Composites samples `k, k + 1, ...` while they lie in the brick of
-    /// cell `cell`, several at a time ([`batch::run`]): how many it took
-    /// and why it stopped. A sampler that takes one sample at a time
-    /// takes none.
-    fn batch(&mut self, _acc: &mut Accessor, _cell: [u32; 3], _k: f64) -> (u64, End) {
+    /// cell `cell`, several at a time ([`batch::run`]), up to an onset
+    /// by `onset`'s state: how many it took and why it stopped. A
+    /// sampler that takes one sample at a time takes none.
+    fn batch(&mut self, _: &mut Accessor, _: [u32; 3], _: f64, _: &Onset) -> (u64, End) {
         (0, End::Brick)
     }
 }
@@ -181,15 +187,21 @@ const RESUME_CODE: u8 = 2;
 /// code read per cell holding a sample instead of a traversal step per
 /// cell, and a sample costs no visit.
 ///
+/// Where a sample that is not faint follows faint ones (an onset), the
+/// lattice restarts at the rise of opacity between them (refine.rs,
+/// [`rephase`]).
+///
 /// Every exact traversal yields the same first 1-cell after a given `t`
 /// (module traverse), so the marched samples, and the image, are the
 /// same whichever traversal finds the runs.
+#[allow(clippy::too_many_arguments)]
 fn march<T: Real, P: Sampler>(
     ctx: &Ctx<T>,
     ray: &Ray,
     t_start: f64,
     acc: &mut Accessor,
     clock: &mut Clock,
+    lut: &TfLut,
     step: f64,
     s: &mut P,
 ) -> StepCounts {
@@ -212,6 +224,13 @@ fn march<T: Real, P: Sampler>(
     let mut t_min = t_start;
     // The first sample not yet handled: runs never go back.
     let mut k_next = 0.0f64;
+    // Onsets are refined where the ramps are known (in every composite
+    // render).
+    let ramps = ctx.ramps.as_ref();
+    let onset = ramps.map_or_else(Onset::off, |r| Onset::new(r.faint()));
+    // After a restart at a ramp's top: the partial sample's fraction of a
+    // step and the index of the top.
+    let mut part_of: Option<(f64, f64)> = None;
     loop {
         let mut first = None;
         let c = trace(ctx.grid, ray, t_min, ctx.opts.method, acc, |v, _| {
@@ -231,7 +250,7 @@ fn march<T: Real, P: Sampler>(
             let mut entered = false;
             let mut batched = true;
             loop {
-                let t = k * step;
+                let (t, ks) = (k * step, k);
                 for a in 0..3 {
                     while tn[a] <= t {
                         if ray.dir[a] > 0.0 {
@@ -258,6 +277,10 @@ fn march<T: Real, P: Sampler>(
                     let (b, l) = acc.brick(cell);
                     let code = b.code(l);
                     if code != OBJECT {
+                        onset.clear.set(true);
+                        if let Some((_, top)) = part_of.take() {
+                            k = top;
+                        }
                         if code >= RESUME_CODE {
                             break 'run Some((t, k));
                         }
@@ -273,13 +296,29 @@ fn march<T: Real, P: Sampler>(
                     entered = true;
                     batched = !batches;
                 }
-                if s.sample(t) == Flow::Stop {
-                    break 'run None;
-                }
+                let how = match part_of.take() {
+                    Some((frac, top)) => {
+                        (k, entered, batched) = (top, false, true);
+                        How::Part(frac)
+                    }
+                    None => onset.how(ks),
+                };
+                let mut refine = match s.sample(t, how) {
+                    Took::Faint => {
+                        onset.clear.set(true);
+                        None
+                    }
+                    Took::Added => {
+                        onset.clear.set(false);
+                        None
+                    }
+                    Took::Stop => break 'run None,
+                    Took::Onset => Some(t),
+                };
                 // The samples after it, in batches while they stay in
                 // this brick (once per cell entered: a batch that took
                 // nothing is not tried again in the same cell).
-                if batches && !batched {
+                if batches && !batched && refine.is_none() {
                     batched = true;
                     let mut at = Marched {
                         cell,
@@ -287,13 +326,24 @@ fn march<T: Real, P: Sampler>(
                         k,
                         counts,
                     };
-                    let flow = batched_samples(ctx, ray, acc, s, step, &mut at, &ahead);
+                    let flow = batched_samples(ctx, ray, acc, s, step, &mut at, &ahead, &onset);
                     (cell, tn, k, counts) = (at.cell, at.tn, at.k, at.counts);
                     match flow {
                         Batched::None => {}
                         Batched::Taken => entered = false,
+                        Batched::Onset => refine = Some(k * step),
                         Batched::Done => break 'run None,
                     }
+                }
+                // An onset: the lattice restarts at it or at the top of its
+                // ramp (after a partial sample), in its cell.
+                if let (Some(t), Some(ramps)) = (refine, ramps) {
+                    let Some(r) = rephase(ctx, ray, acc, lut, ramps, cell, t, step) else {
+                        break 'run None;
+                    };
+                    (k, cell, entered, part_of) = (r.k, r.cell, false, r.part);
+                    tn = std::array::from_fn(|a| ahead(a, cell[a]));
+                    onset.restarted(r.part.map_or(r.k, |p| p.1));
                 }
             }
         };
@@ -320,6 +370,8 @@ enum Batched {
     None,
     /// Took samples; the marcher stands at the next one's cell.
     Taken,
+    /// Took samples up to an onset; the marcher stands at its cell.
+    Onset,
     /// The ray is opaque or has left the volume.
     Done,
 }
@@ -328,10 +380,12 @@ enum Batched {
 /// in the current cell's brick ([`Sampler::batch`]), then the marcher
 /// moved to the cell of the next sample (or, once opaque, of the last
 /// one) as its plane crossings would have moved it, the crossings
-/// counted as it counts them. Not inlined: called once per 1-cell
-/// entered, it keeps the marcher's loop small (while it was inline, the
-/// compiler's inlining elsewhere changed and the shaded composite, which
-/// never batches, ran 3-6 % more instructions).
+/// counted as it counts them (at an onset, to the onset's sample). Not
+/// inlined: called once per 1-cell entered, it keeps the marcher's loop
+/// small (while it was inline, the compiler's inlining elsewhere changed
+/// and the shaded composite, which never batches, ran 3-6 % more
+/// instructions).
+#[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn batched_samples<T: Real, P: Sampler>(
     ctx: &Ctx<T>,
@@ -341,15 +395,18 @@ fn batched_samples<T: Real, P: Sampler>(
     step: f64,
     at: &mut Marched,
     ahead: &impl Fn(usize, u32) -> f64,
+    onset: &Onset,
 ) -> Batched {
-    let (taken, end) = s.batch(acc, at.cell, at.k);
+    let (taken, end) = s.batch(acc, at.cell, at.k, onset);
     if taken == 0 {
+        // Nothing, or an onset at the first sample, which the marcher
+        // takes one at a time.
         return Batched::None;
     }
     let stop = end == End::Stop;
     let t = (at.k + taken as f64 - stop as u8 as f64) * step;
     for a in 0..3 {
-        let Some(c) = batch::cell_at(ctx, ray, a, at.cell[a], t, ahead) else {
+        let Some(c) = cell_at(ctx, ray, a, at.cell[a], t, ahead) else {
             return Batched::Done;
         };
         let moved = c.abs_diff(at.cell[a]) as u64;
@@ -362,7 +419,11 @@ fn batched_samples<T: Real, P: Sampler>(
         return Batched::Done;
     }
     at.k += taken as f64;
-    Batched::Taken
+    if end == End::Onset {
+        Batched::Onset
+    } else {
+        Batched::Taken
+    }
 }
 
 /// The f64 sampler: [`AlongRay`] per cell, the f64 table.
@@ -372,6 +433,8 @@ struct Sampler64<'a> {
     lut: &'a TfLut,
     look: Look<'a>,
     stop: f64,
+    /// The table opacity below which a sample is faint (refine.rs).
+    faint: f64,
     c: Option<AlongRay>,
     ce: Option<CellEval>,
     /// Smooth normals: the cell's vertex gradients.
@@ -401,14 +464,20 @@ impl Sampler for Sampler64<'_> {
     }
 
     #[inline]
-    fn sample(&mut self, t: f64) -> Flow {
+    fn sample(&mut self, t: f64, how: How) -> Took {
         let Some(c) = &self.c else {
-            return Flow::Continue;
+            return Took::Faint;
         };
-        let s = self.lut.sample(c.value(t));
+        let mut s = self.lut.sample(c.value(t));
         if s[3] == 0.0 {
             // Transparent: adds nothing.
-            return Flow::Continue;
+            return Took::Faint;
+        }
+        let faint = s[3] < self.faint;
+        match how {
+            How::Onset if !faint => return Took::Onset,
+            How::Part(frac) => s = part(s, frac),
+            _ => {}
         }
         let [r, g, b, a] = match &self.ce {
             Some(ce) => {
@@ -429,9 +498,11 @@ impl Sampler for Sampler64<'_> {
         self.col[2] += w * b;
         self.alpha += w * a;
         if self.alpha > self.stop {
-            Flow::Stop
+            Took::Stop
+        } else if faint {
+            Took::Faint
         } else {
-            Flow::Continue
+            Took::Added
         }
     }
 }
@@ -448,6 +519,8 @@ struct Sampler32<'a, const LOOK: bool> {
     step: f64,
     look: Look<'a>,
     stop: f32,
+    /// The table opacity below which a sample is faint (refine.rs).
+    faint: f32,
     c: Trilinear32,
     /// Local coordinates of the next sample and their step.
     u: Vec3,
@@ -501,12 +574,18 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
     }
 
     #[inline(always)]
-    fn sample(&mut self, _t: f64) -> Flow {
+    fn sample(&mut self, _t: f64, how: How) -> Took {
         let uc = self.u.clamp(Vec3::ZERO, Vec3::ONE);
         self.u += self.du;
         let mut s = self.lut.sample32(self.c.value(uc));
         if s.w == 0.0 {
-            return Flow::Continue;
+            return Took::Faint;
+        }
+        let faint = s.w < self.faint;
+        match how {
+            How::Onset if !faint => return Took::Onset,
+            How::Part(frac) => s = part32(s, frac),
+            _ => {}
         }
         if LOOK {
             let g = if self.look.smooth {
@@ -519,9 +598,11 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
         // Front to back: colour and opacity both gain (1 - a) s.
         self.acc += (1.0 - self.acc.w) * s;
         if self.acc.w > self.stop {
-            Flow::Stop
+            Took::Stop
+        } else if faint {
+            Took::Faint
         } else {
-            Flow::Continue
+            Took::Added
         }
     }
 
@@ -531,7 +612,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
     }
 
     #[inline(always)]
-    fn batch(&mut self, acc: &mut Accessor, cell: [u32; 3], k: f64) -> (u64, End) {
+    fn batch(&mut self, acc: &mut Accessor, cell: [u32; 3], k: f64, onset: &Onset) -> (u64, End) {
         let Some(map) = self.batches else {
             return (0, End::Brick);
         };
@@ -545,6 +626,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
             shade: (LOOK && self.look.look.shade).then_some(self.look.to_eye),
             gradient_opacity: (LOOK && !self.look.look.gradient_opacity.is_empty())
                 .then_some(self.look.look),
+            onset,
             again: Default::default(),
         };
         let mut src = BatchSource {
@@ -708,86 +790,5 @@ impl<'a> Look<'a> {
         let k = AMBIENT + 0.75 * diffuse;
         let sp = 0.25 * spec * s.w;
         (s * k + Vec4::splat(sp)).with_w(s.w)
-    }
-}
-
-/// `ceil(t / step)`, the first composite sample at or after `t`, with a
-/// multiplication by `inv_step = 1 / step` instead of the division where
-/// that cannot change the result: the two quotients differ by a few ulps,
-/// so only when `t / step` is within 1e-12 (relative) of an integer does
-/// the division decide.
-#[inline]
-fn first_sample(t: f64, step: f64, inv_step: f64) -> f64 {
-    let q = t * inv_step;
-    let k = ceil(q);
-    // Distance to the nearest integer (no libm `round`).
-    if (k - q).min(q - (k - 1.0)) <= 1e-12 * q.abs().max(1.0) {
-        ceil(t / step)
-    } else {
-        k
-    }
-}
-
-/// `x.ceil()` without a libm call (the default x86-64 target has no
-/// rounding instruction); the same value for every `x`.
-#[inline]
-fn ceil(x: f64) -> f64 {
-    const BIG: f64 = (1u64 << 52) as f64;
-    if x.abs() < BIG {
-        // |x| < 2^52: truncation is exact in i64, and so is adding 1.
-        let t = x as i64 as f64;
-        if t < x {
-            t + 1.0
-        } else {
-            t
-        }
-    } else {
-        // Already an integer, infinite or NaN.
-        x
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{ceil, first_sample};
-
-    #[test]
-    fn ceil_and_first_sample_match_the_division() {
-        for x in [
-            0.0,
-            -0.0,
-            0.5,
-            -0.5,
-            1.0,
-            -1.0,
-            2.5,
-            -2.5,
-            1e15,
-            4503599627370495.5,
-            1e300,
-        ] {
-            assert_eq!(ceil(x), x.ceil(), "{x}");
-        }
-        assert!(ceil(f64::NAN).is_nan());
-        assert_eq!(ceil(f64::INFINITY), f64::INFINITY);
-        // Entry points on, next to and between sample positions.
-        for step in [0.5, 0.3, 0.7, 1.3, 1e-4, 0.1] {
-            let inv = 1.0 / step;
-            for i in 0..20_000 {
-                let k = i as f64;
-                for t in [
-                    k * step,
-                    (k * step).next_up(),
-                    (k * step).next_down(),
-                    (k + 0.5) * step,
-                ] {
-                    assert_eq!(
-                        first_sample(t, step, inv),
-                        (t / step).ceil(),
-                        "{t} / {step}"
-                    );
-                }
-            }
-        }
     }
 }

@@ -15,6 +15,7 @@ mod composite;
 mod cost;
 mod depth;
 mod mip;
+mod refine;
 mod surface;
 
 pub(crate) use mip::leaps_with as mip_leaps_with;
@@ -83,6 +84,9 @@ pub(crate) struct Ctx<'a, T> {
     pub(crate) narrow: Option<f32>,
     /// The composite mode's transfer function, tabulated for its step.
     pub(crate) lut: Option<TfLut>,
+    /// The composite mode's ramps out of transparency, where the lattice
+    /// restarts (refine.rs).
+    pub(crate) ramps: Option<refine::Ramps>,
     /// `1 / (S[i + 1] - S[i])` per axis and cell: the samplers' local
     /// coordinates by multiplication.
     pub(crate) inv_size: [Vec<f64>; 3],
@@ -194,6 +198,10 @@ impl<'a, T: Real> Ctx<'a, T> {
             narrow: super::options::narrowing(h, opts).filter(|_| !h.gradient_halo),
             lut: match &opts.mode {
                 Mode::Composite { tf, step_mm } => Some(TfLut::new(tf, *step_mm)),
+                _ => None,
+            },
+            ramps: match &opts.mode {
+                Mode::Composite { tf, step_mm } => Some(refine::Ramps::new(tf, *step_mm)),
                 _ => None,
             },
             inv_size: coords.map(|c| c.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect()),
