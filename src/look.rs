@@ -92,8 +92,7 @@ pub fn offered_names(h: &Header) -> String {
 /// Preset `name` for the file: refused when it is of another modality
 /// (unless `force`), placed on the file's values.
 pub fn preset(h: &Header, name: &str, force: bool) -> Result<Preset, LookError> {
-    let wanted = crate::presets::get(name)?;
-    check_modality(&wanted, &h.modality(), &offered_names(h), force)?;
+    let wanted = checked(h, name, force)?;
     Ok(placed(h)
         .into_iter()
         .find(|p| p.name == wanted.name)
@@ -109,8 +108,7 @@ pub fn preset_in(
     force: bool,
     range: [f64; 2],
 ) -> Result<Preset, LookError> {
-    let wanted = crate::presets::get(name)?;
-    check_modality(&wanted, &h.modality(), &offered_names(h), force)?;
+    let wanted = checked(h, name, force)?;
     let Some([a, _]) = wanted.fit else {
         return Ok(wanted);
     };
@@ -142,6 +140,14 @@ pub fn surface_iso(h: &Header, p: &Preset) -> Option<f64> {
 /// still names one.
 pub fn default_look(h: &Header) -> Option<Preset> {
     preset(h, h.look.as_deref()?, true).ok()
+}
+
+/// Preset `name` as published, refused when it is of another modality
+/// than the file's (unless `force`).
+fn checked(h: &Header, name: &str, force: bool) -> Result<Preset, LookError> {
+    let wanted = crate::presets::get(name)?;
+    check_modality(&wanted, &h.modality(), &offered_names(h), force)?;
+    Ok(wanted)
 }
 
 fn flag(m: Modality) -> &'static str {

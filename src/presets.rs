@@ -32,6 +32,27 @@ pub enum Modality {
 }
 
 impl Modality {
+    /// The smallest value below which data is CT: air is -1000 HU, and MR
+    /// intensities are not negative.
+    pub const CT_BELOW: f64 = -500.0;
+
+    /// The modality of data whose smallest (rescaled) value is `lo`, when
+    /// nothing says: CT below [`Modality::CT_BELOW`], else MR; with the
+    /// figure that decided it, for the user.
+    pub fn guess(lo: f64) -> (Modality, String) {
+        if lo < Self::CT_BELOW {
+            (
+                Modality::Ct,
+                format!("the smallest value {lo} is below -500 (air in HU)"),
+            )
+        } else {
+            (
+                Modality::Mr,
+                format!("the smallest value {lo} is not below -500"),
+            )
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Modality::Ct => "CT",

@@ -203,23 +203,16 @@ pub struct Header {
 
 impl Header {
     /// The file's modality: the recorded one, or for older files a guess
-    /// from the value range (values below -500 are air in HU: CT).
+    /// from the value range ([`crate::presets::Modality::guess`]).
     pub fn modality(&self) -> ModalityRecord {
         if let Some(m) = &self.modality {
             return m.clone();
         }
         let (lo, _) = self.value_range().unwrap_or((0.0, 0.0));
-        let modality = if lo < -500.0 {
-            crate::presets::Modality::Ct
-        } else {
-            crate::presets::Modality::Mr
-        };
+        let (modality, why) = crate::presets::Modality::guess(lo);
         ModalityRecord {
             modality,
-            source: format!(
-                "guessed: the file does not record one, and its smallest value {lo} is {} -500",
-                if lo < -500.0 { "below" } else { "not below" }
-            ),
+            source: format!("guessed: the file does not record one, and {why}"),
         }
     }
 

@@ -40,7 +40,7 @@ pub struct InputInfo {
     /// when every sample is NaN.
     pub value_range: Option<[f64; 2]>,
     /// CT or MR, and where that came from: what the input states, or a
-    /// guess from the smallest value (below -500, air in HU: CT), as
+    /// guess from the smallest value ([`crate::presets::Modality::guess`]), as
     /// `prep` decides it (`prep --modality` overrides).
     pub modality: String,
     pub nan_samples: u64,
@@ -104,13 +104,10 @@ impl InputInfo {
             value_range: (lo <= hi).then_some([lo, hi]),
             modality: match src.modality() {
                 Some((m, place)) => format!("{m} ({place})"),
-                None if lo < -500.0 => {
-                    format!("CT (guessed: the smallest value {lo} is below -500, air in HU)")
+                None => {
+                    let (m, why) = crate::presets::Modality::guess(lo);
+                    format!("{} (guessed: {why}; prep --modality sets it)", m.name())
                 }
-                None => format!(
-                    "MR (guessed: the smallest value {lo} is not below -500; prep --modality \
-                     ct if it is CT)"
-                ),
             },
             nan_samples: nan,
             notes: src.report(),

@@ -67,9 +67,8 @@ pub fn modality(
     })
 }
 
-/// The modality of `src`'s data when it does not say: CT when the middle
-/// slice holds values below -500 after rescaling (air in Hounsfield units
-/// is -1000; MR intensities are not negative), else MR. One slice is read.
+/// The modality of `src`'s data when it does not say: [`Modality::guess`]
+/// from the smallest rescaled value of the middle slice. One slice is read.
 /// Returns the modality and the figure that decided it.
 pub fn guess_modality(src: &dyn SliceSource) -> Result<(Modality, String), PrepError> {
     let meta = src.meta();
@@ -83,13 +82,8 @@ pub fn guess_modality(src: &dyn SliceSource) -> Result<(Modality, String), PrepE
         .map(|&v| v * r.slope + r.intercept)
         .filter(|v| !v.is_nan())
         .fold(f64::INFINITY, f64::min);
-    let m = if lo < -500.0 {
-        Modality::Ct
-    } else {
-        Modality::Mr
-    };
-    let cmp = if lo < -500.0 { "below" } else { "not below" };
-    Ok((m, format!("smallest value of slice {z}: {lo}, {cmp} -500")))
+    let (m, why) = Modality::guess(lo);
+    Ok((m, format!("slice {z}: {why}")))
 }
 
 /// The landmarks of up to [`LANDMARK_SLICES`] evenly spaced slices of
