@@ -316,3 +316,21 @@ fn a_length_past_the_end_of_the_file_is_refused_before_allocating() {
     let e = refused(d.path(), "s01.dcm", "element length");
     assert!(e.contains("past the end of the file"), "{e}");
 }
+
+/// Found by the fuzz target `fuzz_readers_dicom`: HighBit (0028,0102)
+/// written as a UL of 2 bytes. dicom-parser reads no UL from 2 bytes but
+/// counts them as read, so it took the next 2 bytes on as a header, read
+/// text as a length and reserved 540 MB for a 2.7 KB file.
+#[test]
+fn a_binary_value_of_a_length_its_vr_cannot_hold_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let files = series(&d.path().join("in"), 3, EXPLICIT_LE);
+    let mut b = std::fs::read(&files[2]).unwrap();
+    let high_bit = [0x28, 0x00, 0x02, 0x01, b'U', b'S', 2, 0];
+    let at = b.windows(8).position(|w| w == high_bit).expect("HighBit");
+    b[at + 5] = b'L';
+    std::fs::write(&files[2], b).unwrap();
+    let e = refused(d.path(), "s02.dcm", "element length");
+    assert!(e.contains("(0028,0102) of VR UL declares 2 bytes"), "{e}");
+    assert!(e.contains("a multiple of 4"), "{e}");
+}

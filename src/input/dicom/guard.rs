@@ -14,7 +14,9 @@
 //!   its header declares (`read_value_ob`), so nine bytes slipped in
 //!   before PixelData made a 2.7 KB file ask for 276 MB (found by the
 //!   fuzz target `fuzz_readers_dicom`). The same walk refuses a value whose
-//!   declared length runs past the end of the file.
+//!   declared length runs past the end of the file, and a binary value
+//!   (US, UL, FD, ...) whose length is not a multiple of its size, which
+//!   dicom-parser reads short and then misreads what follows ([`fixed_size`]).
 //! - **Decoder panics.** The RLE Lossless decoder of
 //!   dicom-transfer-syntax-registry 0.8 indexes the fragment by offsets
 //!   read from it and unwraps a short read, so garbage pixel data panics
@@ -36,6 +38,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::sync::Once;
 
+use dicom_core::VR;
 use dicom_dictionary_std::tags;
 use dicom_object::{DefaultDicomObject, FileMetaTable};
 use dicom_parser::dataset::lazy_read::LazyDataSetReader;
@@ -114,6 +117,19 @@ pub fn check_structure(path: &Path, until_pixel_data: bool) -> Result<(), InputE
             LazyDataToken::LazyValue { header, decoder } => {
                 if let Some(len) = header.len.get() {
                     let at = decoder.position();
+                    if let Some(size) = fixed_size(header.vr).filter(|&s| len % s != 0) {
+                        return Err(err(
+                            path,
+                            "element length",
+                            format!(
+                                "element ({:04X},{:04X}) of VR {} declares {len} bytes at byte \
+                                 {at}, expected a multiple of {size}: a malformed file",
+                                header.tag.group(),
+                                header.tag.element(),
+                                header.vr.to_string()
+                            ),
+                        ));
+                    }
                     if at.saturating_add(len as u64) > file_len {
                         let what = format!(
                             "element ({:04X},{:04X})",
@@ -149,6 +165,21 @@ pub fn check_structure(path: &Path, until_pixel_data: bool) -> Result<(), InputE
         }
     }
     Ok(())
+}
+
+/// The size of one value of a VR whose values are binary numbers (or
+/// tags), whose length must be a multiple of it (PS3.5 6.2). dicom-parser
+/// reads `len / size` values of such an element but advances its position
+/// by `len`, so a length of 2 for a UL put its reader 2 bytes behind the
+/// element that follows: it then read text as a header and reserved the
+/// 540 MB that text declared (fuzz target `fuzz_readers_dicom`).
+fn fixed_size(vr: VR) -> Option<u32> {
+    match vr {
+        VR::US | VR::SS | VR::OW => Some(2),
+        VR::UL | VR::SL | VR::FL | VR::OL | VR::OF | VR::AT => Some(4),
+        VR::FD | VR::OD | VR::SV | VR::UV | VR::OV => Some(8),
+        _ => None,
+    }
 }
 
 /// Largest file meta group (group 0002) read: a few hundred bytes in
