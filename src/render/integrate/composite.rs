@@ -20,12 +20,12 @@ use glam::{Vec3, Vec3A, Vec4};
 
 use super::batch::{self, trilinear_vec, Batches, End};
 use super::refine::{cell_at, faint, first_sample, part, part32, rephase, How, Onset, Took};
+use super::sample::{Look, Trilinear32};
 use super::{Ctx, Px};
 use crate::render::cache::{Accessor, RBrick};
 use crate::render::clock::Clock;
-use crate::render::gradient::{outer_cell_gradients, vertex_gradients, Normals, VertexGradients};
+use crate::render::gradient::{outer_cell_gradients, vertex_gradients, VertexGradients};
 use crate::render::lut::TfLut;
-use crate::render::options::CompositeLook;
 use crate::render::shade::{at, AlongRay, CellEval};
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, OBJECT};
 
@@ -657,138 +657,5 @@ impl batch::Source for BatchSource<'_, '_, '_> {
     #[cold]
     fn gradients(&mut self, cell: [u32; 3]) -> [Vec3A; 8] {
         outer_cell_gradients(self.acc, self.coords, cell)
-    }
-}
-
-/// A cell's trilinear interpolant in f32 at local coordinates: the vertex
-/// values and their differences along x, taken once per cell.
-struct Trilinear32 {
-    /// `f0, f1 - f0, f2, f3 - f2, f4, f5 - f4, f6, f7 - f6`.
-    f: [f32; 8],
-}
-
-impl Trilinear32 {
-    #[inline(always)]
-    fn new(f: [f32; 8]) -> Trilinear32 {
-        Trilinear32 {
-            f: [
-                f[0],
-                f[1] - f[0],
-                f[2],
-                f[3] - f[2],
-                f[4],
-                f[5] - f[4],
-                f[6],
-                f[7] - f[6],
-            ],
-        }
-    }
-
-    #[inline(always)]
-    fn value(&self, u: Vec3) -> f32 {
-        let f = &self.f;
-        let x00 = f[0] + u.x * f[1];
-        let x10 = f[2] + u.x * f[3];
-        let x01 = f[4] + u.x * f[5];
-        let x11 = f[6] + u.x * f[7];
-        let y0 = x00 + u.y * (x10 - x00);
-        let y1 = x01 + u.y * (x11 - x01);
-        y0 + u.z * (y1 - y0)
-    }
-
-    /// The interpolant's derivative by the local coordinates (times the
-    /// inverse cell sizes it is the gradient per mm).
-    #[inline(always)]
-    fn gradient(&self, u: Vec3) -> Vec3 {
-        let f = &self.f;
-        let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
-        // Vertex values back from the differences.
-        let v = [
-            f[0],
-            f[0] + f[1],
-            f[2],
-            f[2] + f[3],
-            f[4],
-            f[4] + f[5],
-            f[6],
-            f[6] + f[7],
-        ];
-        Vec3::new(
-            lerp(lerp(f[1], f[3], u.y), lerp(f[5], f[7], u.y), u.z),
-            lerp(
-                lerp(v[2] - v[0], v[3] - v[1], u.x),
-                lerp(v[6] - v[4], v[7] - v[5], u.x),
-                u.z,
-            ),
-            lerp(
-                lerp(v[4] - v[0], v[5] - v[1], u.x),
-                lerp(v[6] - v[2], v[7] - v[3], u.x),
-                u.y,
-            ),
-        )
-    }
-}
-
-/// [`CompositeLook`] for one ray: the headlight and whether anything
-/// beyond the transfer function applies.
-struct Look<'a> {
-    look: &'a CompositeLook,
-    /// Shading or gradient opacity is on.
-    on: bool,
-    /// Gradients from the smooth normals (else the cell interpolant's).
-    smooth: bool,
-    to_eye: Vec3A,
-}
-
-impl<'a> Look<'a> {
-    fn new(look: &'a CompositeLook, normals: Normals, ray: &Ray) -> Look<'a> {
-        Look {
-            look,
-            on: look.shade || !look.gradient_opacity.is_empty(),
-            smooth: normals == Normals::Smooth,
-            to_eye: Vec3A::from((-ray.dir).as_vec3()),
-        }
-    }
-
-    /// Whether the batches can take this look's samples: shading and
-    /// gradient opacity by smooth normals ([`batch::run`] weights and
-    /// lights them as [`Look::apply`] does).
-    fn batches(&self) -> bool {
-        self.on && self.smooth
-    }
-
-    /// Sample `s` (premultiplied colour, opacity) with gradient `g` (per
-    /// mm): opacity and colour scaled by the gradient opacity, the colour
-    /// lit by the surface mode's headlight model
-    /// ([`shade`](crate::render::shade::shade): ambient 0.12, diffuse
-    /// 0.75, white specular 0.25 with exponent 32, two-sided). Lane by
-    /// lane, as four scalar expressions would round. Always inlined: as
-    /// a call it cost the shaded composite 7 % when the unshaded marcher
-    /// grew (twenty-first session).
-    #[inline(always)]
-    fn apply(&self, s: Vec4, g: Vec3A) -> Vec4 {
-        let len = g.length();
-        let mut s = s;
-        if !self.look.gradient_opacity.is_empty() {
-            let k = self.look.gradient_factor(len as f64) as f32;
-            s *= k;
-        }
-        if !self.look.shade {
-            return s;
-        }
-        const AMBIENT: f32 = 0.12;
-        let (diffuse, spec) = if len > 0.0 {
-            // The light is at the eye: n.l = |g.e| / |g| for the normal
-            // facing the eye, and r.e = 2 (n.l)^2 - 1.
-            let ndl = (g.dot(self.to_eye).abs() / len).min(1.0);
-            let re = (2.0 * ndl * ndl - 1.0).max(0.0);
-            (ndl, re.powi(32))
-        } else {
-            // No gradient: as the surface mode's flat fallback.
-            (0.5, 0.0)
-        };
-        let k = AMBIENT + 0.75 * diffuse;
-        let sp = 0.25 * spec * s.w;
-        (s * k + Vec4::splat(sp)).with_w(s.w)
     }
 }

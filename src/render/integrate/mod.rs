@@ -16,6 +16,7 @@ mod cost;
 mod depth;
 mod mip;
 mod refine;
+mod sample;
 mod surface;
 
 pub(crate) use mip::leaps_with as mip_leaps_with;
