@@ -61,7 +61,9 @@ fn packed_tf(
 /// front-to-back until the opacity exceeds 0.99. Where a sample whose
 /// opacity is not faint follows a faint one, the lattice restarts at the
 /// onset between them, or at the top of the ramp the ray then crosses
-/// within a step (integrate/refine.rs).
+/// within a step (integrate/refine.rs); the faint sample just before the
+/// onset then stands only for the part of its step before the restarted
+/// samples begin.
 fn oracle_pixel(
     cam: &Camera,
     x: u32,
@@ -133,17 +135,20 @@ fn oracle_pixel(
     // from which lattice index a sample after it is refined.
     let faint = 1.0 - (1.0 - 0.125f64).powf(step);
     let (mut clear, mut from) = (true, f64::NEG_INFINITY);
+    // The last sample if it was composited as faint: its index, colour,
+    // opacity and the transmittance before it.
+    let mut last: Option<(f64, [f64; 3], f64, f64)> = None;
     while k * step < t1 {
         let t = k * step;
         let ks = k;
         k += 1.0;
         let Some(v) = value_at(t) else {
-            clear = true;
+            (clear, last) = (true, None);
             continue;
         };
         let (rgb, a) = exact_sample(&tf, step, v);
         if a == 0.0 {
-            clear = true;
+            (clear, last) = (true, None);
             continue;
         }
         if a >= faint && clear && ks > from {
@@ -164,6 +169,20 @@ fn oracle_pixel(
                 } else if past(end) {
                     top = Some(bisect((onset.1, end), 10, &past).1);
                 }
+            }
+            // The faint sample before: only the part of its step before
+            // the restarted samples' first.
+            let starts = match top {
+                Some(top) if top <= onset.1 => top,
+                _ => onset.1,
+            };
+            if let Some((kl, rgb, a, w)) = last.take().filter(|l| (ks - l.0 - 1.0).abs() < 0.25) {
+                let keep = ((starts - kl * step) / step).clamp(0.0, 1.0);
+                let b = 1.0 - (1.0 - a).powf(keep);
+                for c in 0..3 {
+                    col[c] -= w * rgb[c] * (a - b);
+                }
+                alpha = 1.0 - w * (1.0 - b);
             }
             match top {
                 Some(top) if top > onset.1 => {
@@ -194,6 +213,7 @@ fn oracle_pixel(
             col[c] += w * rgb[c] * a;
         }
         alpha += w * a;
+        last = clear.then_some((ks, rgb, a, w));
         if alpha > 0.99 {
             break;
         }

@@ -35,7 +35,7 @@ use std::cell::Cell;
 
 use glam::{Vec3A, Vec4};
 
-use super::refine::Onset;
+use super::refine::{faint64, Onset};
 use crate::render::cache::{Codes, RBrick};
 use crate::render::lut::TfLut;
 use crate::render::options::CompositeLook;
@@ -237,6 +237,8 @@ type Given = Vec<(usize, [Vec3A; 8])>;
 #[derive(Clone)]
 pub(super) struct Batches<'a> {
     pub map: &'a IndexMap,
+    /// The grid's sample positions, for [`faint64`].
+    pub coords: [&'a [f64]; 3],
     pub ray: &'a Ray,
     pub step: f64,
     pub lut: &'a TfLut,
@@ -252,6 +254,10 @@ pub(super) struct Batches<'a> {
     /// The marcher's onset state: read at the first sample, left as the
     /// last sample taken leaves it.
     pub onset: &'a Onset,
+    /// The last sample composited as faint and the transmittance before
+    /// it, for the onset after it (`Sampler::trim` in composite.rs): read
+    /// and left like `onset`.
+    pub last: &'a Cell<(Vec4, f32)>,
     /// Only [`run`]'s retry sets it; every caller gives the default.
     pub again: Again<'a>,
 }
@@ -476,12 +482,14 @@ fn lanes<const GRAD: bool, const RECT: bool>(
     let mut colour = *acc;
     let mut through = x.again.through.unwrap_or(1.0 - acc.w);
     let clear = 1.0 - x.stop;
-    // Whether the last sample was faint, for onsets (refine.rs).
+    // Whether the last sample was faint, for onsets (refine.rs), and the
+    // last one composited as faint, for the trim after an onset.
     let (mut gap, from) = (x.onset.clear.get(), x.onset.from.get());
-    let faint = x.onset.faint as f32;
+    let (mut faint_k, mut last) = (x.onset.faint_k.get(), x.last.get());
+    let (faint, band) = (x.onset.faint as f32, x.onset.band as f32);
     let mut taken = 0u64;
     loop {
-        let batch_gap = gap;
+        let (batch_gap, batch_faint) = (gap, (faint_k, last));
         let t = (k + taken as f64) * x.step;
         let base: [f32; 3] = std::array::from_fn(|a| (q0[a] + t * qd[a]) as f32);
         // Each lane's cell and local coordinates: `floor(q)` as the
@@ -570,6 +578,8 @@ fn lanes<const GRAD: bool, const RECT: bool>(
             let (lit, tf_w, upto) = shaded(x, b, &object, &value, &u, &local, &code_at, n);
             if upto < n {
                 x.onset.clear.set(batch_gap);
+                x.onset.faint_k.set(batch_faint.0);
+                x.last.set(batch_faint.1);
                 return missed(x, acc, colour, through, local[upto], taken);
             }
             (lit, tf_w)
@@ -586,21 +596,39 @@ fn lanes<const GRAD: bool, const RECT: bool>(
             } else {
                 Vec4::ZERO
             };
-            if s.w < faint {
+            let c = if GRAD { lit[j] } else { s };
+            if s.w == 0.0 {
+                (gap, faint_k) = (true, f64::NAN);
+                continue;
+            }
+            // Near the threshold, the f64 value decides (refine.rs).
+            let dim = if (s.w - faint).abs() <= band {
+                let kj = k + (taken + j as u64) as f64;
+                let cell = std::array::from_fn(|a| b.first[a] + local[j][a]);
+                let corners = Corners {
+                    base: value_at[j],
+                    sx,
+                    z: sxy,
+                };
+                let f = (cell, vertices(corners));
+                faint64(x.coords, x.ray, x.lut, f, kj * x.step, x.onset.faint)
+            } else {
+                s.w < faint
+            };
+            if dim {
                 gap = true;
-                if s.w == 0.0 {
-                    continue;
-                }
+                (faint_k, last) = (k + (taken + j as u64) as f64, (c, through));
             } else {
                 if gap && k + (taken + j as u64) as f64 > from {
                     *acc = colour.with_w(1.0 - through);
+                    (x.onset.faint_k.set(faint_k), x.last.set(last));
                     return (taken + j as u64, End::Onset);
                 }
                 gap = false;
+                faint_k = f64::NAN;
             }
-            let s = if GRAD { lit[j] } else { s };
-            colour += s * through;
-            through *= 1.0 - s.w;
+            colour += c * through;
+            through *= 1.0 - c.w;
             if through < clear {
                 *acc = colour.with_w(1.0 - through);
                 x.onset.clear.set(gap);
@@ -611,6 +639,7 @@ fn lanes<const GRAD: bool, const RECT: bool>(
         if n < LANES {
             *acc = colour.with_w(1.0 - through);
             x.onset.clear.set(gap);
+            (x.onset.faint_k.set(faint_k), x.last.set(last));
             return (taken, end);
         }
     }

@@ -282,7 +282,7 @@ proptest! {
         let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
         let lut = TfLut::new(&tf(), step);
         let off = Onset::off();
-        let x = Batches { map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None, onset: &off, again: Default::default() };
+        let x = Batches { map: &sc.map, coords: sc.coords.each_ref().map(|c| &c[..]), ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32, shade: None, gradient_opacity: None, onset: &off, last: &Default::default(), again: Default::default() };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, None) else {
             return Err(TestCaseError::reject("a sample on a cell face"));
         };
@@ -389,10 +389,11 @@ proptest! {
         };
         let off = Onset::off();
         let x = Batches {
-            map: &sc.map, ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32,
+            map: &sc.map, coords: sc.coords.each_ref().map(|c| &c[..]), ray: &sc.ray, step, lut: &lut, resume: 2, stop: stop as f32,
             shade: (look != 1).then_some(to_eye),
             gradient_opacity: (look != 0).then_some(&go),
             onset: &off,
+            last: &Default::default(),
             again: Default::default(),
         };
         let Some((want_n, want_end, want)) = reference(&b, &x, &sc, Some(&grads)) else {
@@ -470,6 +471,7 @@ fn batches_taken_again_keep_the_carried_transmittance() {
         let off = Onset::off();
         let x = Batches {
             map: &sc.map,
+            coords: sc.coords.each_ref().map(|c| &c[..]),
             ray: &sc.ray,
             step: 0.07,
             lut: &lut,
@@ -478,6 +480,7 @@ fn batches_taken_again_keep_the_carried_transmittance() {
             shade: Some(e),
             gradient_opacity: None,
             onset: &off,
+            last: &Default::default(),
             again: Default::default(),
         };
         let (want, acc, _) = run_one(&x, &full, Some(&g32), false);
@@ -578,9 +581,10 @@ fn batches_stop_at_onsets() {
     let first = ((3.0 + 1.0 / 9.0 - 0.08) / step).ceil() as u64;
     for shade in [None, Some(Vec3A::Z)] {
         for avx2 in [false, true] {
-            let on = Onset::new(1e-9);
+            let on = Onset::new(1e-9, 0.0);
             let x = Batches {
                 map: &sc.map,
+                coords: sc.coords.each_ref().map(|c| &c[..]),
                 ray: &sc.ray,
                 step,
                 lut: &lut,
@@ -589,6 +593,7 @@ fn batches_stop_at_onsets() {
                 shade,
                 gradient_opacity: None,
                 onset: &on,
+                last: &Default::default(),
                 again: Default::default(),
             };
             let (got, acc, _) = run_one(&x, &b, Some(&g32), avx2);
@@ -609,6 +614,7 @@ fn batches_stop_at_onsets() {
             let off = Onset::off();
             let y = Batches {
                 onset: &off,
+                last: &Default::default(),
                 ..x.clone()
             };
             let (got, acc, _) = run_one(&y, &b, Some(&g32), avx2);

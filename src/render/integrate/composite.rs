@@ -16,10 +16,14 @@
 //! traversal finds them, so every traversal gives the same image there
 //! too.
 
+use std::cell::Cell;
+
 use glam::{Vec3, Vec3A, Vec4};
 
 use super::batch::{self, trilinear_vec, Batches, End};
-use super::refine::{cell_at, faint, first_sample, part, part32, rephase, How, Onset, Took};
+use super::refine::{
+    band, cell_at, faint, faint64, first_sample, part, part32, rephase, How, Onset, Took,
+};
 use super::sample::{Look, Trilinear32};
 use super::{Ctx, Px};
 use crate::render::cache::{Accessor, RBrick};
@@ -54,6 +58,7 @@ pub(super) fn composite<T: Real>(
         vg: None,
         col: [0.0; 3],
         alpha: 0.0,
+        last: ([0.0; 4], 1.0),
     };
     let counts = march(ctx, ray, t_start, acc, clock, lut, step, &mut s);
     px.hit = s.alpha > 0.0;
@@ -118,12 +123,17 @@ fn march32<T: Real, const LOOK: bool>(
         look,
         stop: ctx.opts.early_stop as f32,
         faint: faint(ctx) as f32,
+        faint64: faint(ctx),
+        band: band(ctx) as f32,
+        cell: [0; 3],
+        f: [0.0; 8],
         c: Trilinear32 { f: [0.0; 8] },
         u: Vec3::ZERO,
         du: Vec3::ZERO,
         inv: Vec3::ZERO,
         grads: [Vec3A::ZERO; 8],
         acc: Vec4::ZERO,
+        last: Cell::new((Vec4::ZERO, 1.0)),
         batches,
     };
     let counts = march(ctx, ray, t_start, acc, clock, lut, step, &mut s);
@@ -154,6 +164,11 @@ trait Sampler {
     /// says: faint or composited (`Stop` once opaque), or left for the
     /// marcher to refine (refine.rs).
     fn sample(&mut self, t: f64, how: How) -> Took;
+    /// The last sample composited as faint (by [`Sampler::sample`] or
+    /// [`Sampler::batch`]) stands for the share `keep` of its step:
+    /// its contribution is replaced by [`part`]'s (refine.rs,
+    /// [`Onset::kept`]).
+    fn trim(&mut self, keep: f64);
     /// Whether [`Sampler::batch`] takes samples several at a time.
     fn batches(&self) -> bool {
         false
@@ -227,7 +242,7 @@ fn march<T: Real, P: Sampler>(
     // Onsets are refined where the ramps are known (in every composite
     // render).
     let ramps = ctx.ramps.as_ref();
-    let onset = ramps.map_or_else(Onset::off, |r| Onset::new(r.faint()));
+    let onset = ramps.map_or_else(Onset::off, |r| Onset::new(r.faint(), r.band()));
     // After a restart at a ramp's top: the partial sample's fraction of a
     // step and the index of the top.
     let mut part_of: Option<(f64, f64)> = None;
@@ -278,6 +293,7 @@ fn march<T: Real, P: Sampler>(
                     let code = b.code(l);
                     if code != OBJECT {
                         onset.clear.set(true);
+                        onset.faint_k.set(f64::NAN);
                         if let Some((_, top)) = part_of.take() {
                             k = top;
                         }
@@ -303,17 +319,26 @@ fn march<T: Real, P: Sampler>(
                     }
                     None => onset.how(ks),
                 };
+                // The onset's lattice index, if the sample is one.
                 let mut refine = match s.sample(t, how) {
+                    Took::Clear => {
+                        onset.clear.set(true);
+                        onset.faint_k.set(f64::NAN);
+                        None
+                    }
                     Took::Faint => {
                         onset.clear.set(true);
+                        let part = matches!(how, How::Part(_));
+                        onset.faint_k.set(if part { f64::NAN } else { ks });
                         None
                     }
                     Took::Added => {
                         onset.clear.set(false);
+                        onset.faint_k.set(f64::NAN);
                         None
                     }
                     Took::Stop => break 'run None,
-                    Took::Onset => Some(t),
+                    Took::Onset => Some(ks),
                 };
                 // The samples after it, in batches while they stay in
                 // this brick (once per cell entered: a batch that took
@@ -331,16 +356,20 @@ fn march<T: Real, P: Sampler>(
                     match flow {
                         Batched::None => {}
                         Batched::Taken => entered = false,
-                        Batched::Onset => refine = Some(k * step),
+                        Batched::Onset => refine = Some(k),
                         Batched::Done => break 'run None,
                     }
                 }
                 // An onset: the lattice restarts at it or at the top of its
-                // ramp (after a partial sample), in its cell.
-                if let (Some(t), Some(ramps)) = (refine, ramps) {
-                    let Some(r) = rephase(ctx, ray, acc, lut, ramps, cell, t, step) else {
+                // ramp (after a partial sample), in its cell; the faint
+                // sample before it keeps the part of its step before.
+                if let (Some(ko), Some(ramps)) = (refine, ramps) {
+                    let Some(r) = rephase(ctx, ray, acc, lut, ramps, cell, ko * step, step) else {
                         break 'run None;
                     };
+                    if let Some(keep) = onset.kept(ko, r.from, step) {
+                        s.trim(keep);
+                    }
                     (k, cell, entered, part_of) = (r.k, r.cell, false, r.part);
                     tn = std::array::from_fn(|a| ahead(a, cell[a]));
                     onset.restarted(r.part.map_or(r.k, |p| p.1));
@@ -441,6 +470,9 @@ struct Sampler64<'a> {
     vg: Option<VertexGradients>,
     col: [f64; 3],
     alpha: f64,
+    /// The last faint sample as composited, and the transmittance before
+    /// it ([`Sampler::trim`]).
+    last: ([f64; 4], f64),
 }
 
 impl Sampler for Sampler64<'_> {
@@ -466,12 +498,12 @@ impl Sampler for Sampler64<'_> {
     #[inline]
     fn sample(&mut self, t: f64, how: How) -> Took {
         let Some(c) = &self.c else {
-            return Took::Faint;
+            return Took::Clear;
         };
         let mut s = self.lut.sample(c.value(t));
         if s[3] == 0.0 {
             // Transparent: adds nothing.
-            return Took::Faint;
+            return Took::Clear;
         }
         let faint = s[3] < self.faint;
         match how {
@@ -500,10 +532,20 @@ impl Sampler for Sampler64<'_> {
         if self.alpha > self.stop {
             Took::Stop
         } else if faint {
+            self.last = ([r, g, b, a], w);
             Took::Faint
         } else {
             Took::Added
         }
+    }
+
+    fn trim(&mut self, keep: f64) {
+        let (s, w) = self.last;
+        let p = part(s, keep);
+        for c in 0..3 {
+            self.col[c] -= w * (s[c] - p[c]);
+        }
+        self.alpha = 1.0 - w * (1.0 - p[3]);
     }
 }
 
@@ -519,8 +561,14 @@ struct Sampler32<'a, const LOOK: bool> {
     step: f64,
     look: Look<'a>,
     stop: f32,
-    /// The table opacity below which a sample is faint (refine.rs).
+    /// The table opacity below which a sample is faint (refine.rs), and
+    /// how close to it the f64 value decides ([`faint64`]).
     faint: f32,
+    faint64: f64,
+    band: f32,
+    /// The cell entered and its vertex values, for [`faint64`].
+    cell: [u32; 3],
+    f: [f32; 8],
     c: Trilinear32,
     /// Local coordinates of the next sample and their step.
     u: Vec3,
@@ -534,6 +582,9 @@ struct Sampler32<'a, const LOOK: bool> {
     /// The ray's premultiplied colour and opacity so far, `[r, g, b, a]`:
     /// a sample is composited into all four lanes at once.
     acc: Vec4,
+    /// The last faint sample as composited, and the transmittance before
+    /// it ([`Sampler::trim`]; the batches set it too).
+    last: Cell<(Vec4, f32)>,
     /// The grid's index map when samples go in batches (batch.rs).
     batches: Option<&'a batch::IndexMap>,
 }
@@ -571,17 +622,23 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
             self.inv[a] = s as f32;
         }
         self.c = Trilinear32::new(f);
+        (self.cell, self.f) = (cell, f);
     }
 
     #[inline(always)]
-    fn sample(&mut self, _t: f64, how: How) -> Took {
+    fn sample(&mut self, t: f64, how: How) -> Took {
         let uc = self.u.clamp(Vec3::ZERO, Vec3::ONE);
         self.u += self.du;
         let mut s = self.lut.sample32(self.c.value(uc));
         if s.w == 0.0 {
-            return Took::Faint;
+            return Took::Clear;
         }
-        let faint = s.w < self.faint;
+        let faint = if (s.w - self.faint).abs() <= self.band {
+            let cell = (self.cell, self.f);
+            faint64(self.coords, self.ray, self.lut, cell, t, self.faint64)
+        } else {
+            s.w < self.faint
+        };
         match how {
             How::Onset if !faint => return Took::Onset,
             How::Part(frac) => s = part32(s, frac),
@@ -596,14 +653,22 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
             s = self.look.apply(s, g);
         }
         // Front to back: colour and opacity both gain (1 - a) s.
-        self.acc += (1.0 - self.acc.w) * s;
+        let w = 1.0 - self.acc.w;
+        self.acc += w * s;
         if self.acc.w > self.stop {
             Took::Stop
         } else if faint {
+            self.last.set((s, w));
             Took::Faint
         } else {
             Took::Added
         }
+    }
+
+    fn trim(&mut self, keep: f64) {
+        let (s, w) = self.last.get();
+        let p = part32(s, keep);
+        self.acc = (self.acc - w * (s - p)).with_w(1.0 - w * (1.0 - p.w));
     }
 
     #[inline(always)]
@@ -618,6 +683,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
         };
         let x = Batches {
             map,
+            coords: self.coords,
             ray: self.ray,
             step: self.step,
             lut: self.lut,
@@ -627,6 +693,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
             gradient_opacity: (LOOK && !self.look.look.gradient_opacity.is_empty())
                 .then_some(self.look.look),
             onset,
+            last: &self.last,
             again: Default::default(),
         };
         let mut src = BatchSource {

@@ -46,8 +46,15 @@
 //!   soft tissue, about 0.06 per mm) would pay a bisection per ray for
 //!   nothing one could see. The refinements' positions depend only on
 //!   the ray, so images stay the same for any thread count, tile size or
-//!   traversal, and the f32 and f64 samplers restart at the same places
-//!   (the bisections evaluate in f64).
+//!   traversal, and the f32 and f64 samplers restart at the same places:
+//!   the bisections evaluate in f64, and an f32 sample whose opacity lies
+//!   within a rounding of the threshold is called faint or not by its f64
+//!   value ([`faint_band`], [`faint64`]).
+//! * The faint sample before an onset stood for the step after it, which
+//!   the restarted samples now cover from the onset on: it keeps only the
+//!   part of its step before the onset ([`Onset::kept`], its opacity
+//!   corrected as a partial sample's). So an onset a rounding after a
+//!   faint sample draws what one a rounding before it draws.
 //! * After a restart neither the samples up to the top nor the next one
 //!   is an onset ([`Onset::restarted`]): where the samplers' f32 value and
 //!   the bisection's f64 value disagree by a rounding at the threshold,
@@ -118,6 +125,7 @@ pub(crate) struct Ramps {
     opacity: Vec<f64>,
     need: Vec<f64>,
     faint: f64,
+    band: f64,
 }
 
 impl Ramps {
@@ -132,7 +140,14 @@ impl Ramps {
                 .map(|q| (1.0 - TOP_SHORT) * exact_sample(tf, step_mm, q.value).1)
                 .collect(),
             faint: 1.0 - (1.0 - ONSET_OPACITY).powf(step_mm),
+            band: faint_band(tf, step_mm),
         }
+    }
+
+    /// How far from the faint threshold an f32 sample's table opacity
+    /// may lie for the f64 value to decide ([`faint_band`]).
+    pub(crate) fn band(&self) -> f64 {
+        self.band
     }
 
     /// The table opacity below which a sample is faint.
@@ -160,10 +175,69 @@ impl Ramps {
     }
 }
 
+/// Bits of an f32 sample's value error, relative to the largest value of
+/// the transfer function's points: the f32 trilinear evaluation and the
+/// local coordinates advanced per sample through a cell are good to a
+/// few 1e-7 of the values; 2^-14 (6e-5) leaves a hundredfold margin.
+const F32_VALUE_BITS: i32 = 14;
+
+/// The band of table opacity around the faint threshold inside which an
+/// f32 sampler does not trust its own opacity to tell faint from not and
+/// asks the f64 value ([`faint64`]): the steepest rise of the table
+/// opacity at the threshold (where the opacity per mm is
+/// [`ONSET_OPACITY`], `step (1 - 1/8)^(step - 1)` times the steepest
+/// segment of the transfer function) over the f32 value error
+/// ([`F32_VALUE_BITS`]). Whether a sample is faint decides whether the
+/// lattice restarts after it, so a sample that the two precisions call
+/// differently moved the f32 lattice against the f64 one: the
+/// brute-force oracle test found pixels 6/255 and 11/255 apart. The
+/// samples inside the band lie within the value error of where the table
+/// crosses the threshold: few, on any function whose opacity does not
+/// stay at the threshold.
+fn faint_band(tf: &TransferFunction, step_mm: f64) -> f64 {
+    let p = &tf.points;
+    let steepest = p
+        .windows(2)
+        .filter(|w| w[1].value > w[0].value)
+        .map(|w| ((w[1].opacity - w[0].opacity) / (w[1].value - w[0].value)).abs())
+        .fold(0.0, f64::max);
+    let scale = p.iter().map(|q| q.value.abs()).fold(1.0, f64::max);
+    let rise = step_mm * (1.0 - ONSET_OPACITY).powf(step_mm - 1.0) * steepest;
+    let band = rise * scale * 2f64.powi(-F32_VALUE_BITS);
+    // A step (an infinite slope) or a value scale beyond f64: every
+    // sample near the threshold asks.
+    if band.is_finite() {
+        band + 1e-6
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Whether the sample at `t` in 1-cell `cell` (vertex values `f`) is
+/// faint by its f64 value: the f64 sampler's decision, which the f32
+/// samplers take where their own opacity lies within [`Onset::band`] of
+/// the threshold.
+#[inline(never)]
+pub(super) fn faint64(
+    coords: [&[f64]; 3],
+    ray: &Ray,
+    lut: &TfLut,
+    (cell, f): ([u32; 3], [f32; 8]),
+    t: f64,
+    faint: f64,
+) -> bool {
+    lut.sample(AlongRay::new(coords, cell, f, ray).value(t))[3] < faint
+}
+
 /// The table opacity below which the samplers of `ctx` call a sample
 /// faint (without ramps, every sample: none is an onset).
 pub(super) fn faint<T: Real>(ctx: &Ctx<T>) -> f64 {
     ctx.ramps.as_ref().map_or(f64::INFINITY, Ramps::faint)
+}
+
+/// [`Ramps::band`] of `ctx` (without ramps 0: nothing to decide).
+pub(super) fn band<T: Real>(ctx: &Ctx<T>) -> f64 {
+    ctx.ramps.as_ref().map_or(0.0, Ramps::band)
 }
 
 /// How the marcher wants a sample taken.
@@ -183,7 +257,9 @@ pub(super) enum How {
 /// What a composite sampler did with one sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Took {
-    /// Transparent or faint (composited if not transparent).
+    /// Transparent: nothing composited.
+    Clear,
+    /// Faint, and composited.
     Faint,
     /// Composited.
     Added,
@@ -220,18 +296,27 @@ pub(super) struct Onset {
     /// Only a sample after a faint one with a lattice index above this
     /// is an onset (the restarted samples and the one after are not).
     pub from: Cell<f64>,
+    /// The lattice index of the last sample, if it was composited as
+    /// faint (NaN if not): an onset right after it trims it
+    /// ([`Onset::kept`]).
+    pub faint_k: Cell<f64>,
     /// The table opacity below which a sample is faint.
     pub faint: f64,
+    /// Within this of `faint`, an f32 sampler asks [`faint64`].
+    pub band: f64,
 }
 
 impl Onset {
     /// The state at the start of a ray: nothing taken, any onset refined;
-    /// samples faint below table opacity `faint`.
-    pub(super) fn new(faint: f64) -> Onset {
+    /// samples faint below table opacity `faint`, decided in f64 within
+    /// `band` of it.
+    pub(super) fn new(faint: f64, band: f64) -> Onset {
         Onset {
             clear: Cell::new(true),
             from: Cell::new(f64::NEG_INFINITY),
+            faint_k: Cell::new(f64::NAN),
             faint,
+            band,
         }
     }
 
@@ -240,7 +325,9 @@ impl Onset {
         Onset {
             clear: Cell::new(false),
             from: Cell::new(f64::INFINITY),
+            faint_k: Cell::new(f64::NAN),
             faint: f64::INFINITY,
+            band: 0.0,
         }
     }
 
@@ -259,6 +346,22 @@ impl Onset {
     /// neither the samples up to it nor the next one is an onset.
     pub(super) fn restarted(&self, k: f64) {
         self.from.set(k + 1.5);
+        self.faint_k.set(f64::NAN);
+    }
+
+    /// The share of its step that the faint sample just before the onset
+    /// sample `k` keeps when the restarted samples stand from `from` on
+    /// (a `t`, [`Restart::from`]): the part of its step before `from`.
+    /// `None` when the sample before the onset was not composited as
+    /// faint. Without the trim the step's overlap was counted twice, and
+    /// an onset just past a faint sample drew up to the faint opacity
+    /// (0.065 at 0.5 mm) more than one just before it, where the samples
+    /// it started from differed by a rounding: f32 and f64 samplers
+    /// called such a sample faint or not by that rounding, and their
+    /// pixels differed by up to 11/255.
+    pub(super) fn kept(&self, k: f64, from: f64, step: f64) -> Option<f64> {
+        let f = self.faint_k.get();
+        ((k - f - 1.0).abs() < 0.25).then(|| ((from - f * step) / step).clamp(0.0, 1.0))
     }
 }
 
@@ -272,6 +375,9 @@ pub(super) struct Restart {
     /// The partial sample's fraction of a step and the index of the
     /// first full sample after it.
     pub part: Option<(f64, f64)>,
+    /// Where the restarted samples' steps begin: the onset, or the top
+    /// when the lattice restarts at a top behind the onset.
+    pub from: f64,
 }
 
 /// Where the lattice restarts before the onset sample at `t` (in cell
@@ -321,17 +427,22 @@ pub(super) fn rephase<T: Real>(
             top = Some(b.1);
         }
     }
-    let restart = |at: f64, part| {
+    let restart = |at: f64, part, from| {
         let k = at / step;
-        cell_near(ctx.coords, ray, cell, k * step).map(|cell| Restart { k, cell, part })
+        cell_near(ctx.coords, ray, cell, k * step).map(|cell| Restart {
+            k,
+            cell,
+            part,
+            from,
+        })
     };
     match top {
         Some(top) if top > onset.1 => {
             let part = ((top - onset.1) / step, top / step);
-            restart(0.5 * (onset.1 + top), Some(part))
+            restart(0.5 * (onset.1 + top), Some(part), onset.1)
         }
-        Some(top) => restart(top, None),
-        None => restart(onset.1, None),
+        Some(top) => restart(top, None, top),
+        None => restart(onset.1, None, onset.1),
     }
 }
 
