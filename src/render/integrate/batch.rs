@@ -621,7 +621,8 @@ fn lanes<const GRAD: bool, const RECT: bool>(
             } else {
                 if gap && k + (taken + j as u64) as f64 > from {
                     *acc = colour.with_w(1.0 - through);
-                    (x.onset.faint_k.set(faint_k), x.last.set(last));
+                    x.onset.faint_k.set(faint_k);
+                    x.last.set(last);
                     return (taken + j as u64, End::Onset);
                 }
                 gap = false;
@@ -639,7 +640,8 @@ fn lanes<const GRAD: bool, const RECT: bool>(
         if n < LANES {
             *acc = colour.with_w(1.0 - through);
             x.onset.clear.set(gap);
-            (x.onset.faint_k.set(faint_k), x.last.set(last));
+            x.onset.faint_k.set(faint_k);
+            x.last.set(last);
             return (taken, end);
         }
     }
