@@ -71,8 +71,8 @@ if a.shade:
     # renderer's default). The light is added below, with a white ambient
     # colour: VTK's shading table scales Ambient by the light's ambient
     # colour, which is black by default, so with the renderer's automatic
-    # light SetAmbient had no effect (docs/peers/PEERS.md, twenty-first
-    # session).
+    # light SetAmbient had no effect (docs/peers/PEERS.md, "What is
+    # compared", shaded composite).
     prop.ShadeOn()
     prop.SetAmbient(0.12)
     prop.SetDiffuse(0.75)
