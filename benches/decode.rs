@@ -13,7 +13,8 @@
 //! (`CDVOL_DECODE_DUMP=PREFIX` also writes the stored frames of each set
 //! to `PREFIX.object.zst` and `PREFIX.no_object.zst` for `zstd -d`); without
 //! the variable, a 256^3 u16 CT phantom (bone at 300 HU) is made in a
-//! temporary directory. Figures go to docs/BENCHMARKS.md.
+//! temporary directory. Figures go to docs/BENCHMARKS.md, "What a
+//! decode costs".
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 

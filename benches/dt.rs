@@ -2,7 +2,8 @@
 //! transform, one z step of the recurrence, the whole streaming transform
 //! in memory, and the anisotropic octant pass.
 //!
-//! Run: `cargo bench --bench dt`. Figures go to docs/BENCHMARKS.md.
+//! Run: `cargo bench --bench dt`. Figures go to docs/BENCHMARKS.md,
+//! "Distance-transform kernel".
 
 use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 

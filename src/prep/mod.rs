@@ -6,8 +6,9 @@
 //! a temporary file. Pass 2 runs backward over z in slabs of one brick
 //! depth: finish the distance transform, re-read the slab's samples,
 //! embed the codes, cut the slab into bricks, compress them in parallel and
-//! append them. Memory is bounded by one slab (see docs/BENCHMARKS.md for
-//! the formula); nothing grows with nz.
+//! append them. Memory is bounded by one slab (docs/BENCHMARKS.md, "Prep:
+//! whole program on 4 GiB and 2 GiB volumes", has the formula); nothing
+//! grows with nz.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -153,8 +153,8 @@ impl TfLut {
         // this holds where the processor, not constant folding, computes
         // `x`. A comparison in place of `max` is no firmer (LLVM turns it
         // into `maxnum`, llvm/llvm-project#170486) and `as i32` costs
-        // 10-13 % more instructions per frame (docs/BENCHMARKS.md,
-        // twenty-eighth session): the unchecked conversion is one
+        // 10-13 % more instructions per frame (docs/DECISIONS.md, "`as
+        // i32` ... instead of `to_int_unchecked`"): the unchecked conversion is one
         // instruction, where `as` adds the saturation and NaN checks, and
         // an i32 converts back to f32 in one more.
         let i: i32 = unsafe { x.min(self.last_bin32).to_int_unchecked() };

@@ -12,7 +12,8 @@
 //! the neighbours when the brick is decoded instead would read the bricks
 //! around every face, whether any ray samples there or not: with a cache
 //! budget below the working set that read evicted and decoded again, and
-//! the shaded composite took 75 % longer (docs/BENCHMARKS.md).
+//! the shaded composite took 75 % longer (docs/DECISIONS.md, "The outer
+//! layer built whole on first use").
 //!
 //! Which cells can be read is kept per cell, one bit each: a cell is set
 //! when all 8 of its vertices hold their gradients, which costs the

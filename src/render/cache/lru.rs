@@ -5,8 +5,9 @@
 /// lookup, insertion and eviction, and no hashing. Keys index a table of
 /// slots; the slots form a doubly linked list in recency order. A lookup
 /// runs under the shared cache's lock on every brick an accessor's own
-/// few do not hold (docs/BENCHMARKS.md, "Render-time iso": the
-/// recency-ordered B-tree this replaces took 15 % of a cold frame).
+/// few do not hold (docs/BENCHMARKS.md, "Brick cache lookups: an O(1)
+/// LRU": the recency-ordered B-tree this replaces took 15 % of a cold
+/// frame).
 pub(super) struct Lru<V> {
     /// key -> slot in `slots`, or [`NIL`].
     index: Vec<u32>,

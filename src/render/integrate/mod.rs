@@ -110,7 +110,8 @@ pub(crate) struct Ctx<'a, T> {
 /// pixels wide where the rays cross the volume (its centre, for a
 /// perspective view). With sparser rays a cell is met about once, and
 /// the memo only adds its lookups and pages (docs/BENCHMARKS.md, "Vertex
-/// gradients remembered").
+/// gradients remembered"; docs/DECISIONS.md, "The smooth-normal memo
+/// where rays are sparse too").
 pub(crate) fn rays_meet_cells_again(h: &crate::format::Header, camera: &Camera) -> bool {
     finest_spacing(h) >= MEMO_MIN_PIXELS * pixel_mm(h, camera)
 }

@@ -112,7 +112,8 @@ impl<'a> Look<'a> {
     /// 0.75, white specular 0.25 with exponent 32, two-sided). Lane by
     /// lane, as four scalar expressions would round. Always inlined: as
     /// a call it cost the shaded composite 7 % when the unshaded marcher
-    /// grew (twenty-first session).
+    /// grew (docs/DECISIONS.md, "`Look::apply` left to the compiler's
+    /// inlining").
     #[inline(always)]
     pub fn apply(&self, s: Vec4, g: Vec3A) -> Vec4 {
         let len = g.length();
