@@ -228,65 +228,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 info.surface_iso
             );
         }
-        Command::Render(a) => {
-            let vol = PackedVolume::open(&a.file)?;
-            let job = a.job(&vol)?;
-            // The transfer function is an input too, and the scan the
-            // packed file came from is never replaced (the job checks the
-            // packed file itself).
-            let outputs = job.outputs().map_err(cli::render_error)?;
-            if let Some(tf) = &a.tf {
-                check_outputs(&outputs, std::slice::from_ref(tf), None)?;
-            }
-            cdvol::export::check_not_sources(
-                &outputs,
-                &cdvol::export::packed_sources(vol.path(), vol.header()),
-                vol.path(),
-            )?;
-            let (files, stats) =
-                cdvol::render::job::run(&vol, &job, progress).map_err(cli::render_error)?;
-            for f in files {
-                println!("wrote {}", f.display());
-            }
-            if stats.hits == 0 && stats.rays > 0 {
-                eprintln!(
-                    "cdvol: warning: {}: no ray met the scene ({} mode{}); the image is empty",
-                    a.file.display(),
-                    stats.mode,
-                    match job.options.iso {
-                        Some(v) => format!(", iso {v}"),
-                        None => String::new(),
-                    }
-                );
-            }
-            println!(
-                "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read ({} reads), {:.2} s \
-                 (thread seconds: decode {:.2}, traverse {:.2}, sample {:.2}; kernel {:.2} s, {} page faults{})",
-                stats.rays,
-                stats.steps,
-                stats.steps as f64 / stats.rays.max(1) as f64,
-                stats.macro_steps,
-                stats.cell_steps,
-                stats.hits,
-                stats.bricks_distinct,
-                stats.bricks_total,
-                stats.bricks_read,
-                stats.seconds_total,
-                stats.seconds_decode,
-                stats.seconds_traverse,
-                stats.seconds_sample,
-                stats.seconds_system,
-                stats.page_faults,
-                match (stats.huge_pages, stats.huge_pages_slow) {
-                    (0, _) => String::new(),
-                    (n, s) => format!(
-                        ", {n} huge page{}{}",
-                        if n == 1 { "" } else { "s" },
-                        if s > 0 { format!(", {s} slow") } else { String::new() }
-                    ),
-                },
-            );
-        }
+        Command::Render(a) => render(&a, progress)?,
         Command::Demo(a) => demo::run(&a.dir, progress)?,
         Command::Assemble(a) => {
             // Outputs first (none may be a part), then the depth mode's
@@ -317,6 +259,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 println!("wrote {}", f.display());
             }
         }
+        Command::Experiment(cli::ExperimentCmd::Render(a)) => render(&a.into_render(), progress)?,
         Command::Experiment(cli::ExperimentCmd::Tradeoffs(a)) => {
             check_experiment_out(&a.out, a.ct.as_deref())?;
             let rows = cdvol::tools::experiment::tradeoffs(&a.to_options()?, progress)?;
@@ -334,6 +277,69 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
         }
         Command::Serve(a) => serve(&a.config())?,
     }
+    Ok(())
+}
+
+/// `cdvol render` (and `cdvol experiment render`): renders, says what it
+/// wrote and what the render took.
+fn render(a: &cli::RenderArgs, progress: &dyn Progress) -> Result<()> {
+    let vol = PackedVolume::open(&a.file)?;
+    let job = a.job(&vol)?;
+    // The transfer function is an input too, and the scan the
+    // packed file came from is never replaced (the job checks the
+    // packed file itself).
+    let outputs = job.outputs().map_err(cli::render_error)?;
+    if let Some(tf) = &a.tf {
+        check_outputs(&outputs, std::slice::from_ref(tf), None)?;
+    }
+    cdvol::export::check_not_sources(
+        &outputs,
+        &cdvol::export::packed_sources(vol.path(), vol.header()),
+        vol.path(),
+    )?;
+    let (files, stats) =
+        cdvol::render::job::run(&vol, &job, progress).map_err(cli::render_error)?;
+    for f in files {
+        println!("wrote {}", f.display());
+    }
+    if stats.hits == 0 && stats.rays > 0 {
+        eprintln!(
+            "cdvol: warning: {}: no ray met the scene ({} mode{}); the image is empty",
+            a.file.display(),
+            stats.mode,
+            match job.options.iso {
+                Some(v) => format!(", iso {v}"),
+                None => String::new(),
+            }
+        );
+    }
+    println!(
+        "{} rays, {} steps ({:.1} per ray: {} macro, {} single-cell), {} hits, {} of {} bricks read ({} reads), {:.2} s \
+         (thread seconds: decode {:.2}, traverse {:.2}, sample {:.2}; kernel {:.2} s, {} page faults{})",
+        stats.rays,
+        stats.steps,
+        stats.steps as f64 / stats.rays.max(1) as f64,
+        stats.macro_steps,
+        stats.cell_steps,
+        stats.hits,
+        stats.bricks_distinct,
+        stats.bricks_total,
+        stats.bricks_read,
+        stats.seconds_total,
+        stats.seconds_decode,
+        stats.seconds_traverse,
+        stats.seconds_sample,
+        stats.seconds_system,
+        stats.page_faults,
+        match (stats.huge_pages, stats.huge_pages_slow) {
+            (0, _) => String::new(),
+            (n, s) => format!(
+                ", {n} huge page{}{}",
+                if n == 1 { "" } else { "s" },
+                if s > 0 { format!(", {s} slow") } else { String::new() }
+            ),
+        },
+    );
     Ok(())
 }
 

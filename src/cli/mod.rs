@@ -4,18 +4,32 @@
 //! Split by command group: [`render`] (render and assemble), [`prep`]
 //! (prep and prep-batch) and [`tools`] (the other commands).
 
-use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
+use clap::{Arg, ArgAction, CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod prep;
 mod render;
 mod tools;
 
 pub use prep::{input_error, prep_error, PrepArgs, PrepBatchArgs};
-pub use render::{render_error, AssembleArgs, RenderArgs};
+pub use render::{render_error, AssembleArgs, ExperimentRenderArgs, RenderArgs};
 pub use tools::{
     phantom_error, DemoArgs, ExperimentCmd, ExportArgs, HistogramArgs, InfoArgs, PhantomCmd,
     PresetsArgs, ServeArgs,
 };
+
+/// The headings of `--help`, in the order the commands list them: the
+/// everyday groups first, the tuning and paper-experiment switches last
+/// (and left out of `-h`: their args set `hide_short_help`).
+pub mod heading {
+    pub const INPUT: &str = "Input";
+    pub const VIEW: &str = "View";
+    pub const LOOK: &str = "Mode and look";
+    /// prep: which cells are objects.
+    pub const CLASSIFY: &str = "Classification";
+    pub const OUTPUT: &str = "Output";
+    pub const PERFORMANCE: &str = "Performance";
+    pub const TUNING: &str = "Tuning and paper experiments";
+}
 
 #[derive(Parser, Debug)]
 #[command(
@@ -59,7 +73,8 @@ pub enum Command {
     /// Join the part files of a sharded render (`render --shard K/N`) into
     /// the image one process would have written.
     Assemble(AssembleArgs),
-    /// Reproducible measurements, written as reports under docs/.
+    /// Reproducible measurements, written as reports under docs/, and
+    /// renders with the switches only measurements want.
     #[command(subcommand)]
     Experiment(ExperimentCmd),
     /// Serve a browser viewer of packed files: orbit, zoom, presets, live
@@ -81,12 +96,41 @@ pub fn mem_limit(mib: u64) -> u64 {
 /// taken as values by every option of every command: `--iso -700` as
 /// `--iso=-700` (Hounsfield units are mostly negative). Options whose
 /// values are lists (`--view -30,20`) allow hyphen values themselves.
+///
+/// A command with options left out of `-h` (`hide_short_help`: the
+/// tuning and paper-experiment switches) also takes `--help-all`, the
+/// same as `--help`, and `-h` ends by saying where the others are.
 pub fn command() -> clap::Command {
-    fn negative_numbers(c: clap::Command) -> clap::Command {
-        c.allow_negative_numbers(true)
-            .mut_subcommands(negative_numbers)
+    fn finish(c: clap::Command) -> clap::Command {
+        let c = c.allow_negative_numbers(true).mut_subcommands(finish);
+        if c.get_arguments().any(Arg::is_hide_short_help_set) {
+            help_all(c)
+        } else {
+            c
+        }
     }
-    negative_numbers(Cli::command())
+    finish(Cli::command())
+}
+
+/// `--help-all` and the closing lines of `-h` and `--help` for a command
+/// whose tuning options `-h` leaves out.
+fn help_all(c: clap::Command) -> clap::Command {
+    c.arg(
+        Arg::new("help_all")
+            .long("help-all")
+            .action(ArgAction::HelpLong)
+            .help("Print help with every option, tuning too (the same as --help)"),
+    )
+    .after_help(format!(
+        "The \"{}\" options are left out here: see them with --help or --help-all.",
+        heading::TUNING
+    ))
+    .after_long_help(format!(
+        "The \"{}\" options choose among equivalent algorithms, trade accuracy for speed, or \
+         reproduce the paper's measurements (docs/TRADEOFFS.md, docs/EXPERIMENTS.md); their \
+         defaults suit every other use.",
+        heading::TUNING
+    ))
 }
 
 /// Parses the process's arguments with [`command`]; on an error or

@@ -5,105 +5,134 @@ use std::path::PathBuf;
 
 use clap::Args;
 
+use super::heading;
+
 #[derive(Args, Debug)]
 pub struct PrepArgs {
     /// The volume: a directory holding a DICOM series, a raw-stack sidecar
     /// (.json), NRRD (.nrrd, .nhdr) or NIfTI-1 (.nii, .nii.gz).
+    #[arg(help_heading = heading::INPUT, display_order = 0)]
     pub input: PathBuf,
-    /// Packed output file.
-    #[arg(short, long)]
-    pub output: PathBuf,
     /// The DICOM series to prepare when the directory holds several
     /// (SeriesInstanceUID).
-    #[arg(long, value_name = "UID")]
+    // After <INPUT> (0), which is first under its heading.
+    #[arg(long, value_name = "UID", help_heading = heading::INPUT, display_order = 1)]
     pub series: Option<String>,
     #[command(flatten)]
     pub settings: PrepSettings,
+    /// Packed output file.
+    // After the settings, so that the headings come in their order (the
+    // first argument under a heading places it); first among its own.
+    #[arg(short, long, help_heading = heading::OUTPUT, display_order = 0)]
+    pub output: PathBuf,
 }
 
-/// How prep classifies and packs (shared by prep and prep-batch).
+/// How prep classifies and packs (shared by prep and prep-batch). The
+/// fields are in the order of their `--help` headings.
 #[derive(Args, Debug)]
 pub struct PrepSettings {
-    /// Iso value (rescaled units, e.g. HU): a cell is a 1-cell when its
-    /// largest vertex value is >= T.
+    /// Iso value (e.g. HU): a 1-cell has a vertex value >= T.
+    ///
+    /// Rescaled units, e.g. HU: a cell is a 1-cell when its largest vertex
+    /// value is >= T.
     #[arg(
         long,
         value_name = "T",
         conflicts_with_all = ["classify_tf", "preset", "envelope"],
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        help_heading = heading::CLASSIFY
     )]
     pub iso: Option<f64>,
-    /// One file for a whole exploration: the iso classification that
-    /// holds every item, so `render --iso`/`--tf`/`--preset` cover them all
-    /// without another prep. Items: iso values, presets, or a modality
-    /// (`ct`, `mr`: all its presets), comma-separated; e.g. `--envelope ct`
-    /// or `--envelope ct-bone,ct-muscle,500`. `auto`: the envelope of the
-    /// input's modality, CT or MR (as the input says, --modality, or
-    /// guessed from its values), MR presets placed on the input's values
-    /// — per input in prep-batch.
+    /// One file for a whole exploration: ct, mr, auto, presets or iso
+    /// values.
+    ///
+    /// The iso classification that holds every item, so `render
+    /// --iso`/`--tf`/`--preset` cover them all without another prep.
+    /// Items: iso values, presets, or a modality (`ct`, `mr`: all its
+    /// presets), comma-separated; e.g. `--envelope ct` or `--envelope
+    /// ct-bone,ct-muscle,500`. `auto`: the envelope of the input's
+    /// modality, CT or MR (as the input says, --modality, or guessed from
+    /// its values), MR presets placed on the input's values — per input in
+    /// prep-batch.
     #[arg(
         long,
         value_name = "ITEMS",
         value_delimiter = ',',
         conflicts_with_all = ["classify_tf", "preset"],
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        help_heading = heading::CLASSIFY
     )]
     pub envelope: Vec<String>,
-    /// Transfer function (JSON): a cell is a 1-cell when its opacity is
-    /// non-zero anywhere between the min and max of its vertex values.
-    #[arg(long, value_name = "FILE", conflicts_with = "preset")]
+    /// Transfer function (JSON): a 1-cell is one it makes visible.
+    ///
+    /// A cell is a 1-cell when its opacity is non-zero anywhere between
+    /// the min and max of its vertex values.
+    #[arg(long, value_name = "FILE", conflicts_with = "preset",
+          help_heading = heading::CLASSIFY)]
     pub classify_tf: Option<PathBuf>,
-    /// A named preset's transfer function (`cdvol presets` lists them),
-    /// as --classify-tf with that function, placed on the input's values
+    /// A named preset's transfer function (`cdvol presets` lists them).
+    ///
+    /// As --classify-tf with that function, placed on the input's values
     /// when it is an MR preset; the file's default look in render and
     /// serve. A preset of another modality than the input's is refused.
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, value_name = "NAME", help_heading = heading::CLASSIFY)]
     pub preset: Option<String>,
-    /// The input's modality, when it does not say (NIfTI, NRRD, raw) and
-    /// the guess from its values (below -500: CT) is wrong.
-    #[arg(long, value_enum)]
-    pub modality: Option<ModalityArg>,
     /// Take a preset of another modality than the input's.
-    #[arg(long)]
+    #[arg(long, help_heading = heading::CLASSIFY)]
     pub force: bool,
+    /// The input's modality, when it does not say and the guess is wrong.
+    ///
+    /// For NIfTI, NRRD and raw inputs, whose modality is guessed from their
+    /// values (below -500: CT).
+    #[arg(long, value_enum, help_heading = heading::INPUT)]
+    pub modality: Option<ModalityArg>,
+    /// Keep every sample next to a 1-cell: true smooth normals.
+    ///
+    /// Embed only codes >= 2, so every sample within one cell of a 1-cell
+    /// keeps its value: smooth normals read true central differences
+    /// everywhere (docs/TRADEOFFS.md, "Normals").
+    #[arg(long, help_heading = heading::OUTPUT)]
+    pub gradient_halo: bool,
+    /// Write the file even when the classification selects no cell.
+    ///
+    /// It renders empty; without this flag such a prep fails before
+    /// writing.
+    #[arg(long, help_heading = heading::OUTPUT)]
+    pub allow_empty: bool,
+    /// Also compute anisotropic (octant) codes: renders 10-15 % faster.
+    ///
+    /// Paper section 4.2.1; `render` then uses them by default (traversal
+    /// cd-aniso): the same images, surface and MIP frames 10-15 % faster,
+    /// the file 5-24 % larger and the prep slower (docs/TRADEOFFS.md,
+    /// "Octant codes").
+    #[arg(long, help_heading = heading::PERFORMANCE)]
+    pub aniso: bool,
+    /// Directory for the temporary spill (default: beside the output).
+    #[arg(long, help_heading = heading::PERFORMANCE)]
+    pub temp_dir: Option<PathBuf>,
+    /// Memory prep may plan to use, in MiB (default: 3/4 of RAM).
+    ///
+    /// A prep whose planned peak (docs/RELIABILITY.md, "Memory") is above
+    /// it is refused before it allocates.
+    #[arg(long, value_name = "MIB", help_heading = heading::PERFORMANCE)]
+    pub mem_limit: Option<u64>,
     /// Cells per brick edge (multiple of 4).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, help_heading = heading::TUNING, hide_short_help = true)]
     pub brick: usize,
     /// zstd compression level of brick payloads.
-    #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 3, allow_negative_numbers = true,
+          help_heading = heading::TUNING, hide_short_help = true)]
     pub zstd_level: i32,
     /// Format version to write: 3 (the default) stores sample words as
     /// byte planes, smaller and faster to decode; 2 is the layout cdvol
     /// builds before byte planes read (docs/FORMAT.md).
-    #[arg(long, value_name = "N", default_value_t = cdvol::format::FORMAT_VERSION)]
+    #[arg(long, value_name = "N", default_value_t = cdvol::format::FORMAT_VERSION,
+          help_heading = heading::TUNING, hide_short_help = true)]
     pub format_version: u32,
-    /// Also compute anisotropic (octant) codes, paper section 4.2.1,
-    /// which `render` then uses by default (traversal cd-aniso): the same
-    /// images, surface and MIP frames 10-15 % faster, the file 5-24 %
-    /// larger and the prep slower (docs/TRADEOFFS.md, "Octant codes").
-    #[arg(long)]
-    pub aniso: bool,
     /// Also store extra city-block and chamfer distance planes for the DDA
     /// traversals (paper section 3), 2 bytes per cell.
-    #[arg(long)]
+    #[arg(long, help_heading = heading::TUNING, hide_short_help = true)]
     pub dda: bool,
-    /// Embed only codes >= 2, so every sample within one cell of a 1-cell
-    /// keeps its value: smooth normals read true central differences
-    /// everywhere (docs/TRADEOFFS.md, "Normals").
-    #[arg(long)]
-    pub gradient_halo: bool,
-    /// Directory for the temporary spill (default: beside the output).
-    #[arg(long)]
-    pub temp_dir: Option<PathBuf>,
-    /// Memory prep may plan to use, in MiB (default: 3/4 of RAM); a prep
-    /// whose planned peak (docs/RELIABILITY.md, "Memory") is above it is
-    /// refused before it allocates.
-    #[arg(long, value_name = "MIB")]
-    pub mem_limit: Option<u64>,
-    /// Write the file even when the classification selects no cell (it
-    /// renders empty); without it such a prep fails before writing.
-    #[arg(long)]
-    pub allow_empty: bool,
 }
 
 impl PrepSettings {
@@ -225,22 +254,28 @@ pub const MAX_JOBS: usize = 256;
 #[derive(Args, Debug)]
 pub struct PrepBatchArgs {
     /// Directory searched (recursively) for inputs.
+    #[arg(help_heading = heading::INPUT, display_order = 0)]
     pub input: PathBuf,
-    /// Directory for the packed files and the summary (batch.json).
-    #[arg(short, long)]
-    pub output: PathBuf,
-    /// Inputs prepared at once (memory grows with it: one prep each).
-    #[arg(long, default_value_t = 1)]
-    pub jobs: usize,
-    /// Process input i (sorted by path) when i % N == K.
-    #[arg(long, value_parser = cdvol::render::Shard::parse)]
-    pub shard: Option<cdvol::render::Shard>,
-    /// Remove the orphans: outputs the previous summary listed whose input
-    /// is gone (they are reported either way; nothing else is removed).
-    #[arg(long)]
-    pub prune: bool,
+    // The settings first, so that the headings come in their order (the
+    // first argument under a heading places it).
     #[command(flatten)]
     pub settings: PrepSettings,
+    /// Directory for the packed files and the summary (batch.json).
+    #[arg(short, long, help_heading = heading::OUTPUT, display_order = 0)]
+    pub output: PathBuf,
+    /// Remove the orphans: outputs the previous summary listed whose input
+    /// is gone.
+    ///
+    /// They are reported either way; nothing else is removed.
+    #[arg(long, help_heading = heading::OUTPUT)]
+    pub prune: bool,
+    /// Inputs prepared at once (memory grows with it: one prep each).
+    #[arg(long, default_value_t = 1, help_heading = heading::PERFORMANCE)]
+    pub jobs: usize,
+    /// Process input i (sorted by path) when i % N == K.
+    #[arg(long, value_parser = cdvol::render::Shard::parse,
+          help_heading = heading::PERFORMANCE)]
+    pub shard: Option<cdvol::render::Shard>,
 }
 
 impl PrepBatchArgs {

@@ -5,6 +5,8 @@ use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 
+use super::heading;
+
 use cdvol::classify::TransferFunction;
 use cdvol::format::reader::PackedVolume;
 use cdvol::presets::Preset;
@@ -67,175 +69,27 @@ pub enum OnOff {
     Off,
 }
 
+/// `cdvol render`'s arguments. Each sits under a heading of `--help`
+/// ([`crate::cli::heading`]), the everyday groups first; the tuning and
+/// paper-experiment switches are left out of `-h` (`hide_short_help`).
+/// `--no-switch-fvt`, which draws wrong images, is not one of them: it is
+/// offered by `cdvol experiment render` only ([`ExperimentRenderArgs`]).
 #[derive(Args, Debug)]
 pub struct RenderArgs {
+    // ---- Input -----------------------------------------------------------
     /// Packed file from `cdvol prep`.
+    #[arg(help_heading = heading::INPUT)]
     pub file: PathBuf,
-    /// Output image: PNG, TIFF or JPEG by the extension (.png, .tif,
-    /// .tiff, .jpg, .jpeg); the depth mode writes PNG.
-    #[arg(short, long)]
-    pub output: PathBuf,
-    /// What shows behind the image where rays cover less than the pixel:
-    /// black (default), white, R,G,B, #rrggbb, or transparent (RGBA PNG or
-    /// TIFF whose alpha is each pixel's coverage: the composite's opacity,
-    /// 1 on a surface).
-    #[arg(long, default_value = "black", value_parser = cdvol::render::Background::parse)]
-    pub background: cdvol::render::Background,
-    /// Bits per channel of the image: 8; 16 (PNG and TIFF; the same
-    /// colours, rounded to 16 bits instead of 8); or 32, float32 TIFF:
-    /// the colour unrounded in surface and composite, the data itself in
-    /// one channel in depth (mm), MIP (data units, whatever the window)
-    /// and cost (steps), NaN where a ray misses.
-    #[arg(long, default_value = "8", value_parser = parse_bit_depth)]
-    pub bit_depth: cdvol::render::Bits,
-    /// A scale bar in the lower left corner, in orthographic views:
-    /// `--scale-bar` alone picks the longest 1, 2 or 5 times a power of ten
-    /// mm within a quarter of the width; `--scale-bar=MM` sets the length.
-    #[arg(long, value_name = "MM", num_args = 0..=1, require_equals = true,
-          default_missing_value = "auto",
-          value_parser = cdvol::render::scalebar::ScaleBar::parse)]
-    pub scale_bar: Option<cdvol::render::scalebar::ScaleBar>,
-    /// What the image shows. Default: surface, or for a file prepared with
-    /// `--preset` (its look, see `info`) and no --iso, --tf or --preset
-    /// given, that preset's mode: composite, or MIP for the MIP presets.
-    #[arg(long, value_enum)]
-    pub mode: Option<ModeArg>,
-    /// Ray generator (paper section 5): chessboard distance, single-cell
-    /// steps, CD with anisotropic codes (files prepared with --aniso), an
-    /// octree, the 3D DDA with city-block / chessboard / chamfer leaps
-    /// (regular grids; files prepared with --dda), or template-based CD
-    /// (parallel projection, regular grids). Default: cd-aniso when the
-    /// file has anisotropic codes, else cd (the same image either way).
-    #[arg(long, value_enum)]
-    pub traversal: Option<TraversalArg>,
-    /// CD leaps only over cells with at least this code; smaller codes take
-    /// single-cell steps (1 = the paper).
-    #[arg(long, default_value_t = 1)]
-    pub min_leap: u8,
-    /// CD switches to single-cell (FVT) steps in cells whose chessboard
-    /// code is at most D (paper Fig. 20; the same as --min-leap D+1).
-    #[arg(long, value_name = "D", conflicts_with = "min_leap")]
-    pub switch_fvt_at: Option<u8>,
-    /// DDA traversals: do not switch to single-cell steps near objects
-    /// (misses 1-cells; for measuring step lengths, paper Fig. 18a).
-    #[arg(long)]
-    pub no_switch_fvt: bool,
-    /// Surface intersection inside a 1-cell.
-    #[arg(long, value_enum, default_value = "int")]
-    pub hit: HitArg,
-    /// Bisection iterations for --hit bisect (each halves the bracket).
-    #[arg(long, default_value_t = 30)]
-    pub bisect_iters: u32,
-    /// Largest number of Newton iterations for --hit newton.
-    #[arg(long, default_value_t = 8)]
-    pub newton_iters: u32,
-    /// Newton's relative tolerance on the bracket and on the residual.
-    #[arg(long, default_value_t = 1e-12)]
-    pub newton_tol: f64,
-    /// Arithmetic of the traversal: f64 never misses a 1-cell; f32 is
-    /// measured in docs/TRADEOFFS.md.
-    #[arg(long, value_enum, default_value = "f64")]
-    pub precision: PrecisionArg,
-    /// Shadow rays, traced with the same traversal.
-    #[arg(long)]
-    pub shadows: bool,
-    /// Surface normals: central differences interpolated (smooth), or each
-    /// cell's own interpolant gradient (cell; docs/TRADEOFFS.md, "Normals").
-    #[arg(long, value_enum, default_value = "smooth")]
-    pub normals: NormalsArg,
-    /// Iso value of the surface (surface, depth, cost and MIP modes),
-    /// when it is not the file's own: any value inside the file's
-    /// classification, at or above its iso value, renders exactly without
-    /// a new prep.
-    #[arg(long, conflicts_with = "preset")]
-    pub iso: Option<f64>,
-    /// A named preset (`cdvol presets`): its transfer function and shading
-    /// in composite mode, its iso value in surface, depth and cost modes,
-    /// its window in MIP mode.
-    #[arg(long, conflicts_with = "tf")]
-    pub preset: Option<String>,
-    /// Place an MR preset between these two values of the file instead of
-    /// its landmarks (`info` shows them): the preset's low anchor (its
-    /// threshold, where its opacity begins) at LO, its high one at HI.
-    #[arg(long, value_name = "LO,HI", value_parser = parse_range, requires = "preset")]
-    pub preset_range: Option<[f64; 2]>,
-    /// Take a preset of another modality than the file's (`info` says
-    /// which it is and where that came from).
-    #[arg(long)]
-    pub force: bool,
-    /// Transfer function (JSON) for --mode composite.
-    #[arg(long)]
-    pub tf: Option<PathBuf>,
-    /// Composite sample distance in mm.
-    #[arg(long, default_value_t = 0.5)]
-    pub step: f64,
-    /// Arithmetic of composite samples: f32 (fast) or f64 (the
-    /// reference); docs/TRADEOFFS.md measures the difference.
-    #[arg(long, value_enum, default_value = "f32")]
-    pub sample_precision: PrecisionArg,
-    /// Composite, f32, unshaded or with smooth normals (shading, gradient
-    /// opacity): take a ray's samples eight at a time,
-    /// their cells found by position (on), or one at a time by the cell
-    /// planes (off); docs/TRADEOFFS.md measures the difference.
-    #[arg(long, value_enum, default_value = "on")]
-    pub sample_batches: OnOff,
-    /// Composite: stop a ray once its opacity exceeds this (1 = never).
-    #[arg(long, default_value_t = cdvol::render::EARLY_STOP)]
-    pub early_stop: f64,
-    /// Composite: light the samples (headlight; also `"shade": true` in
-    /// the --tf file).
-    #[arg(long)]
-    pub shade: bool,
-    /// MIP grey window: `auto` (the 1st to the 99.9th percentile of the
-    /// image's values), `full` (the file's value range) or a width W,
-    /// with --level L (values L - W/2 .. L + W/2 map to black..white).
-    #[arg(long, default_value = "auto")]
-    pub window: String,
-    /// MIP: window centre (with a numeric --window).
-    #[arg(long, allow_hyphen_values = true)]
-    pub level: Option<f64>,
-    #[arg(long, default_value_t = 512)]
-    pub width: u32,
-    #[arg(long, default_value_t = 512)]
-    pub height: u32,
-    /// Tile edge in pixels.
-    #[arg(long, default_value_t = 32)]
-    pub tile: u32,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
-    /// CD leaves a brick without 1-cells unread when the smallest code in
-    /// it (from the index) is at least this; 255 reads every brick entered.
-    /// Default: 16 where a brick spans at least 64 pixels of the image,
-    /// else 4 (docs/BENCHMARKS.md, "The stand-in threshold by ray density").
-    #[arg(long)]
-    pub cd_lazy_min: Option<u8>,
-    /// Trace every pixel's ray from the volume's entry, also those no brick
-    /// with 1-cells projects onto (by default they are drawn as misses
-    /// without a ray, and the others start where the nearest such box
-    /// begins: the same image; docs/BENCHMARKS.md, "Culling by the brick
-    /// index" and "Rays start where the cover's boxes begin").
-    #[arg(long)]
-    pub no_cull: bool,
-    /// Brick cache budget in MiB.
-    #[arg(long, default_value_t = 512)]
-    pub cache_mb: usize,
-    /// Memory the render may plan to use, in MiB (default: 3/4 of RAM):
-    /// the cache plus 64 bytes a pixel (docs/RELIABILITY.md, "Memory").
-    #[arg(long, value_name = "MIB")]
-    pub mem_limit: Option<u64>,
-    /// Perspective projection (default orthographic).
-    #[arg(long)]
-    pub persp: bool,
-    /// Perspective field of view in degrees.
-    #[arg(long, default_value_t = 40.0)]
-    pub fov: f64,
-    /// The view: a name in patient terms (anterior, posterior, left, right,
-    /// superior, inferior) or AZ,EL, azimuth and elevation in degrees
-    /// around the volume centre. Anterior looks at the face, head up, so
-    /// the patient's left is on the image's right (the radiological
-    /// convention); left looks at the patient's left side; superior and
-    /// inferior look along the body axis with the face at the top.
+
+    // ---- View ------------------------------------------------------------
+    /// The view: anterior, posterior, left, right, superior, inferior, or
+    /// AZ,EL in degrees.
+    ///
+    /// A name in patient terms, or AZ,EL, azimuth and elevation in degrees
+    /// around the volume centre. Anterior looks at the face, head up, so the patient's
+    /// left is on the image's right (the radiological convention); left
+    /// looks at the patient's left side; superior and inferior look along
+    /// the body axis with the face at the top.
     ///
     /// AZ,EL are in patient axes when the file records its orientation
     /// (`cdvol info`: DICOM, NIfTI, NRRD with a patient space, a sidecar
@@ -247,38 +101,272 @@ pub struct RenderArgs {
     /// side looking towards +y, 90 on the +x side looking towards -x;
     /// elevation lifts the eye towards +z, and +z is up in the image; named
     /// views are refused. Default: 0,0 (anterior for oriented files).
-    #[arg(long, value_parser = parse_view, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse_view, allow_hyphen_values = true,
+          help_heading = heading::VIEW)]
     pub view: Option<ViewArg>,
-    /// Exact camera: eye, target and up in mm (all three needed).
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub eye: Option<[f64; 3]>,
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub target: Option<[f64; 3]>,
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub up: Option<[f64; 3]>,
+    /// Perspective projection (default orthographic).
+    #[arg(long, help_heading = heading::VIEW)]
+    pub persp: bool,
+    /// Perspective field of view in degrees.
+    #[arg(long, default_value_t = 40.0, help_heading = heading::VIEW)]
+    pub fov: f64,
     /// Orthographic frame height in mm (default: the whole volume).
-    #[arg(long)]
+    #[arg(long, help_heading = heading::VIEW)]
     pub frame: Option<f64>,
+    /// Exact camera: eye, target and up in mm (all three needed).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true,
+          help_heading = heading::VIEW)]
+    pub eye: Option<[f64; 3]>,
+    /// Exact camera: the point looked at, in mm (with --eye and --up).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true,
+          help_heading = heading::VIEW)]
+    pub target: Option<[f64; 3]>,
+    /// Exact camera: the image's up direction (with --eye and --target).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true,
+          help_heading = heading::VIEW)]
+    pub up: Option<[f64; 3]>,
+    /// A turntable of this many frames around the volume.
+    ///
+    /// Numbered PNGs OUT.0000.png ..., starting at --view.
+    #[arg(long, default_value_t = 1, help_heading = heading::VIEW)]
+    pub frames: u32,
+    /// Degrees of azimuth the turntable covers.
+    #[arg(long, default_value_t = 360.0, allow_hyphen_values = true,
+          help_heading = heading::VIEW)]
+    pub orbit: f64,
+
+    // ---- Mode and look ---------------------------------------------------
+    /// What the image shows (default: surface, or the file's preset look).
+    ///
+    /// Default: surface, or for a file prepared with `--preset` (its look,
+    /// see `info`) and no --iso, --tf or --preset given, that preset's
+    /// mode: composite, or MIP for the MIP presets.
+    #[arg(long, value_enum, help_heading = heading::LOOK)]
+    pub mode: Option<ModeArg>,
+    /// A named preset (`cdvol presets`) for the look.
+    ///
+    /// Its transfer function and shading in composite mode, its iso value
+    /// in surface, depth and cost modes, its window in MIP mode.
+    #[arg(long, conflicts_with = "tf", help_heading = heading::LOOK)]
+    pub preset: Option<String>,
+    /// Place an MR preset between two values of the file.
+    ///
+    /// Instead of its landmarks (`info` shows them): the preset's low
+    /// anchor (its threshold, where its opacity begins) at LO, its high one
+    /// at HI.
+    #[arg(long, value_name = "LO,HI", value_parser = parse_range, requires = "preset",
+          help_heading = heading::LOOK)]
+    pub preset_range: Option<[f64; 2]>,
+    /// Take a preset of another modality than the file's.
+    ///
+    /// `info` says which modality the file is and where that came from.
+    #[arg(long, help_heading = heading::LOOK)]
+    pub force: bool,
+    /// Iso value of the surface, when it is not the file's own.
+    ///
+    /// Surface, depth, cost and MIP modes: any value inside the file's
+    /// classification, at or above its iso value, renders exactly without
+    /// a new prep.
+    #[arg(long, conflicts_with = "preset", help_heading = heading::LOOK)]
+    pub iso: Option<f64>,
+    /// Transfer function (JSON) for --mode composite.
+    #[arg(long, help_heading = heading::LOOK)]
+    pub tf: Option<PathBuf>,
+    /// Composite: light the samples (a headlight).
+    ///
+    /// Also `"shade": true` in the --tf file.
+    #[arg(long, help_heading = heading::LOOK)]
+    pub shade: bool,
+    /// Composite sample distance in mm.
+    #[arg(long, default_value_t = 0.5, help_heading = heading::LOOK)]
+    pub step: f64,
+    /// Shadow rays, traced with the same traversal.
+    #[arg(long, help_heading = heading::LOOK)]
+    pub shadows: bool,
+    /// Surface normals: smooth or per cell.
+    ///
+    /// Central differences interpolated (smooth), or each cell's own
+    /// interpolant gradient (cell; docs/TRADEOFFS.md, "Normals").
+    #[arg(long, value_enum, default_value = "smooth", help_heading = heading::LOOK)]
+    pub normals: NormalsArg,
+    /// MIP grey window: auto, full, or a width W with --level L.
+    ///
+    /// `auto` (the 1st to the 99.9th percentile of the image's values),
+    /// `full` (the file's value range) or a width W, with --level L (values
+    /// L - W/2 .. L + W/2 map to black..white).
+    #[arg(long, default_value = "auto", help_heading = heading::LOOK)]
+    pub window: String,
+    /// MIP: window centre (with a numeric --window).
+    #[arg(long, allow_hyphen_values = true, help_heading = heading::LOOK)]
+    pub level: Option<f64>,
+
+    // ---- Output ----------------------------------------------------------
+    /// Output image: PNG, TIFF or JPEG by the extension.
+    ///
+    /// .png, .tif, .tiff, .jpg, .jpeg; the depth mode writes PNG.
+    #[arg(short, long, help_heading = heading::OUTPUT)]
+    pub output: PathBuf,
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 512, help_heading = heading::OUTPUT)]
+    pub width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 512, help_heading = heading::OUTPUT)]
+    pub height: u32,
+    /// Background: black, white, R,G,B, #rrggbb or transparent.
+    ///
+    /// What shows behind the image where rays cover less than the pixel:
+    /// black (default), white, R,G,B, #rrggbb, or transparent (RGBA PNG or
+    /// TIFF whose alpha is each pixel's coverage: the composite's opacity,
+    /// 1 on a surface).
+    #[arg(long, default_value = "black", value_parser = cdvol::render::Background::parse,
+          help_heading = heading::OUTPUT)]
+    pub background: cdvol::render::Background,
+    /// Bits per channel: 8, 16, or 32 (float32 TIFF).
+    ///
+    /// 8; 16 (PNG and TIFF; the same colours, rounded to 16 bits instead
+    /// of 8); or 32, float32 TIFF: the colour unrounded in surface and
+    /// composite, the data itself in one channel in depth (mm), MIP (data
+    /// units, whatever the window) and cost (steps), NaN where a ray
+    /// misses.
+    #[arg(long, default_value = "8", value_parser = parse_bit_depth,
+          help_heading = heading::OUTPUT)]
+    pub bit_depth: cdvol::render::Bits,
+    /// A scale bar in the lower left corner (orthographic views).
+    ///
+    /// `--scale-bar` alone picks the longest 1, 2 or 5 times a power of ten
+    /// mm within a quarter of the width; `--scale-bar=MM` sets the length.
+    #[arg(long, value_name = "MM", num_args = 0..=1, require_equals = true,
+          default_missing_value = "auto",
+          value_parser = cdvol::render::scalebar::ScaleBar::parse,
+          help_heading = heading::OUTPUT)]
+    pub scale_bar: Option<cdvol::render::scalebar::ScaleBar>,
     /// Write render statistics as JSON.
-    #[arg(long)]
+    #[arg(long, help_heading = heading::OUTPUT)]
     pub stats: Option<PathBuf>,
-    /// Render shard K of N: tile i (Morton order) when i % N == K, written
-    /// to a part file (-o NAME.cdvpart) for `cdvol assemble`; with
-    /// --frames, frame f when f % N == K, written as PNGs.
-    #[arg(long, value_parser = cdvol::render::Shard::parse)]
+
+    // ---- Performance -----------------------------------------------------
+    /// Worker threads (default: all cores).
+    #[arg(long, help_heading = heading::PERFORMANCE)]
+    pub threads: Option<usize>,
+    /// Brick cache budget in MiB.
+    #[arg(long, default_value_t = 512, help_heading = heading::PERFORMANCE)]
+    pub cache_mb: usize,
+    /// Memory the render may plan to use, in MiB (default: 3/4 of RAM).
+    ///
+    /// The cache plus 64 bytes a pixel (docs/RELIABILITY.md, "Memory").
+    #[arg(long, value_name = "MIB", help_heading = heading::PERFORMANCE)]
+    pub mem_limit: Option<u64>,
+    /// Render shard K of N, for `cdvol assemble`.
+    ///
+    /// Tile i (Morton order) when i % N == K, written to a part file (-o
+    /// NAME.cdvpart) for `cdvol assemble`; with --frames, frame f when f %
+    /// N == K, written as PNGs.
+    #[arg(long, value_parser = cdvol::render::Shard::parse,
+          help_heading = heading::PERFORMANCE)]
     pub shard: Option<cdvol::render::Shard>,
+
+    // ---- Tuning and paper experiments (left out of -h) --------------------
+    /// Ray generator (paper section 5): chessboard distance, single-cell
+    /// steps, CD with anisotropic codes (files prepared with --aniso), an
+    /// octree, the 3D DDA with city-block / chessboard / chamfer leaps
+    /// (regular grids; files prepared with --dda), or template-based CD
+    /// (parallel projection, regular grids). Default: cd-aniso when the
+    /// file has anisotropic codes, else cd (the same image either way).
+    #[arg(long, value_enum, help_heading = heading::TUNING, hide_short_help = true)]
+    pub traversal: Option<TraversalArg>,
+    /// CD leaps only over cells with at least this code; smaller codes take
+    /// single-cell steps (1 = the paper).
+    #[arg(long, default_value_t = 1, help_heading = heading::TUNING, hide_short_help = true)]
+    pub min_leap: u8,
+    /// CD switches to single-cell (FVT) steps in cells whose chessboard
+    /// code is at most D (paper Fig. 20; the same as --min-leap D+1).
+    #[arg(long, value_name = "D", conflicts_with = "min_leap",
+          help_heading = heading::TUNING, hide_short_help = true)]
+    pub switch_fvt_at: Option<u8>,
+    /// Not a `render` option: DDA traversals without the switch to
+    /// single-cell steps near objects draw wrong images (they miss
+    /// 1-cells). Set by `cdvol experiment render --no-switch-fvt`.
+    #[arg(skip)]
+    pub no_switch_fvt: bool,
+    /// Surface intersection inside a 1-cell.
+    #[arg(long, value_enum, default_value = "int",
+          help_heading = heading::TUNING, hide_short_help = true)]
+    pub hit: HitArg,
+    /// Bisection iterations for --hit bisect (each halves the bracket).
+    #[arg(long, default_value_t = 30, help_heading = heading::TUNING, hide_short_help = true)]
+    pub bisect_iters: u32,
+    /// Largest number of Newton iterations for --hit newton.
+    #[arg(long, default_value_t = 8, help_heading = heading::TUNING, hide_short_help = true)]
+    pub newton_iters: u32,
+    /// Newton's relative tolerance on the bracket and on the residual.
+    #[arg(long, default_value_t = 1e-12, help_heading = heading::TUNING, hide_short_help = true)]
+    pub newton_tol: f64,
+    /// Arithmetic of the traversal: f64 never misses a 1-cell; f32 is
+    /// measured in docs/TRADEOFFS.md.
+    #[arg(long, value_enum, default_value = "f64",
+          help_heading = heading::TUNING, hide_short_help = true)]
+    pub precision: PrecisionArg,
+    /// Arithmetic of composite samples: f32 (fast) or f64 (the
+    /// reference); docs/TRADEOFFS.md measures the difference.
+    #[arg(long, value_enum, default_value = "f32",
+          help_heading = heading::TUNING, hide_short_help = true)]
+    pub sample_precision: PrecisionArg,
+    /// Composite, f32, unshaded or with smooth normals (shading, gradient
+    /// opacity): take a ray's samples eight at a time,
+    /// their cells found by position (on), or one at a time by the cell
+    /// planes (off); docs/TRADEOFFS.md measures the difference.
+    #[arg(long, value_enum, default_value = "on",
+          help_heading = heading::TUNING, hide_short_help = true)]
+    pub sample_batches: OnOff,
+    /// Composite: stop a ray once its opacity exceeds this (1 = never).
+    #[arg(long, default_value_t = cdvol::render::EARLY_STOP,
+          help_heading = heading::TUNING, hide_short_help = true)]
+    pub early_stop: f64,
+    /// Tile edge in pixels.
+    #[arg(long, default_value_t = 32, help_heading = heading::TUNING, hide_short_help = true)]
+    pub tile: u32,
+    /// CD leaves a brick without 1-cells unread when the smallest code in
+    /// it (from the index) is at least this; 255 reads every brick entered.
+    /// Default: 16 where a brick spans at least 64 pixels of the image,
+    /// else 4 (docs/BENCHMARKS.md, "The stand-in threshold by ray density").
+    #[arg(long, help_heading = heading::TUNING, hide_short_help = true)]
+    pub cd_lazy_min: Option<u8>,
+    /// Trace every pixel's ray from the volume's entry, also those no brick
+    /// with 1-cells projects onto (by default they are drawn as misses
+    /// without a ray, and the others start where the nearest such box
+    /// begins: the same image; docs/BENCHMARKS.md, "Culling by the brick
+    /// index" and "Rays start where the cover's boxes begin").
+    #[arg(long, help_heading = heading::TUNING, hide_short_help = true)]
+    pub no_cull: bool,
     /// How --shard deals tiles: every N-th tile (interleaved: shards take
     /// equal time) or contiguous runs of the Morton curve (blocks: shards
     /// read fewer bricks). See docs/BENCHMARKS.md.
-    #[arg(long, value_enum, default_value = "interleaved")]
+    #[arg(long, value_enum, default_value = "interleaved",
+          help_heading = heading::TUNING, hide_short_help = true)]
     pub shard_layout: ShardLayoutArg,
-    /// A turntable of this many frames around the volume (numbered PNGs
-    /// OUT.0000.png ...), starting at --view.
-    #[arg(long, default_value_t = 1)]
-    pub frames: u32,
-    /// Degrees of azimuth the turntable covers.
-    #[arg(long, default_value_t = 360.0, allow_hyphen_values = true)]
-    pub orbit: f64,
+}
+
+/// `cdvol experiment render`: `cdvol render` with the switches that draw
+/// wrong images on purpose, for measurements.
+#[derive(Args, Debug)]
+pub struct ExperimentRenderArgs {
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// DDA traversals: do not switch to single-cell steps near objects.
+    /// Draws wrong images: misses 1-cells; for measuring step lengths
+    /// (paper Fig. 18a).
+    #[arg(long, help_heading = heading::TUNING)]
+    pub no_switch_fvt: bool,
+}
+
+impl ExperimentRenderArgs {
+    /// The render these arguments ask for, the experiment switches set.
+    pub fn into_render(self) -> RenderArgs {
+        RenderArgs {
+            no_switch_fvt: self.no_switch_fvt,
+            ..self.render
+        }
+    }
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug)]

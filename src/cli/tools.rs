@@ -57,6 +57,9 @@ pub enum ExperimentCmd {
     /// Every paper experiment: writes docs/EXPERIMENTS.md and
     /// docs/experiments/ (CSV, SVG, PNG).
     All(PaperArgs),
+    /// `cdvol render` with the switches that draw wrong images on purpose,
+    /// for measurements: --no-switch-fvt (paper Fig. 18a).
+    Render(Box<super::ExperimentRenderArgs>),
 }
 
 impl ExperimentCmd {
@@ -72,6 +75,7 @@ impl ExperimentCmd {
             | ExperimentCmd::Table2(a)
             | ExperimentCmd::All(a) => a.ct.as_deref(),
             ExperimentCmd::Tradeoffs(a) => a.ct.as_deref(),
+            ExperimentCmd::Render(_) => None,
         }
     }
 
@@ -90,6 +94,7 @@ impl ExperimentCmd {
             ExperimentCmd::Table2(a) => (Which::Table2, a),
             ExperimentCmd::All(a) => (Which::All, a),
             ExperimentCmd::Tradeoffs(_) => anyhow::bail!("tradeoffs is not a paper experiment"),
+            ExperimentCmd::Render(_) => anyhow::bail!("render is not a paper experiment"),
         };
         if a.ct.is_none() && matches!(which, Which::Fig17 | Which::Table1) {
             anyhow::bail!(

@@ -23,6 +23,7 @@ mod cli;
 mod bad_input;
 mod batch;
 mod byte_planes;
+mod cli_help;
 mod cli_numbers;
 mod composite;
 mod cull;
