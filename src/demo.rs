@@ -1,10 +1,11 @@
 //! `cdvol demo`: the whole pipeline once, on generated data. Writes the
 //! CT-like head (variable slice thickness, paper section 4.3's data set 2)
 //! and a sphere scene of the paper's section 5.1, prepares both, and
-//! renders the head as a shaded bone surface with shadows, a
-//! skin-and-bone composite, a maximum intensity projection and a
-//! traversal cost map, then lays the four side by side, labelled, in
-//! `contact-sheet.png` (README's picture, `docs/demo-contact-sheet.png`).
+//! renders the head as a bone surface with smooth shading and shadows, a
+//! shaded skin-and-bone composite and the traversal cost map (where the
+//! chessboard distance codes let rays leap), then lays the three side by
+//! side, labelled, in `contact-sheet.png` (README's picture,
+//! `docs/demo-contact-sheet.png`).
 //!
 //! Binary side (declared by main.rs, not the library): it is a scripted
 //! session for a person at a terminal, printing as it goes, and uses only
@@ -29,7 +30,7 @@ use cdvol::tools::phantom;
 use crate::print_prep;
 
 /// `cdvol demo`: generates the CT-like head and a sphere scene, prepares
-/// them, renders the head four ways, lays the renders out on a contact
+/// them, renders the head three ways, lays the renders out on a contact
 /// sheet and prints what was written.
 pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     std::fs::create_dir_all(dir)
@@ -84,9 +85,9 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     print!("{}", Info::of(&vol).to_text());
     println!();
 
-    // Renders of the head: shaded bone with shadows, a composite of skin
-    // and bone from a transfer-function prep, a MIP and the traversal
-    // cost map; each with its label on the contact sheet. First the
+    // Renders of the head: bone with smooth normals and shadows, a shaded
+    // composite of skin and bone from a transfer-function prep and the
+    // traversal cost map; each with its label on the contact sheet. First the
     // composite's file, classified by its transfer function (skin faint,
     // bone brighter).
     let tf = TransferFunction {
@@ -126,7 +127,7 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     print_prep(&tf_packed, &r)?;
     let tf_vol = PackedVolume::open(&tf_packed)?;
     let composite = Mode::Composite { tf, step_mm: 0.5 };
-    // One camera for all four, framed as `cdvol render` frames a view:
+    // One camera for all three, framed as `cdvol render` frames a view:
     // the box of the composite's object (the skin, the outermost).
     let framing = Framing::of(
         &tf_vol,
@@ -137,9 +138,10 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     let mut outputs: Vec<(PathBuf, &str)> = Vec::new();
     let mut show =
         |name: &str, label: &'static str, vol: &PackedVolume, mode: Mode| -> Result<()> {
-            // The defaults of `cdvol render`: 32-pixel tiles, 512 MiB cache,
-            // f64.
-            let opts = RenderOptions::new(mode, default_method(vol));
+            // The defaults of `cdvol render` (32-pixel tiles, 512 MiB cache,
+            // smooth normals), with the composite shaded.
+            let mut opts = RenderOptions::new(mode, default_method(vol));
+            opts.look.shade = matches!(opts.mode, Mode::Composite { .. });
             let (frame, stats) = render(vol, &camera, &opts, progress)?;
             let path = dir.join(format!("{name}.png"));
             cdvol::render::save(&frame, &path).map_err(anyhow::Error::msg)?;
@@ -157,7 +159,7 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
         };
     show(
         "head-surface",
-        "bone surface, shadows",
+        "bone, smooth shading, shadows",
         &vol,
         Mode::Surface {
             hit: HitMethod::Newton,
@@ -166,11 +168,10 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     )?;
     show(
         "head-composite",
-        "skin and bone, composite",
+        "skin and bone, shaded composite",
         &tf_vol,
         composite,
     )?;
-    show("head-mip", "maximum intensity (MIP)", &vol, Mode::Mip)?;
     show("head-cost", "traversal cost map", &vol, Mode::Cost)?;
     let sheet = dir.join("contact-sheet.png");
     let (w, h) = contact_sheet(&outputs, &sheet)?;
