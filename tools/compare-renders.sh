@@ -21,12 +21,16 @@ scenes() {
     "$B" -q phantom spheres -o sph.json --size 64 --per-axis 3 --seed 7 >/dev/null
     "$B" -q prep sph.json -o sph.cdv --iso 100 --aniso --dda >/dev/null
     local r=(--view 30,20 --width 96 --height 96)
+    # The inexact traversals and --no-switch-fvt are `experiment render`'s
+    # since issue 52; older binaries took them in `render`.
+    local xr=(render)
+    if "$B" experiment render --help >/dev/null 2>&1; then xr=(experiment render); fi
     for t in fvt cd cd-aniso octree dda-cityblock dda-chessboard dda-chamfer template; do
         for m in cost surface; do
-            "$B" -q render sph.cdv -o "sph-$t-$m.png" --mode $m --traversal $t "${r[@]}" --stats "sph-$t-$m.json" >/dev/null
+            "$B" -q "${xr[@]}" sph.cdv -o "sph-$t-$m.png" --mode $m --traversal $t "${r[@]}" --stats "sph-$t-$m.json" >/dev/null
         done
     done
-    "$B" -q render sph.cdv -o sph-noswitch.png --mode cost --traversal dda-cityblock --no-switch-fvt "${r[@]}" --stats sph-noswitch.json >/dev/null
+    "$B" -q "${xr[@]}" sph.cdv -o sph-noswitch.png --mode cost --traversal dda-cityblock --no-switch-fvt "${r[@]}" --stats sph-noswitch.json >/dev/null
     "$B" -q prep "$ct" -o ct.cdv --iso 300 >/dev/null
     r=(--view 35,15 --width 128 --height 128)
     for m in surface mip depth cost; do

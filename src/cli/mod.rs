@@ -8,10 +8,12 @@ use clap::{Arg, ArgAction, CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod prep;
 mod render;
+mod render_job;
 mod tools;
 
 pub use prep::{input_error, prep_error, PrepArgs, PrepBatchArgs};
-pub use render::{render_error, AssembleArgs, ExperimentRenderArgs, RenderArgs};
+pub use render::{AssembleArgs, ExperimentRenderArgs, RenderArgs};
+pub use render_job::render_error;
 pub use tools::{
     phantom_error, DemoArgs, ExperimentCmd, ExportArgs, HistogramArgs, InfoArgs, PhantomCmd,
     PresetsArgs, ServeArgs,

@@ -219,3 +219,46 @@ fn prep_help_is_grouped_too() {
         );
     }
 }
+
+/// The inexact traversals (they miss 1-cells) are refused by `render`,
+/// naming `cdvol experiment render`, which takes them; `render --help`
+/// does not offer them.
+#[test]
+fn inexact_traversals_are_experiment_render_only() {
+    use crate::common::write_stack;
+    let d = tempfile::tempdir().unwrap();
+    let v: Vec<f64> = (0..8 * 8 * 8).map(|i| ((i * 37) % 101) as f64).collect();
+    write_stack(d.path(), "v", [8, 8, 8], "u8", &v, ["1", "1", "1"], "");
+    ok(cdvol().current_dir(d.path()).args([
+        "prep", "-q", "v.json", "-o", "v.cdv", "--iso", "90", "--dda",
+    ]));
+    let run = |pre: &[&str], t: &str| {
+        let mut c = cdvol();
+        c.current_dir(d.path()).args(pre).args([
+            "v.cdv",
+            "-o",
+            "x.png",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--traversal",
+            t,
+        ]);
+        c
+    };
+    for t in ["dda-cityblock", "dda-chamfer", "template"] {
+        let e = fails(&mut run(&["render", "-q"], t));
+        for w in [t, "not exact", "cdvol experiment render"] {
+            assert!(e.contains(w), "{w:?} not in {e}");
+        }
+        ok(&mut run(&["experiment", "render", "-q"], t));
+    }
+    for t in ["cd", "fvt", "octree", "dda-chessboard"] {
+        ok(&mut run(&["render", "-q"], t));
+    }
+    let long = help(&["render", "--help"]);
+    for t in ["dda-cityblock", "dda-chamfer", "template"] {
+        assert!(!long.contains(t), "{t} offered by render --help");
+    }
+}

@@ -295,6 +295,7 @@ fn dda_traversals_without_their_planes_are_refused_by_name() {
         let render = |file: &str| {
             let mut c = cdvol();
             c.current_dir(d.path()).args([
+                "experiment",
                 "render",
                 "-q",
                 file,

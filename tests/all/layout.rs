@@ -192,3 +192,63 @@ fn rule_check_sees_code_not_comments() {
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!(lines, vec![(2, "use crate::render::cache;".to_string())]);
 }
+
+/// The folders of `src/`, relative to it, sorted.
+fn src_folders() -> Vec<String> {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut out = Vec::new();
+    let mut stack = vec![src.clone()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                out.push(p.strip_prefix(&src).unwrap().display().to_string());
+                stack.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// docs/DESIGN.md's map (its first code block) names every folder of
+/// `src/` (as `name/`), so that a newcomer finds each one there (issue 52).
+#[test]
+fn the_design_map_names_every_folder() {
+    let design =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/DESIGN.md"))
+            .unwrap();
+    let map = design
+        .split("```")
+        .nth(1)
+        .expect("a code block in docs/DESIGN.md");
+    let named = |name: &str| {
+        map.lines().any(|l| {
+            l.split(|c: char| c.is_whitespace() || "(),".contains(c))
+                .any(|w| w == format!("{name}/"))
+        })
+    };
+    let missing: Vec<String> = src_folders()
+        .into_iter()
+        .filter(|f| !named(f.rsplit('/').next().unwrap_or(f)))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "folders of src/ that docs/DESIGN.md's map does not name: {missing:?}"
+    );
+}
+
+/// No source file of the library or the binary is over 800 lines
+/// (issue 52): a file that grows past it is split by what it owns.
+#[test]
+fn no_source_file_is_over_800_lines() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let long: Vec<String> = rust_files(&src)
+        .into_iter()
+        .filter_map(|f| {
+            let n = std::fs::read_to_string(&f).unwrap().lines().count();
+            (n > 800).then(|| format!("{} ({n} lines)", f.display()))
+        })
+        .collect();
+    assert!(long.is_empty(), "source files over 800 lines: {long:?}");
+}
