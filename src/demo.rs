@@ -131,7 +131,7 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
     // the box of the composite's object (the skin, the outermost).
     let framing = Framing::of(
         &tf_vol,
-        &RenderOptions::new(composite.clone(), default_method(&tf_vol)),
+        &RenderOptions::new(composite.clone(), default_method(tf_vol.header())),
     );
     let camera = framing::orbit(&framing, orbit_dirs(35.0, 15.0), None, None, 768, 768)
         .map_err(anyhow::Error::msg)?;
@@ -140,7 +140,7 @@ pub fn run(dir: &Path, progress: &dyn Progress) -> Result<()> {
         |name: &str, label: &'static str, vol: &PackedVolume, mode: Mode| -> Result<()> {
             // The defaults of `cdvol render` (32-pixel tiles, 512 MiB cache,
             // smooth normals), with the composite shaded.
-            let mut opts = RenderOptions::new(mode, default_method(vol));
+            let mut opts = RenderOptions::new(mode, default_method(vol.header()));
             opts.look.shade = matches!(opts.mode, Mode::Composite { .. });
             let (frame, stats) = render(vol, &camera, &opts, progress)?;
             let path = dir.join(format!("{name}.png"));

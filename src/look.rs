@@ -10,10 +10,17 @@
 //!   [`Preset::fitted`]), since MR values have no absolute scale.
 //! - A preset of another modality is refused with the presets that fit;
 //!   `force` takes it anyway (as published, unplaced).
+//! - [`resolve`] turns what a render asks for (a mode, a preset, an iso
+//!   value, a transfer function, a window) into the mode, iso value,
+//!   window and composite look it draws: `cdvol render` and `serve` both
+//!   call it.
 
+use crate::classify::TransferFunction;
 use crate::format::landmarks::Landmarks;
 use crate::format::{Header, ModalityRecord};
 use crate::presets::{Modality, Preset, PresetError};
+use crate::render::shade::HitMethod;
+use crate::render::{CompositeLook, Mode, Window};
 
 /// Why a preset cannot be used on a file.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -155,4 +162,157 @@ fn flag(m: Modality) -> &'static str {
         Modality::Ct => "ct",
         Modality::Mr => "mr",
     }
+}
+
+/// The kind of render asked for, before a preset or the file's look
+/// fills in its transfer function, iso value or window.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeKind {
+    Surface,
+    Mip,
+    Composite,
+    Cost,
+    Depth,
+}
+
+/// What a render asks for (`cdvol render`'s flags, `serve`'s request):
+/// [`resolve`] turns it into the mode, iso value, window and composite
+/// look, the one place where presets and the file's look are applied.
+#[derive(Debug, Clone)]
+pub struct Ask {
+    /// The mode; `None`: the file's look's mode when no preset, transfer
+    /// function or iso value is given (composite, or MIP for a `-mip`
+    /// preset), else surface.
+    pub mode: Option<ModeKind>,
+    /// A preset name, with its fit anchors placed at `preset_range` when
+    /// given instead of the file's landmarks.
+    pub preset: Option<String>,
+    pub preset_range: Option<[f64; 2]>,
+    /// Take a preset of another modality.
+    pub force: bool,
+    /// An iso value given directly (surface, depth and cost).
+    pub iso: Option<f64>,
+    /// A transfer function given directly, with its look keys (`--tf`).
+    pub tf: Option<(TransferFunction, CompositeLook)>,
+    /// A window given directly; `None`: the preset's, else automatic.
+    pub window: Option<Window>,
+    /// Shade the composite whatever the preset says.
+    pub shade: bool,
+    pub hit: HitMethod,
+    pub shadows: bool,
+    pub step_mm: f64,
+}
+
+/// What [`resolve`] decided: the fields of
+/// [`RenderOptions`](crate::render::RenderOptions) a look decides, and the
+/// preset behind them.
+#[derive(Debug, Clone)]
+pub struct Resolved {
+    pub mode: Mode,
+    pub iso: Option<f64>,
+    pub window: Window,
+    pub look: CompositeLook,
+    pub preset: Option<Preset>,
+}
+
+/// Why [`resolve`] cannot make a render of an [`Ask`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ResolveError {
+    /// The preset is unknown or of another modality.
+    #[error(transparent)]
+    Preset(#[from] LookError),
+    /// A composite without a transfer function: no preset, no `tf` and no
+    /// look in the file.
+    #[error("a composite needs a transfer function or a preset")]
+    NoTransferFunction,
+    /// The preset has no iso value for a surface, depth or cost render.
+    #[error("preset {preset} has no iso value for mode {mode}")]
+    NoIso { preset: String, mode: &'static str },
+}
+
+/// The mode, iso value, window and composite look of `ask` on the file of
+/// header `h`. A preset is checked against the file's modality and placed
+/// on its values ([`preset`], [`preset_in`]); without a preset, a
+/// transfer function or an iso value (for a composite, whatever the iso
+/// value), the file's look ([`default_look`]) stands in, and without a
+/// mode it also picks the mode. A preset then brings its iso value to
+/// surface, depth and cost renders ([`surface_iso`]), its window to MIP
+/// and its transfer function and shading to composites; what `ask` gives
+/// directly (`iso` without a preset, `window`, `shade`) wins.
+pub fn resolve(h: &Header, ask: &Ask) -> Result<Resolved, ResolveError> {
+    let preset = match &ask.preset {
+        Some(name) => Some(match ask.preset_range {
+            Some(range) => preset_in(h, name, ask.force, range)?,
+            None => preset(h, name, ask.force)?,
+        }),
+        None if ask.tf.is_none()
+            && (ask.iso.is_none() || ask.mode == Some(ModeKind::Composite)) =>
+        {
+            default_look(h)
+        }
+        None => None,
+    };
+    let kind = match (ask.mode, &preset) {
+        (Some(m), _) => m,
+        (None, Some(p)) if ask.preset.is_none() => {
+            if p.window.is_some() && p.name.ends_with("-mip") {
+                ModeKind::Mip
+            } else {
+                ModeKind::Composite
+            }
+        }
+        (None, _) => ModeKind::Surface,
+    };
+    let mode = match kind {
+        ModeKind::Surface => Mode::Surface {
+            hit: ask.hit,
+            shadows: ask.shadows,
+        },
+        ModeKind::Mip => Mode::Mip,
+        ModeKind::Cost => Mode::Cost,
+        ModeKind::Depth => Mode::Depth { hit: ask.hit },
+        ModeKind::Composite => Mode::Composite {
+            tf: match (&ask.tf, &preset) {
+                (Some((tf, _)), _) => tf.clone(),
+                (None, Some(p)) => p.tf.clone(),
+                (None, None) => return Err(ResolveError::NoTransferFunction),
+            },
+            step_mm: ask.step_mm,
+        },
+    };
+    let iso = match (&preset, kind) {
+        (None, _) => ask.iso,
+        (Some(p), ModeKind::Surface | ModeKind::Depth | ModeKind::Cost) => {
+            Some(surface_iso(h, p).ok_or_else(|| ResolveError::NoIso {
+                preset: p.name.clone(),
+                mode: mode.name(),
+            })?)
+        }
+        (Some(_), _) => None,
+    };
+    let window = ask
+        .window
+        .unwrap_or_else(|| match preset.as_ref().and_then(|p| p.window) {
+            Some(w) => Window::Fixed {
+                width: w.width,
+                level: w.level,
+            },
+            None => Window::Auto,
+        });
+    let mut look = match (&ask.tf, kind) {
+        (Some((_, look)), ModeKind::Composite) => look.clone(),
+        (None, ModeKind::Composite) => CompositeLook {
+            shade: preset.as_ref().is_some_and(|p| p.shade),
+            ..CompositeLook::default()
+        },
+        _ => CompositeLook::default(),
+    };
+    look.shade |= ask.shade;
+    Ok(Resolved {
+        mode,
+        iso,
+        window,
+        look,
+        preset,
+    })
 }

@@ -6,167 +6,73 @@ use clap::ValueEnum;
 
 use cdvol::classify::TransferFunction;
 use cdvol::format::reader::PackedVolume;
-use cdvol::presets::Preset;
+use cdvol::look::{resolve, Ask, ModeKind, ResolveError};
 use cdvol::render::camera::CameraError;
 use cdvol::render::job::{CameraSpec, JobError, RenderJob, View};
 use cdvol::render::shade::HitParams;
 use cdvol::render::traverse::{DistKind, Method};
-use cdvol::render::{
-    default_method, CompositeLook, Mode, RenderError, RenderOptions, Shard, Window,
-};
+use cdvol::render::{default_method, CompositeLook, RenderError, RenderOptions, Shard, Window};
 
 use super::render::*;
 
 impl RenderArgs {
-    /// The text of `--tf`, read once (it may be a FIFO or `<(...)`,
-    /// which cannot be read twice); `None` without `--tf`.
-    pub fn tf_text(&self) -> anyhow::Result<Option<String>> {
-        match &self.tf {
-            Some(tf) => Ok(Some(cdvol::classify::read_tf_text(tf)?)),
-            None => Ok(None),
-        }
-    }
-
-    /// The preset of this render on `vol`: `--preset` (refused when it is
-    /// of another modality than the file's, unless `--force`), or the
-    /// file's look when no `--preset`, `--tf` or `--iso` is given; placed
-    /// on the file's values ([`cdvol::look`]).
-    pub fn preset(&self, vol: &PackedVolume) -> anyhow::Result<Option<Preset>> {
-        let h = vol.header();
-        Ok(match &self.preset {
-            Some(name) => Some(
-                match self.preset_range {
-                    Some([lo, hi]) => cdvol::look::preset_in(h, name, self.force, [lo, hi]),
-                    None => cdvol::look::preset(h, name, self.force),
-                }
-                .map_err(|e| anyhow::anyhow!("option --preset: {e}"))?,
-            ),
-            None if self.tf.is_none() && self.iso.is_none() => cdvol::look::default_look(h),
-            None => None,
-        })
-    }
-
-    /// `--mode`, or without it surface, or the mode of the file's look
-    /// (`preset` came from it when `--preset` is absent).
-    pub fn mode_arg(&self, preset: Option<&Preset>) -> ModeArg {
-        match (self.mode, preset) {
-            (Some(m), _) => m,
-            (None, Some(p)) if self.preset.is_none() => {
-                if p.window.is_some() && p.name.ends_with("-mip") {
-                    ModeArg::Mip
-                } else {
-                    ModeArg::Composite
-                }
+    /// What these arguments ask of the look ([`cdvol::look::resolve`]):
+    /// the transfer function of `--tf` is read (once: it may be a FIFO or
+    /// `<(...)`) only for `--mode composite`, the one mode that draws it.
+    pub fn ask(&self) -> anyhow::Result<Ask> {
+        let tf = match (self.mode, &self.tf) {
+            (Some(ModeArg::Composite), Some(path)) => {
+                let text = cdvol::classify::read_tf_text(path)?;
+                Some((
+                    TransferFunction::from_text(path, &text)?,
+                    CompositeLook::from_text(path, &text)?,
+                ))
             }
-            (None, _) => ModeArg::Surface,
-        }
-    }
-
-    /// The mode, with the hit method, shadows and transfer function it
-    /// takes (the composite mode parses `tf_text`, the text of `--tf`).
-    pub fn mode(
-        &self,
-        mode: ModeArg,
-        preset: Option<&Preset>,
-        tf_text: Option<&str>,
-    ) -> anyhow::Result<Mode> {
-        let hit = self.hit.into();
-        Ok(match mode {
-            ModeArg::Surface => Mode::Surface {
-                hit,
-                shadows: self.shadows,
-            },
-            ModeArg::Mip => Mode::Mip,
-            ModeArg::Cost => Mode::Cost,
-            ModeArg::Depth => Mode::Depth { hit },
-            ModeArg::Composite => {
-                let tf = match (self.tf.as_deref().zip(tf_text), preset) {
-                    (Some((tf, text)), _) => TransferFunction::from_text(tf, text)?,
-                    (None, Some(p)) => p.tf.clone(),
-                    (None, None) => {
-                        anyhow::bail!("--mode composite needs --tf FILE or --preset NAME")
-                    }
-                };
-                Mode::Composite {
-                    tf,
-                    step_mm: self.step,
-                }
-            }
-        })
-    }
-
-    /// The scene's iso value: `--iso`, or the preset's in surface, depth
-    /// and cost modes ([`cdvol::look::surface_iso`]).
-    pub fn iso(
-        &self,
-        vol: &PackedVolume,
-        mode: ModeArg,
-        preset: Option<&Preset>,
-    ) -> anyhow::Result<Option<f64>> {
-        let Some(p) = preset else {
-            return Ok(self.iso);
+            _ => None,
         };
-        if !matches!(mode, ModeArg::Surface | ModeArg::Depth | ModeArg::Cost) {
-            return Ok(None);
-        }
-        match cdvol::look::surface_iso(vol.header(), p) {
-            Some(v) => Ok(Some(v)),
-            None => anyhow::bail!(
-                "preset {} has no iso value for --mode {}; render it with --mode composite",
-                p.name,
-                format!("{mode:?}").to_lowercase(),
-            ),
-        }
+        Ok(Ask {
+            mode: self.mode.map(|m| match m {
+                ModeArg::Surface => ModeKind::Surface,
+                ModeArg::Mip => ModeKind::Mip,
+                ModeArg::Composite => ModeKind::Composite,
+                ModeArg::Cost => ModeKind::Cost,
+                ModeArg::Depth => ModeKind::Depth,
+            }),
+            preset: self.preset.clone(),
+            preset_range: self.preset_range,
+            force: self.force,
+            iso: self.iso,
+            tf,
+            window: self.window()?,
+            shade: self.shade,
+            hit: self.hit.into(),
+            shadows: self.shadows,
+            step_mm: self.step,
+        })
     }
 
-    /// The MIP window of `--window` and `--level`.
-    pub fn window(&self, preset: Option<&Preset>) -> anyhow::Result<Window> {
+    /// The MIP window of `--window` and `--level`; `None` for `auto` (the
+    /// preset's window, else automatic).
+    pub fn window(&self) -> anyhow::Result<Option<Window>> {
         Ok(match (self.window.as_str(), self.level) {
-            ("auto", None) => match preset.and_then(|p| p.window) {
-                Some(w) => Window::Fixed {
-                    width: w.width,
-                    level: w.level,
-                },
-                None => Window::Auto,
-            },
-            ("full", None) => Window::Full,
+            ("auto", None) => None,
+            ("full", None) => Some(Window::Full),
             ("auto" | "full", Some(_)) => {
                 anyhow::bail!(
                     "--level goes with a numeric --window W, not --window {}",
                     self.window
                 )
             }
-            (w, Some(level)) => Window::Fixed {
+            (w, Some(level)) => Some(Window::Fixed {
                 width: w.parse().map_err(|_| {
                     anyhow::anyhow!("--window {w:?}: expected auto, full or a width (a number)")
                 })?,
                 level,
-            },
+            }),
             (w, None) => {
                 anyhow::bail!("--window {w}: a numeric window needs --level L (its centre)")
             }
         })
-    }
-
-    /// The composite look: the --tf file's `shade` and
-    /// `gradient_opacity` keys (from `tf_text`, its text), `--shade` on
-    /// top.
-    pub fn look(
-        &self,
-        mode: ModeArg,
-        preset: Option<&Preset>,
-        tf_text: Option<&str>,
-    ) -> anyhow::Result<CompositeLook> {
-        let mut look = match (self.tf.as_deref().zip(tf_text), mode) {
-            (Some((tf, text)), ModeArg::Composite) => CompositeLook::from_text(tf, text)?,
-            (None, ModeArg::Composite) => CompositeLook {
-                shade: preset.is_some_and(|p| p.shade),
-                ..CompositeLook::default()
-            },
-            _ => CompositeLook::default(),
-        };
-        look.shade |= self.shade;
-        Ok(look)
     }
 
     /// The traversal for `vol`; `template` leaps like `cd` (its renderer
@@ -180,10 +86,12 @@ impl RenderArgs {
             kind,
             switch_fvt: !self.no_switch_fvt,
         };
-        let traversal = self.traversal.unwrap_or(match default_method(vol) {
-            Method::CdAniso { .. } => TraversalArg::CdAniso,
-            _ => TraversalArg::Cd,
-        });
+        let traversal = self
+            .traversal
+            .unwrap_or(match default_method(vol.header()) {
+                Method::CdAniso { .. } => TraversalArg::CdAniso,
+                _ => TraversalArg::Cd,
+            });
         match traversal {
             TraversalArg::Fvt => Method::Fvt,
             TraversalArg::Cd | TraversalArg::Template => Method::Cd { min_leap },
@@ -221,15 +129,16 @@ impl RenderArgs {
             },
             _ => anyhow::bail!("--eye, --target and --up go together: give all three or none"),
         };
-        let preset = self.preset(vol)?;
-        let preset = preset.as_ref();
-        let mode = self.mode_arg(preset);
-        // Read once: mode and look both come from this text.
-        let tf_text = match mode {
-            ModeArg::Composite => self.tf_text()?,
-            _ => None,
-        };
-        let tf_text = tf_text.as_deref();
+        let look = resolve(vol.header(), &self.ask()?).map_err(|e| match e {
+            ResolveError::Preset(e) => anyhow::anyhow!("option --preset: {e}"),
+            ResolveError::NoTransferFunction => {
+                anyhow::anyhow!("--mode composite needs --tf FILE or --preset NAME")
+            }
+            ResolveError::NoIso { preset, mode } => anyhow::anyhow!(
+                "preset {preset} has no iso value for --mode {mode}; render it with --mode \
+                 composite"
+            ),
+        })?;
         Ok(RenderJob {
             camera: CameraSpec {
                 view,
@@ -239,7 +148,7 @@ impl RenderArgs {
                 height: self.height,
             },
             options: RenderOptions {
-                mode: self.mode(mode, preset, tf_text)?,
+                mode: look.mode,
                 method: self.method(vol),
                 tile: self.tile,
                 cache_bytes: self.cache_mb.saturating_mul(1 << 20),
@@ -253,13 +162,13 @@ impl RenderArgs {
                 sampling: self.sample_precision.into(),
                 sample_batches: self.sample_batches == OnOff::On,
                 early_stop: self.early_stop,
-                look: self.look(mode, preset, tf_text)?,
-                window: self.window(preset)?,
+                look: look.look,
+                window: look.window,
                 normals: match self.normals {
                     NormalsArg::Smooth => cdvol::render::Normals::Smooth,
                     NormalsArg::Cell => cdvol::render::Normals::Cell,
                 },
-                iso: self.iso(vol, mode, preset)?,
+                iso: look.iso,
                 unrounded: self.bit_depth != cdvol::render::Bits::Eight,
                 cull: !self.no_cull,
             },

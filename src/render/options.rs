@@ -231,14 +231,15 @@ pub enum Window {
     Fixed { width: f64, level: f64 },
 }
 
-/// The traversal a render of `vol` uses when none is named (`cdvol
-/// render` without `--traversal`, `cdvol serve`, the demo): CD with the
+/// The traversal a render of the file with header `h` uses when none is
+/// named (`cdvol render` without `--traversal`, `cdvol serve`, the demo;
+/// the one place that chooses it): CD with the
 /// file's anisotropic (octant) codes where `prep --aniso` stored them
 /// (paper section 4.2.1), else CD. Both are exact, so the image is the
 /// same; the octant codes leap further (docs/BENCHMARKS.md, "Octant codes
 /// by default in the render").
-pub fn default_method(vol: &PackedVolume) -> Method {
-    if vol.header().aniso_block.is_some() {
+pub fn default_method(h: &crate::format::Header) -> Method {
+    if h.aniso_block.is_some() {
         Method::CdAniso { min_leap: 1 }
     } else {
         Method::Cd { min_leap: 1 }

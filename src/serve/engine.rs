@@ -173,8 +173,7 @@ impl<'v> Engine<'v> {
         let served = &self.files[req.file.min(self.files.len().saturating_sub(1))];
         let vol = &served.vol;
         req.check_cost(vol)?;
-        let mut opts = req.options(vol.header(), self.cache_bytes)?;
-        opts.method = crate::render::default_method(vol);
+        let opts = req.options(vol.header(), self.cache_bytes)?;
         let spec = req.camera(vol)?;
         let camera = req.place(vol, &spec)?;
         let command = req.command(&served.name, &spec);

@@ -13,8 +13,8 @@ use crate::orient::NamedView;
 use crate::render::camera::Camera;
 use crate::render::job::{CameraSpec, View};
 use crate::render::shade::HitMethod;
-use crate::render::traverse::{Method, TGrid};
-use crate::render::{Mode, RenderOptions, Window};
+use crate::render::traverse::TGrid;
+use crate::render::{RenderOptions, Window};
 
 /// Largest image edge the server renders: a frame then needs at most
 /// 1024^2 x [`RENDER_BYTES_PER_PIXEL`](crate::render::job::RENDER_BYTES_PER_PIXEL)
@@ -213,75 +213,53 @@ impl ViewRequest {
     }
 
     /// The render options: `cdvol render`'s defaults with this request's
-    /// mode, scene and window.
+    /// mode, scene and window, the look resolved as `cdvol render`
+    /// resolves it ([`crate::look::resolve`]) and the file's default
+    /// traversal ([`crate::render::default_method`]).
     pub fn options(&self, h: &Header, cache_bytes: usize) -> Result<RenderOptions, RequestError> {
-        // The named preset placed on the file (refused when it is of the
-        // other modality), or for a composite without one, the file's look.
-        let preset = match &self.preset {
-            Some(p) => Some(
-                crate::look::preset(h, p, false).map_err(|e| RequestError::Bad {
-                    name: "preset",
-                    value: p.clone(),
-                    expected: match e {
-                        crate::look::LookError::WrongModality { .. } => e.to_string(),
-                        _ => format!("a preset: {}", crate::look::offered_names(h)),
-                    },
-                })?,
-            ),
-            None if self.mode == "composite" || self.iso.is_none() => crate::look::default_look(h),
-            None => None,
+        use crate::look::{resolve, Ask, LookError, ModeKind, ResolveError};
+        let ask = Ask {
+            mode: Some(match self.mode.as_str() {
+                "mip" => ModeKind::Mip,
+                "cost" => ModeKind::Cost,
+                "composite" => ModeKind::Composite,
+                _ => ModeKind::Surface,
+            }),
+            preset: self.preset.clone(),
+            preset_range: None,
+            force: false,
+            iso: self.iso,
+            tf: None,
+            window: self
+                .window
+                .map(|(width, level)| Window::Fixed { width, level }),
+            shade: false,
+            hit: self.hit,
+            shadows: self.shadows,
+            step_mm: self.step_mm,
         };
-        let mode = match self.mode.as_str() {
-            "mip" => Mode::Mip,
-            "cost" => Mode::Cost,
-            "composite" => match &preset {
-                Some(p) => Mode::Composite {
-                    tf: p.tf.clone(),
-                    step_mm: self.step_mm,
-                },
-                None => {
-                    return Err(RequestError::Conflict(
-                        "mode=composite needs a preset (its transfer function)".into(),
-                    ))
-                }
-            },
-            _ => Mode::Surface {
-                hit: self.hit,
-                shadows: self.shadows,
-            },
+        let bad_preset = |expected: String| RequestError::Bad {
+            name: "preset",
+            value: self.preset.clone().unwrap_or_default(),
+            expected,
         };
-        let mut o = RenderOptions::new(mode, Method::Cd { min_leap: 1 });
-        o.cache_bytes = cache_bytes;
-        o.iso = self.iso;
-        if let Some(p) = &preset {
-            match self.mode.as_str() {
-                "surface" | "cost" => {
-                    o.iso =
-                        Some(
-                            crate::look::surface_iso(h, p).ok_or_else(|| RequestError::Bad {
-                                name: "preset",
-                                value: p.name.clone(),
-                                expected: format!(
-                                    "a preset with an iso value for mode={}",
-                                    self.mode
-                                ),
-                            })?,
-                        )
-                }
-                "mip" => {
-                    if let Some(w) = p.window {
-                        o.window = Window::Fixed {
-                            width: w.width,
-                            level: w.level,
-                        }
-                    }
-                }
-                _ => o.look.shade = p.shade,
+        let look = resolve(h, &ask).map_err(|e| match e {
+            ResolveError::Preset(e @ LookError::WrongModality { .. }) => bad_preset(e.to_string()),
+            ResolveError::Preset(_) => {
+                bad_preset(format!("a preset: {}", crate::look::offered_names(h)))
             }
-        }
-        if let Some((width, level)) = self.window {
-            o.window = Window::Fixed { width, level };
-        }
+            ResolveError::NoTransferFunction => RequestError::Conflict(
+                "mode=composite needs a preset (its transfer function)".into(),
+            ),
+            ResolveError::NoIso { .. } => {
+                bad_preset(format!("a preset with an iso value for mode={}", self.mode))
+            }
+        })?;
+        let mut o = RenderOptions::new(look.mode, crate::render::default_method(h));
+        o.cache_bytes = cache_bytes;
+        o.iso = look.iso;
+        o.window = look.window;
+        o.look = look.look;
         Ok(o)
     }
 

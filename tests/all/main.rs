@@ -55,6 +55,7 @@ mod mip;
 mod modality;
 mod no_debug_text;
 mod normals;
+mod one_look;
 mod orient;
 mod phantom_mr;
 mod prep;

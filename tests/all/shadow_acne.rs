@@ -95,7 +95,7 @@ fn shadows_have_no_acne_under_any_hit_method() {
         render(
             &vol,
             &cam,
-            &common::test_opts(mode, cdvol::render::default_method(&vol)),
+            &common::test_opts(mode, cdvol::render::default_method(vol.header())),
             &cdvol::progress::NoProgress,
         )
         .unwrap()
