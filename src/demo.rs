@@ -206,7 +206,7 @@ const LABEL_BAND: u32 = 26;
 
 /// Lays `images` out in one row on a dark grey sheet, each scaled to
 /// [`TILE`] pixels high with its label centred under it (the plots' font,
-/// `tools::font`), and writes the sheet to `out` as PNG. Returns its
+/// `plot::font`), and writes the sheet to `out` as PNG. Returns its
 /// width and height.
 fn contact_sheet(images: &[(PathBuf, &str)], out: &Path) -> Result<(u32, u32)> {
     use image::imageops::{self, FilterType};
@@ -232,7 +232,7 @@ fn contact_sheet(images: &[(PathBuf, &str)], out: &Path) -> Result<(u32, u32)> {
         imageops::replace(&mut sheet, tile, i64::from(x), i64::from(GAP));
         x += tile.width() + GAP;
     }
-    cdvol::tools::font::register();
+    cdvol::plot::font::register();
     {
         let root = BitMapBackend::with_buffer(sheet.as_mut(), (w, h)).into_drawing_area();
         let style = ("sans-serif", 16)

@@ -59,6 +59,8 @@ pub mod json;
 pub mod look;
 pub mod memory;
 pub mod orient;
+#[cfg(feature = "plots")]
+pub mod plot;
 pub mod prep;
 pub mod presets;
 pub mod progress;

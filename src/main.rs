@@ -170,13 +170,13 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
         }
         Command::Histogram(a) => {
             // The extension first: a bad one needs no file read.
-            cdvol::tools::histplot::PlotFormat::of(&a.output)?;
+            cdvol::plot::histogram::PlotFormat::of(&a.output)?;
             let vol = PackedVolume::open(&a.file)?;
             // Neither the packed file nor the scan it came from.
             cdvol::export::check_packed_outputs(&vol, std::slice::from_ref(&a.output))?;
             let h = vol.header();
             let min = h.summary.histogram.as_ref().and_then(|x| x.min);
-            let opts = cdvol::tools::histplot::PlotOptions {
+            let opts = cdvol::plot::histogram::PlotOptions {
                 width: a.width,
                 height: a.height,
                 presets: a.presets(min)?,
@@ -186,7 +186,7 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                     .map(|n| n.to_string_lossy().into_owned())
                     .unwrap_or_default(),
             };
-            cdvol::tools::histplot::plot(h, &a.file, &a.output, &opts)?;
+            cdvol::plot::histogram::plot(h, &a.file, &a.output, &opts)?;
             println!("wrote {}", a.output.display());
         }
         Command::Presets(a) => print_presets(&a)?,

@@ -14,9 +14,6 @@
 //!   (docs/TRADEOFFS.md, "Normals").
 //! - [`experiment`]: `cdvol experiment ...`, the paper's Figs. 16-22 and
 //!   Tables 1-2 and the speed/accuracy trade-offs, written under docs/.
-//! - [`histplot`]: `cdvol histogram`, a packed file's value histogram as
-//!   a PNG or SVG plot with the presets' value ranges; [`font`] the
-//!   embedded font every plot's text is drawn with.
 //!
 //! Why a feature and not a workspace crate under `tools/`: the `cdvol`
 //! binary runs these (`cdvol phantom`, `demo`, `experiment`), so its
@@ -28,7 +25,5 @@
 
 pub mod corpus;
 pub mod experiment;
-pub mod font;
-pub mod histplot;
 pub mod normals;
 pub mod phantom;

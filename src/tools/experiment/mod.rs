@@ -611,7 +611,7 @@ fn plot(rows: &[Row]) -> anyhow::Result<String> {
         .into_iter()
         .filter(|d| rows.iter().any(|r| r.dataset == *d))
         .collect();
-    crate::tools::font::register();
+    crate::plot::font::register();
     let mut svg = String::new();
     {
         let h = 400 * sets.len() as u32;

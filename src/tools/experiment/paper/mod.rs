@@ -303,7 +303,7 @@ fn line_plot(
     series: &[(String, Vec<(f64, f64)>)],
 ) -> anyhow::Result<()> {
     use plotters::prelude::*;
-    crate::tools::font::register();
+    crate::plot::font::register();
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (800, 500)).into_drawing_area();

@@ -111,8 +111,8 @@ pub fn plot(
             infinite: hist.infinite,
         });
     }
-    crate::tools::font::register();
-    let draw_err = |msg: String| PlotError::Draw {
+    super::font::register();
+    let draw_err = |DrawFailed(msg): DrawFailed| PlotError::Draw {
         path: out.to_path_buf(),
         msg,
     };
@@ -122,7 +122,8 @@ pub fn plot(
             {
                 let root = SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area();
                 draw(&root, hist, &header.classification, opts).map_err(draw_err)?;
-                root.present().map_err(|e| draw_err(e.to_string()))?;
+                root.present()
+                    .map_err(|e| draw_err(DrawFailed(e.to_string())))?;
             }
             svg.into_bytes()
         }
@@ -131,13 +132,14 @@ pub fn plot(
             {
                 let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
                 draw(&root, hist, &header.classification, opts).map_err(draw_err)?;
-                root.present().map_err(|e| draw_err(e.to_string()))?;
+                root.present()
+                    .map_err(|e| draw_err(DrawFailed(e.to_string())))?;
             }
             let mut png = Vec::new();
             use image::ImageEncoder;
             image::codecs::png::PngEncoder::new(&mut png)
                 .write_image(&rgb, w, h, image::ExtendedColorType::Rgb8)
-                .map_err(|e| draw_err(format!("PNG encoding: {e}")))?;
+                .map_err(|e| draw_err(DrawFailed(format!("PNG encoding: {e}"))))?;
             png
         }
     };
@@ -168,14 +170,18 @@ fn x_range(h: &ValueHistogram, cls: &Classification) -> (f64, f64) {
     (a - pad, b + pad)
 }
 
+/// A drawing backend's failure, as its message (plotters' errors are
+/// generic over the backend): [`PlotError::Draw`] names the file.
+struct DrawFailed(String);
+
 /// Draws the whole plot on `root`.
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     h: &ValueHistogram,
     cls: &Classification,
     opts: &PlotOptions,
-) -> Result<(), String> {
-    let e = |x: DrawingAreaErrorKind<DB::ErrorType>| x.to_string();
+) -> Result<(), DrawFailed> {
+    let e = |x: DrawingAreaErrorKind<DB::ErrorType>| DrawFailed(x.to_string());
     root.fill(&WHITE).map_err(e)?;
     let (x0, x1) = x_range(h, cls);
     let n_lanes = opts.presets.len();
