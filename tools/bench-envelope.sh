@@ -14,8 +14,8 @@ vol=$1
 work=${2:-target/bench-envelope}
 mkdir -p "$work"
 if [ -z "${BIN:-}" ]; then
-    cargo build --release --quiet
-    BIN=target/release/cdvol
+    cargo build --profile release-lto --quiet
+    BIN=target/release-lto/cdvol
 fi
 presets=${PRESETS:-ct-bone ct-skin ct-soft-tissue ct-muscle ct-lung ct-vessels}
 r=(--width "${SIZE:-512}" --height "${SIZE:-512}" --threads "${THREADS:-2}" --view 35,15 --mode composite)

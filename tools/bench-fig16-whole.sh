@@ -13,8 +13,8 @@ set -euo pipefail
 work=${1:-target/bench-fig16}
 mkdir -p "$work"
 if [ -z "${BIN:-}" ]; then
-    cargo build --release --quiet
-    BIN=target/release/cdvol
+    cargo build --profile release-lto --quiet
+    BIN=target/release-lto/cdvol
 fi
 clock() { # command... -> seconds of CPU (task-clock) or wall
     if perf stat -x, -e task-clock true >/dev/null 2>&1; then

@@ -12,8 +12,8 @@ set -euo pipefail
 work=${1:-target/bench-prep}
 nx=${NX:-1024}; ny=${NY:-1024}; depths=${DEPTHS:-"1024 2048"}
 mkdir -p "$work"
-cargo build --release --quiet
-bin=target/release/cdvol
+cargo build --profile release-lto --quiet
+bin=target/release-lto/cdvol
 need=$(( (nx * ny * 2048 * 2 * 5 / 2) / 1024 / 1024 / 1024 + 1 ))
 free=$(df -Pk "$work" | awk 'NR==2 {print int($4 / 1024 / 1024)}')
 echo "bench-prep: needs about ${need} GiB free in $work, ${free} GiB available" >&2

@@ -12,8 +12,8 @@
 set -euo pipefail
 work=${1:-target/bench-render}
 mkdir -p "$work"
-cargo build --release --quiet
-bin=target/release/cdvol
+cargo build --profile release-lto --quiet
+bin=target/release-lto/cdvol
 tools/fetch-ct.sh target/ct >/dev/null
 json() { python3 -c "import json,sys; d=json.load(open('$1')); print($2)"; }
 

@@ -14,8 +14,8 @@ vol=$1
 work=${2:-target/bench-scene-iso}
 mkdir -p "$work"
 if [ -z "${BIN:-}" ]; then
-    cargo build --release --quiet
-    BIN=target/release/cdvol
+    cargo build --profile release-lto --quiet
+    BIN=target/release-lto/cdvol
 fi
 env_iso=${ENVELOPE:-300}
 "$BIN" prep -q --iso "$env_iso" "$vol" -o "$work/env.cdv" > /dev/null

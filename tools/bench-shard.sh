@@ -13,8 +13,8 @@ vol=$(realpath "$1"); n=${2:-4}; shift $(( $# >= 2 ? 2 : 1 ))
 opts=("$@")
 [ ${#opts[@]} -gt 0 ] || opts=(--width 2048 --height 2048 --view "30,20" --cache-mb 1024)
 cd "$(dirname "$0")/.."
-cargo build --release --quiet
-bin=$(realpath target/release/cdvol)
+cargo build --profile release-lto --quiet
+bin=$(realpath target/release-lto/cdvol)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 

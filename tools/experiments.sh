@@ -6,5 +6,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 ct_dir=target/ct
 [ -f "$ct_dir/cranium.json" ] || tools/fetch-ct.sh "$ct_dir"
-cargo build --release --quiet
-exec target/release/cdvol experiment all --ct "$ct_dir/cranium.json" --out docs/EXPERIMENTS.md "$@"
+cargo build --profile release-lto --quiet
+exec target/release-lto/cdvol experiment all --ct "$ct_dir/cranium.json" --out docs/EXPERIMENTS.md "$@"

@@ -4,7 +4,7 @@
 # (cell, plain) (smooth, plain) (smooth, halo) (cell, halo), render
 # seconds from --stats; prints one line per render and the medians.
 #
-#   CDVOL=target/release/cdvol tools/normals-bench.sh ROUNDS PLAIN.cdv HALO.cdv [render args...]
+#   CDVOL=target/release-lto/cdvol tools/normals-bench.sh ROUNDS PLAIN.cdv HALO.cdv [render args...]
 set -euo pipefail
 cdvol=${CDVOL:?set CDVOL to the cdvol binary}
 rounds=$1; plain=$2; halo=$3; shift 3

@@ -32,8 +32,8 @@ if [ "${OVERFLOW_CHECKS:-0}" = 1 ]; then
     export CARGO_PROFILE_RELEASE_OVERFLOW_CHECKS=true
     export CARGO_TARGET_DIR=target/overflow-checks
 fi
-cargo build --release --quiet
-bin=$(realpath "${CARGO_TARGET_DIR:-target}/release/cdvol")
+cargo build --profile release-lto --quiet
+bin=$(realpath "${CARGO_TARGET_DIR:-target}/release-lto/cdvol")
 
 gib=$((1024 * 1024 * 1024))
 # Disk: the raw stack, the prep spill (1 byte per cell = half the raw

@@ -10,6 +10,6 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 bash tools/fetch-ct.sh target/ct >&2
-cargo build --release --quiet
-./target/release/cdvol experiment tradeoffs --ct target/ct/cranium.json \
+cargo build --profile release-lto --quiet
+./target/release-lto/cdvol experiment tradeoffs --ct target/ct/cranium.json \
     --size 512 --runs 7 "$@"

@@ -9,7 +9,7 @@
 # Not part of CI.
 #
 # usage: tools/peers/run.sh [WORKDIR]   env: REPS=5 SIZE=512 THREADS=1,2 VIEW=35,15
-#        CDVOL=/path/to/cdvol (default: cargo build --release, copied into WORKDIR)
+#        CDVOL=/path/to/cdvol (default: cargo build --profile release-lto, copied into WORKDIR)
 #        OUT=docs/peers (where the CSVs, PNGs and RESULTS.md go)
 #        CT_SIDECAR=path/to/volume.json (another raw volume instead of the CT,
 #        e.g. a `cdvol phantom ct --dims 512,512,512` phantom)
@@ -24,9 +24,9 @@ if [ -n "${CT_DIR:-}" ]; then ct=$CT_DIR; fi
 sidecar=${CT_SIDECAR:-$ct/cranium.json}
 [ -n "${CT_SIDECAR:-}" ] || [ -f "$ct/cranium.json" ] || "$root/tools/fetch-ct.sh" "$ct" >/dev/null
 if [ -z "${CDVOL:-}" ]; then
-    (cd "$root" && cargo build --release --quiet)
+    (cd "$root" && cargo build --profile release-lto --quiet)
     tdir=${CARGO_TARGET_DIR:-$root/target}
-    cp "$tdir/release/cdvol" "$work/cdvol"   # private copy: later builds can't change it mid-run
+    cp "$tdir/release-lto/cdvol" "$work/cdvol"   # private copy: later builds can't change it mid-run
     CDVOL=$work/cdvol
 fi
 "$CDVOL" --version >&2
