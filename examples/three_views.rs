@@ -30,7 +30,9 @@ fn main() -> Result<(), Box<dyn Error>> {
     let Some(file) = args.next().map(PathBuf::from) else {
         return Err("usage: three_views FILE.cdv [OUT_DIR]".into());
     };
-    let out_dir = args.next().map_or_else(|| PathBuf::from("."), PathBuf::from);
+    let out_dir = args
+        .next()
+        .map_or_else(|| PathBuf::from("."), PathBuf::from);
     let vol = PackedVolume::open(&file)?;
 
     // What `cdvol render FILE` draws with no options: the file's look if
@@ -58,7 +60,11 @@ fn main() -> Result<(), Box<dyn Error>> {
 
     // One framing for all three views: the object's box.
     let framing = Framing::of(&vol, &opts);
-    for (name, az, el) in [("front", 0.0, 0.0), ("side", 90.0, 0.0), ("above", 35.0, 50.0)] {
+    for (name, az, el) in [
+        ("front", 0.0, 0.0),
+        ("side", 90.0, 0.0),
+        ("above", 35.0, 50.0),
+    ] {
         let camera = framing::orbit(&framing, orbit_dirs(az, el), None, None, 512, 512)?;
         let (frame, stats) = render(&vol, &camera, &opts, &NoProgress)?;
         let path = out_dir.join(format!("view-{name}.png"));
