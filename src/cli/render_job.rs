@@ -18,10 +18,11 @@ use super::render::*;
 impl RenderArgs {
     /// What these arguments ask of the look ([`cdvol::look::resolve`]):
     /// the transfer function of `--tf` is read (once: it may be a FIFO or
-    /// `<(...)`) only for `--mode composite`, the one mode that draws it.
+    /// `<(...)`) unless another mode than composite is asked for. Given
+    /// without `--mode`, it keeps the file's look out, as `--iso` does.
     pub fn ask(&self) -> anyhow::Result<Ask> {
         let tf = match (self.mode, &self.tf) {
-            (Some(ModeArg::Composite), Some(path)) => {
+            (None | Some(ModeArg::Composite), Some(path)) => {
                 let text = cdvol::classify::read_tf_text(path)?;
                 Some((
                     TransferFunction::from_text(path, &text)?,

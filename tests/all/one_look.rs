@@ -110,3 +110,22 @@ fn render_and_serve_resolve_a_look_alike() {
         assert_eq!(a, b, "render {args:?} against serve {q:?}");
     }
 }
+
+/// `--tf` without `--mode` keeps the file's look out, as `--iso` does: the
+/// render is a surface, as before the look was resolved in one place.
+#[test]
+fn a_tf_without_a_mode_keeps_the_files_look_out() {
+    let d = tempfile::tempdir().unwrap();
+    let looked = prepared(d.path(), "looked", &["--preset", "ct-bone"]);
+    let tf = d.path().join("tf.json");
+    let bone = cdvol::presets::get("ct-bone").unwrap();
+    std::fs::write(&tf, serde_json::to_string(&bone.tf).unwrap()).unwrap();
+    let vol = PackedVolume::open(&looked).unwrap();
+    let tf_arg = tf.display().to_string();
+    let o = cli_options(&vol, &looked, &["--tf", &tf_arg]);
+    assert_eq!(o.mode.name(), "surface");
+    let o = cli_options(&vol, &looked, &["--tf", &tf_arg, "--mode", "composite"]);
+    assert_eq!(o.mode.name(), "composite");
+    let o = cli_options(&vol, &looked, &[]);
+    assert_eq!(o.mode.name(), "composite", "the file's look");
+}
