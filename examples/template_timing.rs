@@ -10,7 +10,7 @@ use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::template::render_template;
 use cdvol::render::traverse::{Method, TGrid};
 use cdvol::render::{render, Frame, Mode, RenderOptions, Stats};

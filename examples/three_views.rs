@@ -22,7 +22,7 @@ use cdvol::look::{resolve, Ask};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::orbit_dirs;
 use cdvol::render::framing::{self, Framing};
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::{default_method, render, save, RenderOptions};
 
 fn main() -> Result<(), Box<dyn Error>> {

@@ -23,7 +23,7 @@ use cdvol::prep::{prep, PrepOptions, PrepReport};
 use cdvol::progress::Progress;
 use cdvol::render::camera::orbit_dirs;
 use cdvol::render::framing::{self, Framing};
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::{default_method, render, Mode, RenderOptions};
 use cdvol::tools::phantom;
 

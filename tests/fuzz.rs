@@ -100,7 +100,7 @@ use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::traverse::{Method, Ray, TGrid, Visit};
 use cdvol::render::{render, Mode, RenderError, RenderOptions};
 use cdvol::tools::corpus::{self, MemVolume};

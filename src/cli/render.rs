@@ -7,7 +7,7 @@ use clap::{Args, ValueEnum};
 
 use super::heading;
 
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::{Precision, ShardLayout};
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

@@ -57,6 +57,7 @@ mod tf_cells;
 mod tiles;
 pub mod traverse;
 
+pub use colour::Colouring;
 pub use error::RenderError;
 pub use gradient::Normals;
 pub use integrate::{lazy_min_for, LAZY_DENSE_PIXELS, LAZY_MIN_CODE_SPARSE};
@@ -65,8 +66,8 @@ pub use options::{
     Window, EARLY_STOP, MAX_PIXELS, MIN_STEP_MM,
 };
 pub use output::{
-    image_files, save, save_on, stage, stage_on, Background, BackgroundError, Bits, Colouring,
-    Frame, ImageSpec, SaveError,
+    image_files, save, save_on, stage, stage_on, Background, BackgroundError, Bits, Frame,
+    ImageSpec, SaveError,
 };
 pub use shard::{render_part, render_part_in};
 pub use stats::Stats;

@@ -10,7 +10,7 @@ use super::cache;
 use super::camera::Camera;
 use super::error::RenderError;
 use super::gradient::Normals;
-use super::shade::{HitMethod, HitParams};
+use super::hit::{HitMethod, HitParams};
 use super::traverse::Method;
 
 /// Smallest composite sample distance.

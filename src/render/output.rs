@@ -1,12 +1,12 @@
 //! Image output, the last stage of a render: a coloured [`Frame`]
 //! (render/colour.rs makes it from the pixels by the mode's
-//! [`Colouring`]) is written by [`save`] as PNG, TIFF or JPEG by the
+//! [`Colouring`](super::Colouring), and imports this module, never the
+//! other way) is written by [`save`] as PNG, TIFF or JPEG by the
 //! output's extension (plus raw f32 and 16-bit PNG depth in the depth
 //! mode).
 
 use std::path::{Path, PathBuf};
 
-pub use super::colour::Colouring;
 use crate::fsutil::{FileSet, WriteError};
 
 /// A rendered image: RGB8 for display, its colour in f32 for 16-bit and

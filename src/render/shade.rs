@@ -8,15 +8,12 @@
 //! are in [`super::gradient`].
 //!
 //! Finding the hit inside a 1-cell (paper section 5.3) is in
-//! [`super::hit`]; its names are re-exported here.
+//! [`super::hit`], which evaluates cells with this module: it imports
+//! this one, never the other way.
 
 use glam::DVec3;
 
 use super::traverse::Ray;
-
-pub use super::hit::{
-    find_hit, find_hit_with, HitMethod, HitParams, BISECT_ITERS, NEWTON_ITERS, NEWTON_TOL,
-};
 
 /// A cell's geometry and values, ready for evaluation along a ray.
 pub struct CellEval {

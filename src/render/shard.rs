@@ -23,10 +23,10 @@ use serde::{Deserialize, Serialize};
 
 use super::cache::BrickCache;
 use super::camera::{Camera, Projection};
+pub use super::colour::Colouring;
 use super::error::RenderError;
 use super::integrate::Px;
 use super::options::{Mode, RenderOptions};
-pub use super::output::Colouring;
 use super::output::Frame;
 use super::stats::Stats;
 pub use super::tiles::TilePx;
@@ -112,7 +112,7 @@ impl CameraKey {
 pub struct OptionsKey {
     /// [`Mode::name`].
     pub mode: String,
-    /// Surface and depth: [`HitMethod::name`](super::shade::HitMethod::name).
+    /// Surface and depth: [`HitMethod::name`](super::hit::HitMethod::name).
     pub hit: Option<String>,
     /// Surface: shadow rays.
     pub shadows: Option<bool>,

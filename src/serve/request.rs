@@ -11,8 +11,8 @@ use crate::format::reader::PackedVolume;
 use crate::format::Header;
 use crate::orient::NamedView;
 use crate::render::camera::Camera;
+use crate::render::hit::HitMethod;
 use crate::render::job::{CameraSpec, View};
-use crate::render::shade::HitMethod;
 use crate::render::traverse::TGrid;
 use crate::render::{RenderOptions, Window};
 

@@ -13,7 +13,8 @@ use crate::format::reader::PackedVolume;
 use crate::render::cache::{to_f32, Accessor, BrickCache};
 use crate::render::camera::Camera;
 use crate::render::gradient::vertex_gradients;
-use crate::render::shade::{at, find_hit, CellEval, HitMethod};
+use crate::render::hit::{find_hit, HitMethod};
+use crate::render::shade::{at, CellEval};
 use crate::render::traverse::{trace, Flow, Method, TGrid};
 
 use super::phantom::Sphere;

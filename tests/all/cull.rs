@@ -16,7 +16,7 @@ use cdvol::classify::{TfPoint, TransferFunction};
 use cdvol::format::reader::PackedVolume;
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::{Camera, Projection};
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::traverse::{Method, TGrid};
 use cdvol::render::{render, render_in, Frame, Mode, Stats};
 

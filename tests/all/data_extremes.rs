@@ -64,7 +64,7 @@ use cdvol::input::Dtype;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::{Camera, Projection};
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::traverse::{Method, Ray, TGrid};
 use cdvol::render::{render, Frame, Mode, RenderOptions, Stats};
 

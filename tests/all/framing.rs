@@ -126,7 +126,7 @@ fn surface(iso: Option<f64>) -> RenderOptions {
         iso,
         ..RenderOptions::new(
             Mode::Surface {
-                hit: cdvol::render::shade::HitMethod::Int,
+                hit: cdvol::render::hit::HitMethod::Int,
                 shadows: false,
             },
             Method::Cd { min_leap: 1 },

@@ -10,7 +10,7 @@ use crate::common::{self, orbit, packed_with};
 use cdvol::format::reader::PackedVolume;
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::template::render_template;
 use cdvol::render::traverse::{DistKind, Method};
 use cdvol::render::{render, Frame, Mode, RenderError, RenderOptions};

@@ -23,7 +23,7 @@ use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::cache::{Accessor, BrickCache};
 use cdvol::render::gradient::{vertex_gradients, vertex_gradients_uncached};
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::traverse::Method;
 use cdvol::render::{render, Mode, Normals};
 use cdvol::tools::normals::{sphere_normal_errors, summary};

@@ -278,7 +278,7 @@ fn origin_px(vol: &Path, view: Option<&str>) -> [i64; 2] {
     };
     let opts = cdvol::render::RenderOptions::new(
         cdvol::render::Mode::Surface {
-            hit: cdvol::render::shade::HitMethod::Int,
+            hit: cdvol::render::hit::HitMethod::Int,
             shadows: false,
         },
         cdvol::render::traverse::Method::Cd { min_leap: 1 },

@@ -10,7 +10,7 @@ use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::traverse::Method;
 use cdvol::render::{
     lazy_min_for, render, render_in, Frame, Mode, RenderOptions, Stats, LAZY_MIN_CODE_SPARSE,

@@ -14,7 +14,7 @@ use cdvol::format::reader::PackedVolume;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::cache::{BrickCache, CacheCounters, Planes, RBrick};
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::traverse::{Method, OBJECT};
 use cdvol::render::{render, Mode, Normals, RenderOptions};
 use cdvol::tools::phantom;

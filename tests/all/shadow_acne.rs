@@ -20,7 +20,7 @@ use glam::DVec3;
 
 use crate::common::{self, write_stack};
 use cdvol::render::camera::Camera;
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::{render, Mode};
 
 const N: usize = 64;

@@ -13,7 +13,7 @@ use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::Camera;
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::shard::{assemble, Part};
 use cdvol::render::traverse::Method;
 use cdvol::render::{

@@ -10,7 +10,7 @@ use cdvol::format::reader::PackedVolume;
 use cdvol::grid::Axis;
 use cdvol::progress::NoProgress;
 use cdvol::render::camera::{Camera, Projection};
-use cdvol::render::shade::HitMethod;
+use cdvol::render::hit::HitMethod;
 use cdvol::render::template::{
     render_template, render_template_with, walk, Template, TemplateOptions, Warp,
 };

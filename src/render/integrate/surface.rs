@@ -12,7 +12,8 @@ use super::{Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
 use crate::render::gradient::{smooth_gradient_in, Normals};
-use crate::render::shade::{at, find_hit_with, shade, CellEval, HitMethod};
+use crate::render::hit::{find_hit_with, HitMethod};
+use crate::render::shade::{at, shade, CellEval};
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
 
 /// The first iso-surface hit along `ray` after `t_min`: `(t, cell values)`.

@@ -16,13 +16,14 @@ use crate::render::camera::{Camera, Projection};
 use crate::render::colour::{colour, Colouring};
 use crate::render::error::RenderError;
 use crate::render::gradient::{smooth_gradient_in, Normals};
+use crate::render::hit::{find_hit_with, HitMethod};
 use crate::render::integrate::Px;
 use crate::render::options::{
     check_mode, check_scene_iso, check_tol_and_size, narrowing, scene_iso, Mode, RenderOptions,
     MAX_PIXELS,
 };
 use crate::render::output::Frame;
-use crate::render::shade::{self, at, find_hit_with, CellEval, HitMethod};
+use crate::render::shade::{self, at, CellEval};
 use crate::render::stats::Stats;
 use crate::render::traverse::{trace, Flow, Method, Ray, StepCounts, TGrid, Visit};
 

@@ -147,7 +147,7 @@
 //! the tile size is not used: rows of the intermediate image run in
 //! parallel, each with its own [`Accessor`].
 //!
-//! [`find_hit_with`]: super::shade::find_hit_with
+//! [`find_hit_with`]: super::hit::find_hit_with
 //! [`trace`]: super::traverse::trace
 //! [`Axis::is_uniform`]: crate::grid::Axis::is_uniform
 //! [`RenderError::Template`]: super::RenderError::Template

@@ -20,7 +20,7 @@ use crate::input::raw::RawSource;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::{NoProgress, Progress};
 use crate::render::camera::Camera;
-use crate::render::shade::{HitMethod, HitParams};
+use crate::render::hit::{HitMethod, HitParams};
 use crate::render::traverse::{Method, Ray, TGrid};
 use crate::render::{render, Frame, Mode, Precision, RenderOptions};
 use crate::tools::corpus::{self, MemVolume};

@@ -11,7 +11,7 @@ use crate::input::SliceSource;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::{NoProgress, Progress};
 use crate::render::camera::Camera;
-use crate::render::shade::HitMethod;
+use crate::render::hit::HitMethod;
 use crate::render::traverse::{Method, TGrid};
 use crate::render::{render, Mode, RenderOptions};
 

@@ -6,8 +6,9 @@ use std::time::Instant;
 use crate::progress::Progress;
 use crate::render::cache::{Accessor, BrickCache, LAZY_MIN_CODE_CD};
 use crate::render::camera::{Camera, Projection};
+use crate::render::hit::{HitMethod, HitParams};
 use crate::render::policy::brick_policy;
-use crate::render::shade::{at, CellEval, HitMethod, HitParams};
+use crate::render::shade::{at, CellEval};
 use crate::render::traverse::{trace, DistKind, Flow, Method, Ray, TGrid};
 
 // The shared helpers of mod.rs.
@@ -75,7 +76,7 @@ pub fn fig22(o: &PaperOptions, pr: &dyn Progress) -> anyhow::Result<String> {
                 }
                 Some(hm) if !is_dda => {
                     let ce = CellEval::new(coords, v.cell, acc.vertices(v.cell));
-                    match crate::render::shade::find_hit_with(r, v, &ce, iso, hm, &params) {
+                    match crate::render::hit::find_hit_with(r, v, &ce, iso, hm, &params) {
                         Some(t) => {
                             found = Some(t);
                             Flow::Stop
