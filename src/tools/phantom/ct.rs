@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use crate::fsutil::FileSet;
 
-use crate::grid::MAX_SAMPLES_PER_AXIS;
 use crate::input::sidecar::{AxisSpec, SidecarOut};
 use crate::input::{Endian, Rescale};
 use crate::progress::Progress;
@@ -246,21 +245,7 @@ pub fn ct(
     progress: &dyn Progress,
 ) -> Result<CtInfo, PhantomError> {
     let dims = opts.dims;
-    for (k, &d) in dims.iter().enumerate() {
-        let name = ["x", "y", "z"][k];
-        if d < 2 {
-            return Err(PhantomError::option(
-                "dims",
-                format!("{d} samples along {name}, expected at least 2"),
-            ));
-        }
-        if d > MAX_SAMPLES_PER_AXIS {
-            return Err(PhantomError::option(
-                "dims",
-                format!("{d} samples along {name}, expected at most {MAX_SAMPLES_PER_AXIS}"),
-            ));
-        }
-    }
+    check_dims(dims)?;
     let (sample_bytes, dtype_name, rescale) = match opts.dtype {
         CtDtype::I16 => (2, "i16", None),
         CtDtype::U16 => (

@@ -182,6 +182,26 @@ impl Outputs {
     }
 }
 
+/// Refuses a volume with fewer than 2 or more than
+/// [`MAX_SAMPLES_PER_AXIS`](crate::grid::MAX_SAMPLES_PER_AXIS) samples along an axis (option `dims`).
+fn check_dims(dims: [usize; 3]) -> Result<(), PhantomError> {
+    use crate::grid::MAX_SAMPLES_PER_AXIS;
+    for (d, name) in dims.into_iter().zip(["x", "y", "z"]) {
+        let expected = if d < 2 {
+            "expected at least 2".to_string()
+        } else if d > MAX_SAMPLES_PER_AXIS {
+            format!("expected at most {MAX_SAMPLES_PER_AXIS}")
+        } else {
+            continue;
+        };
+        return Err(PhantomError::option(
+            "dims",
+            format!("{d} samples along {name}, {expected}"),
+        ));
+    }
+    Ok(())
+}
+
 /// Refuses slices larger than [`MAX_SLICE_BYTES`] (a batch is in memory)
 /// and volumes whose size overflows.
 fn check_slice_size(

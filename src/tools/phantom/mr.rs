@@ -17,7 +17,6 @@
 use std::path::{Path, PathBuf};
 
 use crate::fsutil::FileSet;
-use crate::grid::MAX_SAMPLES_PER_AXIS;
 use crate::input::sidecar::{AxisSpec, SidecarOut};
 use crate::input::Endian;
 use crate::progress::Progress;
@@ -470,15 +469,7 @@ pub fn mr(
     progress: &dyn Progress,
 ) -> Result<MrInfo, PhantomError> {
     let dims = opts.dims;
-    for (k, &d) in dims.iter().enumerate() {
-        let name = ["x", "y", "z"][k];
-        if !(2..=MAX_SAMPLES_PER_AXIS).contains(&d) {
-            return Err(PhantomError::option(
-                "dims",
-                format!("{d} samples along {name}, expected 2 ..= {MAX_SAMPLES_PER_AXIS}"),
-            ));
-        }
-    }
+    check_dims(dims)?;
     if !(opts.noise.is_finite() && (0.0..=1.0).contains(&opts.noise)) {
         return Err(PhantomError::option(
             "noise",
