@@ -20,7 +20,7 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughpu
 
 use cdvol::classify::Classification;
 use cdvol::format::reader::PackedVolume;
-use cdvol::render::cache::{Planes, RBrick};
+use cdvol::render::brick::{Planes, RBrick};
 
 fn volume(tmp: &tempfile::TempDir) -> PackedVolume {
     let path = match std::env::var_os("CDVOL_DECODE_FILE") {

@@ -28,8 +28,8 @@ use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::cache::{Accessor, BrickCache};
-use cdvol::render::camera::Camera;
 use cdvol::render::traverse::{trace, DistKind, Flow, Method, Ray, Real, TGrid};
+use cdvol::render::view::camera::Camera;
 use cdvol::tools::phantom;
 
 fn scene(dir: &std::path::Path, n: usize) -> PackedVolume {
@@ -164,7 +164,7 @@ fn bench(c: &mut Criterion) {
             [centre[0], lo[1] - 10.0, centre[2]],
             centre,
             [0.0, 0.0, 1.0],
-            cdvol::render::camera::Projection::Ortho {
+            cdvol::render::view::camera::Projection::Ortho {
                 frame_mm: hi[2] - lo[2],
             },
             250,

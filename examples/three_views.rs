@@ -20,9 +20,9 @@ use std::path::PathBuf;
 use cdvol::format::reader::PackedVolume;
 use cdvol::look::{resolve, Ask};
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::orbit_dirs;
-use cdvol::render::framing::{self, Framing};
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
+use cdvol::render::view::camera::orbit_dirs;
+use cdvol::render::view::framing::{self, Framing};
 use cdvol::render::{default_method, render, save, RenderOptions};
 
 fn main() -> Result<(), Box<dyn Error>> {

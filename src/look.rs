@@ -19,7 +19,7 @@ use crate::classify::TransferFunction;
 use crate::format::landmarks::Landmarks;
 use crate::format::{Header, ModalityRecord};
 use crate::presets::{Modality, Preset, PresetError};
-use crate::render::hit::HitMethod;
+use crate::render::sample::hit::HitMethod;
 use crate::render::{CompositeLook, Mode, Window};
 
 /// Why a preset cannot be used on a file.

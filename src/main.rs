@@ -243,9 +243,9 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             let parts = a
                 .parts
                 .iter()
-                .map(|p| cdvol::render::shard::Part::read(p))
+                .map(|p| cdvol::render::job::shard::Part::read(p))
                 .collect::<Result<Vec<_>, _>>()?;
-            let (frame, stats) = cdvol::render::shard::assemble(&parts, &a.parts)?;
+            let (frame, stats) = cdvol::render::job::shard::assemble(&parts, &a.parts)?;
             if frame.depth.is_some() {
                 check_outputs(&outputs(true)?, &a.parts, None)?;
             }

@@ -48,7 +48,7 @@ for name in ct phantom; do
     "$cdvol" render "$work/$name-tf.cdv" -o "$out/$name-composite.png" \
         --mode composite --tf "$tf" "${common[@]}"
     # Shaded, with smooth normals (the vertex gradients of every sampled
-    # cell, render/gradient.rs).
+    # cell, render/sample/normals.rs).
     "$cdvol" render "$work/$name-tf.cdv" -o "$out/$name-composite-shaded.png" \
         --mode composite --tf "$tf" --shade "${common[@]}"
     # Traversal cost maps (paper Fig. 17): steps per pixel of CD and of

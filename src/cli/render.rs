@@ -7,7 +7,7 @@ use clap::{Args, ValueEnum};
 
 use super::heading;
 
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::{Precision, ShardLayout};
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -246,9 +246,9 @@ pub struct RenderArgs {
     /// mm within a quarter of the width; `--scale-bar=MM` sets the length.
     #[arg(long, value_name = "MM", num_args = 0..=1, require_equals = true,
           default_missing_value = "auto",
-          value_parser = cdvol::render::scalebar::ScaleBar::parse,
+          value_parser = cdvol::render::output::scalebar::ScaleBar::parse,
           help_heading = heading::OUTPUT)]
-    pub scale_bar: Option<cdvol::render::scalebar::ScaleBar>,
+    pub scale_bar: Option<cdvol::render::output::scalebar::ScaleBar>,
     /// Write render statistics as JSON.
     #[arg(long, help_heading = heading::OUTPUT)]
     pub stats: Option<PathBuf>,

@@ -7,10 +7,10 @@ use clap::ValueEnum;
 use cdvol::classify::TransferFunction;
 use cdvol::format::reader::PackedVolume;
 use cdvol::look::{resolve, Ask, ModeKind, ResolveError};
-use cdvol::render::camera::CameraError;
-use cdvol::render::hit::HitParams;
 use cdvol::render::job::{CameraSpec, JobError, RenderJob, View};
+use cdvol::render::sample::hit::HitParams;
 use cdvol::render::traverse::{DistKind, Method};
+use cdvol::render::view::camera::CameraError;
 use cdvol::render::{default_method, CompositeLook, RenderError, RenderOptions, Shard, Window};
 
 use super::render::*;

@@ -347,7 +347,7 @@ pub const FLAG_NO_OBJECT: u32 = 2;
 /// Index flag bit 2 (format version 2): the entry's `value_max` holds the
 /// largest value of the brick, set by prep on every stored brick with
 /// 1-cells. A render at an iso value above it knows, without reading the
-/// brick, that none of its cells is a 1-cell of the scene (render/scene.rs).
+/// brick, that none of its cells is a 1-cell of the scene (render/brick/envelope.rs).
 pub const FLAG_VALUE_MAX: u32 = 4;
 
 impl IndexEntry {

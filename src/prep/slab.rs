@@ -98,7 +98,7 @@ pub(super) fn emit_slab<W: Word>(
     let max_code = enc.max_code();
     // Distances (code + 1) whose code is embedded: codes >= 1, or >= 2
     // with a gradient halo. Uniform bricks are unaffected: no sample a
-    // gradient reads lies only in one (gradient.rs).
+    // gradient reads lies only in one (render/sample/normals.rs).
     let embed_min: u8 = if h.gradient_halo { 3 } else { 2 };
     let n_cells_slice = ncx * ncy;
     // Sample words of slices z0..=z1, codes embedded (every word below is

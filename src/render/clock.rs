@@ -20,7 +20,7 @@
 
 use std::time::Instant;
 
-use super::cache::Accessor;
+use crate::render::cache::Accessor;
 
 /// One ray in this many is timed. Each reading of the tick counter costs
 /// about 26 ns on the virtual machines the benchmarks run on

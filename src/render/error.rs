@@ -1,5 +1,5 @@
 //! Why a render was refused or failed: the one error type of
-//! [`render`](super::render), [`render_part`](super::render_part) and the
+//! [`render`](crate::render::render), [`render_part`](crate::render::render_part) and the
 //! template renderer. Messages name fields and values, never CLI flags;
 //! the CLI adds its flag names when it reports them.
 
@@ -17,7 +17,7 @@ pub enum RenderError {
     #[error("{}: {msg}", path.display())]
     Incompatible { path: PathBuf, msg: String },
     /// An option out of range: `field` is its name in
-    /// [`RenderOptions`](super::RenderOptions) or the camera (`tile`,
+    /// [`RenderOptions`](crate::render::RenderOptions) or the camera (`tile`,
     /// `step_mm`, `newton_tol`, `width x height`, `shard`).
     #[error("{field} {value}, expected {expected}")]
     Option {

@@ -6,12 +6,11 @@
 use crate::classify::{Classification, TransferFunction};
 use crate::format::reader::PackedVolume;
 
-use super::cache;
-use super::camera::Camera;
-use super::error::RenderError;
-use super::gradient::Normals;
-use super::hit::{HitMethod, HitParams};
-use super::traverse::Method;
+use crate::render::brick;
+use crate::render::error::RenderError;
+use crate::render::sample::hit::{HitMethod, HitParams};
+use crate::render::sample::normals::Normals;
+use crate::render::traverse::Method;
 
 /// Smallest composite sample distance.
 pub const MIN_STEP_MM: f64 = 1e-4;
@@ -64,7 +63,7 @@ pub struct RenderOptions {
     /// CD leaves a brick without 1-cells unread when its smallest code is
     /// at least this (255: read every brick CD enters); `None` leaves it
     /// to each frame, by how densely its rays cross the bricks
-    /// ([`lazy_min_for`](super::lazy_min_for)).
+    /// ([`lazy_min_for`](crate::render::lazy_min_for)).
     pub cd_lazy_min: Option<u8>,
     /// Arithmetic of the traversal (f64 by default; see docs/TRADEOFFS.md).
     pub precision: Precision,
@@ -90,18 +89,18 @@ pub struct RenderOptions {
     pub normals: Normals,
     /// The scene's iso value (`render --iso`) for surface, depth, cost and
     /// MIP, when it is not the file's own: it must lie inside the file's
-    /// classification, the envelope (render/scene.rs); `None` renders the
+    /// classification, the envelope (render/brick/envelope.rs); `None` renders the
     /// file's iso value.
     pub iso: Option<f64>,
     /// Keep the frame's colour before rounding to 8 bits
-    /// ([`Frame::linear`](super::Frame::linear), 16 bytes a pixel), which
+    /// ([`Frame::linear`](crate::render::Frame::linear), 16 bytes a pixel), which
     /// 16-bit and float outputs need. Off by default: the frame then
     /// carries its 8-bit planes only, and a 1024^2 frame writes 16 MB less
     /// of fresh memory (docs/BENCHMARKS.md, "Per-frame memory"). A
-    /// [`RenderJob`](super::job::RenderJob) turns it on for its `--bit-depth`.
+    /// [`RenderJob`](crate::render::job::RenderJob) turns it on for its `--bit-depth`.
     pub unrounded: bool,
     /// Leave untraced the pixels whose rays can meet no 1-cell, judged
-    /// from the brick index (render/cull.rs): the same image, fewer rays
+    /// from the brick index (render/view/cull.rs): the same image, fewer rays
     /// and bricks. On by default; the cost map always traces every ray.
     pub cull: bool,
 }
@@ -120,7 +119,7 @@ pub const EARLY_STOP: f64 = 0.99;
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CompositeLook {
     /// Light each sample with the surface mode's headlight model
-    /// ([`shade`](super::shade::shade): ambient 0.12, diffuse 0.75,
+    /// ([`shade`](crate::render::sample::shade::shade): ambient 0.12, diffuse 0.75,
     /// specular 0.25 with exponent 32), the normal from the gradient.
     #[serde(default)]
     pub shade: bool,
@@ -305,8 +304,8 @@ fn bad(field: &'static str, value: String, expected: String) -> RenderError {
 }
 
 /// Checks the options every renderer shares: Newton's tolerance and the
-/// image size.
-pub(crate) fn check_tol_and_size(opts: &RenderOptions, camera: &Camera) -> Result<(), RenderError> {
+/// image size (`[width, height]` in pixels).
+pub(crate) fn check_tol_and_size(opts: &RenderOptions, size: [u32; 2]) -> Result<(), RenderError> {
     let tol = opts.hit_params.newton_tol;
     if !(0.0..1.0).contains(&tol) {
         return Err(bad(
@@ -330,11 +329,12 @@ pub(crate) fn check_tol_and_size(opts: &RenderOptions, camera: &Camera) -> Resul
             ));
         }
     }
-    let pixels = camera.width as u64 * camera.height as u64;
+    let [width, height] = size;
+    let pixels = width as u64 * height as u64;
     if pixels > MAX_PIXELS {
         return Err(bad(
             "width x height",
-            format!("{} x {} = {pixels} pixels", camera.width, camera.height),
+            format!("{width} x {height} = {pixels} pixels"),
             format!("at most {MAX_PIXELS}"),
         ));
     }
@@ -347,7 +347,7 @@ pub(crate) fn check_tol_and_size(opts: &RenderOptions, camera: &Camera) -> Resul
 /// codes and the grid it walks.
 pub(crate) fn check_render(
     vol: &PackedVolume,
-    camera: &Camera,
+    size: [u32; 2],
     opts: &RenderOptions,
 ) -> Result<(), RenderError> {
     check_mode(vol, &opts.mode, opts.iso)?;
@@ -365,7 +365,7 @@ pub(crate) fn check_render(
             ));
         }
     }
-    check_tol_and_size(opts, camera)?;
+    check_tol_and_size(opts, size)?;
     if !(opts.early_stop > 0.0 && opts.early_stop <= 1.0) {
         return Err(bad(
             "early_stop",
@@ -491,13 +491,13 @@ pub(crate) fn check_mode(
 }
 
 /// The iso value a render with `opts` draws surfaces at, as the samplers
-/// compare it ([`to_f32`](super::cache::to_f32) like the stored values):
+/// compare it ([`to_f32`](crate::render::brick::to_f32) like the stored values):
 /// `opts.iso`, else the file's; NaN for a file classified by a transfer
 /// function without `opts.iso`.
 pub(crate) fn scene_iso(h: &crate::format::Header, opts: &RenderOptions) -> f64 {
     match (opts.iso, &h.classification) {
-        (Some(v), _) => cache::to_f32(v) as f64,
-        (None, Classification::Iso { iso }) => cache::to_f32(*iso) as f64,
+        (Some(v), _) => brick::to_f32(v) as f64,
+        (None, Classification::Iso { iso }) => brick::to_f32(*iso) as f64,
         (None, _) => f64::NAN,
     }
 }
@@ -508,8 +508,8 @@ pub(crate) fn scene_iso(h: &crate::format::Header, opts: &RenderOptions) -> f64 
 pub(crate) fn narrowing(h: &crate::format::Header, opts: &RenderOptions) -> Option<f32> {
     let v = opts.iso?;
     match &h.classification {
-        Classification::Iso { iso } if cache::to_f32(*iso) == cache::to_f32(v) => None,
-        _ => Some(cache::to_f32(v)),
+        Classification::Iso { iso } if brick::to_f32(*iso) == brick::to_f32(v) => None,
+        _ => Some(brick::to_f32(v)),
     }
 }
 

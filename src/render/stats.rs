@@ -4,9 +4,9 @@
 
 use std::time::Instant;
 
-use super::cache::{BrickCache, CacheCounters};
-use super::options::RenderOptions;
-use super::traverse::StepCounts;
+use crate::render::cache::{BrickCache, CacheCounters};
+use crate::render::options::RenderOptions;
+use crate::render::traverse::StepCounts;
 
 /// Counters of a render (the `--stats` contract).
 #[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize)]
@@ -17,7 +17,7 @@ pub struct Stats {
     pub cell_steps: u64,
     pub hits: u64,
     /// Rays left untraced because no brick with 1-cells projects onto
-    /// their pixel (render/cull.rs); counted in `rays`, not in `steps`.
+    /// their pixel (render/view/cull.rs); counted in `rays`, not in `steps`.
     #[serde(default)]
     pub rays_culled: u64,
     /// Brick payloads read and decoded into the cache (a brick evicted
@@ -31,7 +31,7 @@ pub struct Stats {
     /// Bricks without 1-cells the traversal crossed without reading them.
     pub bricks_skipped: u64,
     /// Bricks without 1-cells read again, with their values, for the
-    /// smooth normals of hits next to them (render/gradient.rs, "Which
+    /// smooth normals of hits next to them (render/sample/normals.rs, "Which
     /// brick a sample is read from"); not in `bricks_read` or
     /// `bricks_distinct`, but their bytes and seconds are in
     /// `bytes_decompressed` and `seconds_decode`.
@@ -82,11 +82,11 @@ pub struct Stats {
     pub huge_pages: u64,
     #[serde(default)]
     pub huge_pages_slow: u64,
-    /// The traversal's stable name ([`Method::name`](super::traverse::Method::name):
+    /// The traversal's stable name ([`Method::name`](crate::render::traverse::Method::name):
     /// `cd`, `cd min_leap=3`, `fvt`, `dda-chamfer no_switch`, ...; the
     /// template renderer prefixes `template `).
     pub traversal: String,
-    /// [`Mode::name`](super::Mode::name).
+    /// [`Mode::name`](crate::render::Mode::name).
     pub mode: String,
     pub width: u32,
     pub height: u32,
@@ -95,7 +95,7 @@ pub struct Stats {
 impl Stats {
     /// The counters of a render with `opts` through `cache`, started at
     /// `t0`; `width` and `height` are the caller's to fill, and `traversal`
-    /// is [`Method::name`](super::traverse::Method::name) of `opts.method`.
+    /// is [`Method::name`](crate::render::traverse::Method::name) of `opts.method`.
     pub(crate) fn counted(
         rays: u64,
         hits: u64,
@@ -137,9 +137,9 @@ impl Stats {
         }
     }
 
-    /// The kernel's share since `k0` ([`KernelUse`](super::clock::KernelUse)).
-    pub(crate) fn set_kernel(&mut self, k0: super::clock::KernelUse) {
-        let k = super::clock::KernelUse::since(k0);
+    /// The kernel's share since `k0` ([`KernelUse`](crate::render::clock::KernelUse)).
+    pub(crate) fn set_kernel(&mut self, k0: crate::render::clock::KernelUse) {
+        let k = crate::render::clock::KernelUse::since(k0);
         self.seconds_system = k.seconds_system;
         self.page_faults = k.page_faults;
         self.huge_pages = k.huge_pages;

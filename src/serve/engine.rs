@@ -10,7 +10,7 @@
 //! images being sent.
 //!
 //! **One cache.** A brick cache is built for a scene: the file, and the
-//! iso value a render-time `iso` narrows the bricks to (render/scene.rs),
+//! iso value a render-time `iso` narrows the bricks to (render/brick/envelope.rs),
 //! which decides the planes its bricks hold. While requests ask for the
 //! same scene they share it; a request for another scene drops it and
 //! builds the new scene's cache with the whole budget (docs/SERVE.md).
@@ -30,7 +30,8 @@ use std::time::Instant;
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 use crate::progress::NoProgress;
-use crate::render::cache::{to_f32, BrickCache};
+use crate::render::brick::to_f32;
+use crate::render::cache::BrickCache;
 use crate::render::{render_in_until, Frame, RenderError};
 
 use super::request::{Encoding, RequestError, ViewRequest};
@@ -129,7 +130,7 @@ pub struct Counters {
 /// The scene a cache is built for: the file, the scene's iso value (f32
 /// bits, as the cache narrows bricks to it), and whether its bricks carry
 /// the shaded composite's gradient plane
-/// ([`gradient_plane`](crate::render::policy::gradient_plane)).
+/// ([`gradient_plane`](crate::render::gradient_plane)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct SceneKey {
     file: usize,
@@ -195,7 +196,7 @@ impl<'v> Engine<'v> {
         req: &ViewRequest,
         vol: &'v PackedVolume,
         opts: &crate::render::RenderOptions,
-        camera: &crate::render::camera::Camera,
+        camera: &crate::render::view::camera::Camera,
         stop: &AtomicBool,
         command: String,
     ) -> Result<Rendered, Failure> {
@@ -211,18 +212,15 @@ impl<'v> Engine<'v> {
         let key = SceneKey {
             file: req.file,
             iso_bits: opts.iso.map(|v| to_f32(v).to_bits()),
-            grads: crate::render::policy::gradient_plane(opts),
+            grads: crate::render::gradient_plane(opts),
         };
         let new_cache = slot.as_ref().is_none_or(|(k, _)| *k != key);
         if new_cache {
             // Free the old scene's bricks before the new ones come in.
             *slot = None;
             // Later views cull by the sub-blocks of the bricks earlier
-            // ones decoded (render/cull.rs).
-            *slot = Some((
-                key,
-                crate::render::policy::cache_for(vol, opts).with_occupancy(),
-            ));
+            // ones decoded (render/view/cull.rs).
+            *slot = Some((key, crate::render::cache_for(vol, opts).with_occupancy()));
         }
         let Some((_, cache)) = slot.as_ref() else {
             return Err(cancelled());
@@ -248,8 +246,8 @@ impl<'v> Engine<'v> {
             width: frame.width,
             height: frame.height,
             frame_mm: match camera.projection {
-                crate::render::camera::Projection::Ortho { frame_mm } => Some(frame_mm),
-                crate::render::camera::Projection::Persp { .. } => None,
+                crate::render::view::camera::Projection::Ortho { frame_mm } => Some(frame_mm),
+                crate::render::view::camera::Projection::Persp { .. } => None,
             },
             seconds_render,
             seconds_encode: t1.elapsed().as_secs_f64(),

@@ -10,10 +10,10 @@
 use crate::format::reader::PackedVolume;
 use crate::format::Header;
 use crate::orient::NamedView;
-use crate::render::camera::Camera;
-use crate::render::hit::HitMethod;
 use crate::render::job::{CameraSpec, View};
+use crate::render::sample::hit::HitMethod;
 use crate::render::traverse::TGrid;
+use crate::render::view::camera::Camera;
 use crate::render::{RenderOptions, Window};
 
 /// Largest image edge the server renders: a frame then needs at most
@@ -101,7 +101,7 @@ pub struct ViewRequest {
     pub az_deg: f64,
     pub el_deg: f64,
     /// Orthographic frame height (zoom), mm; `None`: the object fits
-    /// (render/framing.rs).
+    /// (render/view/framing.rs).
     pub frame_mm: Option<f64>,
     /// Pan in mm along the image's right and up.
     pub pan_mm: Option<[f64; 2]>,
@@ -305,8 +305,8 @@ impl ViewRequest {
             .sqrt();
         let target = eye + cam.forward * dist;
         let frame = match cam.projection {
-            crate::render::camera::Projection::Ortho { frame_mm } => frame_mm,
-            crate::render::camera::Projection::Persp { .. } => dist,
+            crate::render::view::camera::Projection::Ortho { frame_mm } => frame_mm,
+            crate::render::view::camera::Projection::Persp { .. } => dist,
         };
         Ok(CameraSpec {
             view: View::LookAt {
@@ -342,7 +342,7 @@ impl ViewRequest {
     }
 
     /// `spec` placed against `vol`, framing this request's scene as
-    /// `cdvol render` does (render/framing.rs).
+    /// `cdvol render` does (render/view/framing.rs).
     pub fn place(&self, vol: &PackedVolume, spec: &CameraSpec) -> Result<Camera, RequestError> {
         let orientation = vol.header().orientation.as_ref();
         spec.framing(vol, &self.options(vol.header(), 0)?, 1, 0.0, orientation)

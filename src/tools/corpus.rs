@@ -10,7 +10,7 @@
 //! path is covered by tests/all/traverse.rs and tests/all/extremes.rs.
 
 use crate::grid::{Axis, MAX_SAMPLES_PER_AXIS};
-use crate::render::cache::OBJECT;
+use crate::render::traverse::OBJECT;
 use crate::render::traverse::{trace, CodeSource, DistKind, Flow, Method, Ray, Real, TGrid, Visit};
 
 /// Largest code the in-memory volume stores (the format's cap, docs/FORMAT.md).

@@ -4,18 +4,19 @@
 //! does not mix into normal error), and at the hit the angle between the
 //! estimated outward normal and the radial direction of the nearest
 //! analytic sphere, for the cell interpolant's gradient and for the smooth
-//! gradient ([`crate::render::gradient`]).
+//! gradient ([`crate::render::sample::normals`]).
 
 use glam::DVec3;
 
 use crate::classify::Classification;
 use crate::format::reader::PackedVolume;
-use crate::render::cache::{to_f32, Accessor, BrickCache};
-use crate::render::camera::Camera;
-use crate::render::gradient::vertex_gradients;
-use crate::render::hit::{find_hit, HitMethod};
-use crate::render::shade::{at, CellEval};
+use crate::render::brick::to_f32;
+use crate::render::cache::{Accessor, BrickCache};
+use crate::render::sample::hit::{find_hit, HitMethod};
+use crate::render::sample::normals::vertex_gradients;
+use crate::render::sample::shade::{at, CellEval};
 use crate::render::traverse::{trace, Flow, Method, TGrid};
+use crate::render::view::camera::Camera;
 
 use super::phantom::Sphere;
 
@@ -224,7 +225,7 @@ pub fn time_gradients(
 
 #[cfg(test)]
 mod tests {
-    /// `cell_gradients` (render/gradient.rs) equals [`vertex_gradients`]
+    /// `cell_gradients` (render/sample/normals.rs) equals [`vertex_gradients`]
     /// (in f32) bit for bit on every 1-cell and its 0-cell neighbours of a
     /// rectilinear sphere scene, read from bricks with the gradient plane,
     /// in two passes. Bricks of 8 cells, so most cells touch a brick
@@ -237,8 +238,9 @@ mod tests {
         use crate::input::raw::RawSource;
         use crate::prep::{prep, PrepOptions};
         use crate::progress::NoProgress;
-        use crate::render::cache::{Accessor, BrickCache, Planes};
-        use crate::render::gradient::{cell_gradients, vertex_gradients};
+        use crate::render::brick::Planes;
+        use crate::render::cache::{Accessor, BrickCache};
+        use crate::render::sample::normals::{cell_gradients, vertex_gradients};
         use crate::tools::phantom;
         let dir = tempfile::tempdir().unwrap();
         let side = dir.path().join("s.json");

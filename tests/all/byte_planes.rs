@@ -12,7 +12,7 @@ use crate::common::{self, cdvol, fails, ok, write_stack};
 use cdvol::format::reader::PackedVolume;
 use cdvol::format::{planes, BYTE_PLANES_VERSION, FORMAT_VERSION};
 use cdvol::progress::NoProgress;
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::traverse::Method;
 use cdvol::render::{render, Mode};
 

@@ -13,9 +13,9 @@ use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::format::reader::PackedVolume;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::Camera;
-use cdvol::render::lut::exact_sample;
+use cdvol::render::sample::lut::exact_sample;
 use cdvol::render::traverse::Method;
+use cdvol::render::view::camera::Camera;
 use cdvol::render::{render, render_in, Frame, Mode, Precision, RenderOptions, Window};
 
 /// A transfer function transparent below 40 and above 180, coloured so
@@ -426,7 +426,7 @@ proptest! {
             }
         }
         let o = with(opts(Method::Cd { min_leap: 1 }, Precision::F32, step), true);
-        let cache = cdvol::render::policy::cache_for(&vol, &o);
+        let cache = cdvol::render::cache_for(&vol, &o);
         let frame = || render_in(&vol, &cache, &cam, &o, &NoProgress).unwrap().0;
         let (cold, warm) = (frame(), frame());
         prop_assert!(cold.rgb == warm.rgb, "a second frame differs from the first");

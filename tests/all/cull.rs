@@ -1,4 +1,4 @@
-//! Culling by the brick index (render/cull.rs) leaves untraced only pixels
+//! Culling by the brick index (render/view/cull.rs) leaves untraced only pixels
 //! whose rays meet no 1-cell: the culled render is the traced one, image
 //! and depth bit for bit, on random sparse volumes with rectilinear axes,
 //! random bricks, orthographic and perspective cameras from any side,
@@ -15,9 +15,9 @@ use crate::common::{self, write_stack};
 use cdvol::classify::{TfPoint, TransferFunction};
 use cdvol::format::reader::PackedVolume;
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::{Camera, Projection};
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::traverse::{Method, TGrid};
+use cdvol::render::view::camera::{Camera, Projection};
 use cdvol::render::{render, render_in, Frame, Mode, Stats};
 
 fn tf() -> TransferFunction {
@@ -98,7 +98,7 @@ fn draw_twice(
         iso,
         ..common::test_opts(mode.clone(), method)
     };
-    let cache = cdvol::render::policy::cache_for(vol, &o).with_occupancy();
+    let cache = cdvol::render::cache_for(vol, &o).with_occupancy();
     let run = || {
         render_in(vol, &cache, cam, &o, &NoProgress)
             .unwrap_or_else(|e| panic!("{mode:?} {method:?}: {e}"))
@@ -130,7 +130,7 @@ fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
             prop_assert_eq!(sc.hits, st.hits);
             prop_assert_eq!(st.rays_culled, 0);
             // A traced pixel's ray starts where the cover says no 1-cell
-            // can begin before (render/cull.rs, `Cover::start`): FVT, one
+            // can begin before (render/view/cull.rs, `Cover::start`): FVT, one
             // cell at a time, takes at most the steps it takes from the
             // volume's entry. (CD and the octree leap from wherever they
             // start, so theirs may differ either way by a few; the image
@@ -180,7 +180,7 @@ fn check(vol: &PackedVolume, cam: &Camera) -> Result<u64, TestCaseError> {
             prop_assert_eq!(s2.hits, st.hits);
         }
     }
-    // A narrowed scene (render/scene.rs) culls also the bricks whose
+    // A narrowed scene (render/brick/envelope.rs) culls also the bricks whose
     // index maximum lies below its iso value.
     for mode in [
         Mode::Mip,

@@ -63,9 +63,9 @@ use cdvol::input::raw::RawSource;
 use cdvol::input::Dtype;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::{Camera, Projection};
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::traverse::{Method, Ray, TGrid};
+use cdvol::render::view::camera::{Camera, Projection};
 use cdvol::render::{render, Frame, Mode, RenderOptions, Stats};
 
 const TOL_REL: f64 = 1e-9;

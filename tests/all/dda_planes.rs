@@ -12,7 +12,7 @@ use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::cache::{Accessor, BrickCache};
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::traverse::{CodeSource, DistKind, Method};
 use cdvol::render::{render, Mode, RenderOptions};
 use proptest::prelude::*;

@@ -1,4 +1,4 @@
-//! The default frame (render/framing.rs, issue 51 item 6): a view without
+//! The default frame (render/view/framing.rs, issue 51 item 6): a view without
 //! `--frame` fits the box of the scene's 1-cells, centred, so the object
 //! fills 80-95 % of the image along the side that binds it (the frame is
 //! the box's projection plus 5 % a side: 91 % for a view along an axis).
@@ -12,10 +12,10 @@
 use std::path::Path;
 
 use cdvol::format::reader::{CellClass, PackedVolume, Sample};
-use cdvol::render::camera::{orbit_dirs, Camera, Projection};
-use cdvol::render::framing::{object_box, Framing, MmBox};
 use cdvol::render::job::{CameraSpec, View};
 use cdvol::render::traverse::{Method, TGrid};
+use cdvol::render::view::camera::{orbit_dirs, Camera, Projection};
+use cdvol::render::view::framing::{object_box, Framing, MmBox};
 use cdvol::render::{Mode, RenderOptions};
 
 use crate::common::*;
@@ -82,7 +82,7 @@ fn small_ball(dir: &Path) -> std::path::PathBuf {
 }
 
 /// The box of the 1-cells of `vol` (with a vertex at or above `iso` when
-/// given, in f32 as render/scene.rs compares), by reading every brick: the
+/// given, in f32 as render/brick/envelope.rs compares), by reading every brick: the
 /// oracle of [`object_box`].
 fn brute_box(vol: &PackedVolume, iso: Option<f64>) -> Option<MmBox> {
     let h = vol.header();
@@ -126,7 +126,7 @@ fn surface(iso: Option<f64>) -> RenderOptions {
         iso,
         ..RenderOptions::new(
             Mode::Surface {
-                hit: cdvol::render::hit::HitMethod::Int,
+                hit: cdvol::render::sample::hit::HitMethod::Int,
                 shadows: false,
             },
             Method::Cd { min_leap: 1 },

@@ -8,13 +8,13 @@
 //! - not black: the mean grey level (over black) is at least [`FLOOR`];
 //! - not saturated: at most [`WHITE`] of them are white (every channel at
 //!   least 250);
-//! - no wood grain (composites): [`cdvol::render::grain::grain`] of the
+//! - no wood grain (composites): [`cdvol::render::output::grain::grain`] of the
 //!   render at step 0.5 mm against one at 0.125 mm is at most [`GRAIN`].
 
 use std::path::{Path, PathBuf};
 
 use cdvol::format::reader::PackedVolume;
-use cdvol::render::grain::{grain, Image};
+use cdvol::render::output::grain::{grain, Image};
 
 use crate::common::{cdvol, ok};
 

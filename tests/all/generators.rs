@@ -9,10 +9,10 @@ use crate::common::{self, orbit, packed_with};
 
 use cdvol::format::reader::PackedVolume;
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::Camera;
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::template::render_template;
 use cdvol::render::traverse::{DistKind, Method};
+use cdvol::render::view::camera::Camera;
 use cdvol::render::{render, Frame, Mode, RenderError, RenderOptions};
 use cdvol::tools::phantom;
 

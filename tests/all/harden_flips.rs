@@ -15,7 +15,7 @@ use std::path::Path;
 use cdvol::format::reader::PackedVolume;
 use cdvol::format::FOOTER_LEN;
 use cdvol::progress::NoProgress;
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::traverse::Method;
 use cdvol::render::{render, Frame, Mode, RenderOptions};
 use cdvol::tools::phantom;

@@ -125,6 +125,23 @@ const RULES: &[(&str, &[&str])] = &[
     ),
 ];
 
+/// The stages of `src/render/`, in order (docs/DESIGN.md, `render/`): a
+/// file of one may import only its own and earlier ones. The frame's
+/// settings and counters (options, stats, clock, error) are one stage, the
+/// first that knows a frame's options.
+const RENDER_STAGES: &[&[&str]] = &[
+    &["traverse"],
+    &["brick"],
+    &["cache"],
+    &["sample"],
+    &["options", "stats", "clock", "error"],
+    &["view"],
+    &["integrate"],
+    &["output"],
+    &["template"],
+    &["job"],
+];
+
 /// Files of the library proper (not tools/, not the binary).
 fn is_library(rel: &str) -> bool {
     !(rel.starts_with("tools/") || rel.starts_with("cli/") || matches!(rel, "main.rs" | "demo.rs"))
@@ -254,7 +271,7 @@ fn no_source_file_is_over_800_lines() {
 }
 
 /// The module of a source file under `src/` (`render/cache/mod.rs` ->
-/// `render::cache`, `render/hit.rs` -> `render::hit`).
+/// `render::cache`, `render/sample/hit.rs` -> `render::hit`).
 fn module_of(rel: &str) -> Vec<String> {
     let mut parts: Vec<String> = rel
         .trim_end_matches(".rs")
@@ -328,12 +345,8 @@ fn named_modules(line: &str, here: &[String], modules: &[Vec<String>]) -> Vec<Ve
 /// No two modules of `src/` import each other, directly or round a
 /// circle (issue 52). A child naming its parent is not counted (the
 /// parent declares it; what the parent re-exports from another child is
-/// then not seen); a parent naming a child is. One circle is known and left
-/// for the brick stage of issue 52's item 1: the decoded brick
-/// (`render::cache::brick`) calls envelope narrowing, the transfer
-/// function's cell classes and the gradient planes, which take the brick
-/// and the accessor from `render::cache`. A new circle, or this one
-/// grown, fails here with its modules named.
+/// then not seen); a parent naming a child is. A circle fails here with
+/// its modules named.
 #[test]
 fn no_import_circles() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
@@ -416,13 +429,6 @@ fn no_import_circles() {
             visit(&mut t, v);
         }
     }
-    let known = [
-        "render::cache",
-        "render::cache::brick",
-        "render::scene",
-        "render::tf_cells",
-        "render::gradient",
-    ];
     let circles: Vec<Vec<String>> = t
         .out
         .iter()
@@ -432,10 +438,93 @@ fn no_import_circles() {
             names.sort();
             names
         })
-        .filter(|c| !c.iter().all(|m| known.contains(&m.as_str())))
         .collect();
     assert!(
         circles.is_empty(),
         "modules that import each other: {circles:?}"
     );
+}
+
+/// The rank of a module's stage in [`RENDER_STAGES`] (`render::cache::held`
+/// -> 2), or None outside `render`'s stages (and for `render` itself).
+fn render_stage(module: &[String]) -> Option<usize> {
+    match module {
+        [r, stage, ..] if r == "render" => RENDER_STAGES
+            .iter()
+            .position(|s| s.contains(&stage.as_str())),
+        _ => None,
+    }
+}
+
+/// Each stage of `src/render/` imports only its own and earlier stages
+/// (issue 52): a file that names a later stage fails here with both files
+/// named. `render/mod.rs`, the hub that re-exports the public names, is
+/// not a stage.
+#[test]
+fn render_stages_import_one_way() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let files: Vec<(String, Vec<String>)> = rust_files(&src)
+        .into_iter()
+        .map(|f| {
+            let rel = f
+                .strip_prefix(&src)
+                .unwrap()
+                .to_string_lossy()
+                .replace('\\', "/");
+            let m = module_of(&rel);
+            (rel, m)
+        })
+        .collect();
+    let modules: Vec<Vec<String>> = files.iter().map(|(_, m)| m.clone()).collect();
+    let file_of = |m: &Vec<String>| {
+        files
+            .iter()
+            .find(|(_, x)| x == m)
+            .map_or_else(|| m.join("::"), |(rel, _)| format!("src/{rel}"))
+    };
+    let mut bad = Vec::new();
+    for (rel, here) in &files {
+        let Some(rank) = render_stage(here) else {
+            continue;
+        };
+        for (n, line) in code_lines(&src.join(rel)) {
+            for m in named_modules(&line, here, &modules) {
+                if render_stage(&m).is_some_and(|r| r > rank) {
+                    bad.push(format!(
+                        "src/{rel}:{n} ({}) imports {} ({}): {line}",
+                        RENDER_STAGES[rank].join("/"),
+                        file_of(&m),
+                        RENDER_STAGES[render_stage(&m).unwrap()].join("/"),
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "render stages importing later ones (docs/DESIGN.md, render/):\n{}",
+        bad.join("\n")
+    );
+}
+
+/// The stage check sees a later stage named through `super::` as well as
+/// through `crate::`, and maps each module to its stage.
+#[test]
+fn the_stage_check_resolves_paths() {
+    let m = |s: &str| s.split("::").map(String::from).collect::<Vec<_>>();
+    let modules = vec![
+        m("render"),
+        m("render::brick"),
+        m("render::brick::decode"),
+        m("render::cache"),
+        m("render::job"),
+    ];
+    let here = m("render::brick::decode");
+    let named = named_modules("use super::super::cache::Accessor;", &here, &modules);
+    assert_eq!(named, vec![m("render::cache")]);
+    assert!(render_stage(&named[0]) > render_stage(&here));
+    let named = named_modules("let j = crate::render::job::run(x);", &here, &modules);
+    assert_eq!(render_stage(&named[0]), Some(RENDER_STAGES.len() - 1));
+    assert_eq!(render_stage(&m("render")), None);
+    assert_eq!(render_stage(&m("format::brick")), None);
 }

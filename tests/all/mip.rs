@@ -11,8 +11,8 @@ use proptest::prelude::*;
 
 use crate::common::{self, write_stack};
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::Camera;
 use cdvol::render::traverse::{Method, Ray, TGrid};
+use cdvol::render::view::camera::Camera;
 use cdvol::render::{render, Mode};
 
 const ISO: f64 = 50.0;

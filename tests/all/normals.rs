@@ -1,4 +1,4 @@
-//! Smooth shading normals (issue 15; src/render/gradient.rs) and the
+//! Smooth shading normals (issue 15; src/render/sample/normals.rs) and the
 //! gradient halo (`prep --gradient-halo`, docs/FORMAT.md):
 //!
 //! - an oracle: on random rectilinear volumes, the vertex gradients read
@@ -22,8 +22,8 @@ use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
 use cdvol::render::cache::{Accessor, BrickCache};
-use cdvol::render::gradient::{vertex_gradients, vertex_gradients_uncached};
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
+use cdvol::render::sample::normals::{vertex_gradients, vertex_gradients_uncached};
 use cdvol::render::traverse::Method;
 use cdvol::render::{render, Mode, Normals};
 use cdvol::tools::normals::{sphere_normal_errors, summary};
@@ -178,7 +178,7 @@ fn check_file(
                 let want = brute_force(values, xs, cell, &avail);
                 let got = vertex_gradients(&mut acc, coords, cell.map(|c| c as u32));
                 // Asked again, the thread's memo of vertex gradients
-                // answers (render/gradient.rs): the same, field by field.
+                // answers (render/sample/normals.rs): the same, field by field.
                 let again = vertex_gradients(&mut acc, coords, cell.map(|c| c as u32));
                 prop_assert_eq!(again, got, "cell {:?}: the memo's answer", cell);
                 for (v, (gv, wv)) in got.g.iter().zip(&want).enumerate() {
@@ -201,8 +201,8 @@ fn check_file(
     // The memo against the computation, bit for bit, with the 1-cells
     // taken in the other order: a vertex on a brick face is then often
     // in the memo from a cell of the other brick, whose samples there may
-    // differ (render/gradient.rs, "Which brick a sample is read from").
-    let bits = |g: &cdvol::render::gradient::VertexGradients| {
+    // differ (render/sample/normals.rs, "Which brick a sample is read from").
+    let bits = |g: &cdvol::render::sample::normals::VertexGradients| {
         (g.g.map(|v| v.to_array().map(f64::to_bits)), g.one_sided)
     };
     for z in (0..cells[2]).rev() {
@@ -256,7 +256,7 @@ proptest! {
     /// smooth normals and shadows (at the file's iso value and narrowed
     /// to a higher one), and byte-identical shaded composites sampled
     /// one at a time, from a random view. Before bricks without 1-cells
-    /// were read for their values at faces (render/gradient.rs), normals
+    /// were read for their values at faces (render/sample/normals.rs), normals
     /// at brick faces could go one-sided in one layout and not in
     /// another. The composite's sample batches (the default) end at
     /// brick faces and find a sample's cell by its position, so a sample
@@ -468,7 +468,7 @@ fn cli_flags() {
     }
 }
 
-/// Which brick a shared sample is read from (src/render/gradient.rs,
+/// Which brick a shared sample is read from (src/render/sample/normals.rs,
 /// "Which brick a sample is read from"): a sample on a brick's face is
 /// stored in both bricks with the same word, but a brick without 1-cells
 /// is held without values (decoded for its codes only), so its copy of a

@@ -17,7 +17,7 @@ const S: f64 = 2.0;
 const LO: [f64; 3] = [-50.0, -50.0, -60.0];
 const HI: [f64; 3] = [50.0, 50.0, 60.0];
 /// Image size, and the frame in mm (2 mm a pixel; views centre on the
-/// object's box, render/framing.rs, and [`mask`] moves the patient origin,
+/// object's box, render/view/framing.rs, and [`mask`] moves the patient origin,
 /// the volume's centre, to the image's centre).
 const PX: u32 = 80;
 const FRAME: f64 = 160.0;
@@ -278,7 +278,7 @@ fn origin_px(vol: &Path, view: Option<&str>) -> [i64; 2] {
     };
     let opts = cdvol::render::RenderOptions::new(
         cdvol::render::Mode::Surface {
-            hit: cdvol::render::hit::HitMethod::Int,
+            hit: cdvol::render::sample::hit::HitMethod::Int,
             shadows: false,
         },
         cdvol::render::traverse::Method::Cd { min_leap: 1 },

@@ -9,9 +9,9 @@ use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::Camera;
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::traverse::Method;
+use cdvol::render::view::camera::Camera;
 use cdvol::render::{
     lazy_min_for, render, render_in, Frame, Mode, RenderOptions, Stats, LAZY_MIN_CODE_SPARSE,
 };
@@ -281,7 +281,7 @@ fn same_image_whatever_cache_threads_and_tiles() {
     // Frames sharing one cache (turntables): the same image, and a second
     // frame of the same view reads nothing; a small shared cache re-reads.
     for o in [&big, &small] {
-        let shared = cdvol::render::policy::cache_for(&vol, o);
+        let shared = cdvol::render::cache_for(&vol, o);
         let (f1, s1) = render_in(&vol, &shared, &c, o, &NoProgress).unwrap();
         let (f2, s2) = render_in(&vol, &shared, &c, o, &NoProgress).unwrap();
         assert!(same_frame(&f1, &want) && same_frame(&f2, &want));

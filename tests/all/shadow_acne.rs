@@ -19,8 +19,8 @@
 use glam::DVec3;
 
 use crate::common::{self, write_stack};
-use cdvol::render::camera::Camera;
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
+use cdvol::render::view::camera::Camera;
 use cdvol::render::{render, Mode};
 
 const N: usize = 64;

@@ -12,10 +12,10 @@ use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::Camera;
-use cdvol::render::hit::HitMethod;
-use cdvol::render::shard::{assemble, Part};
+use cdvol::render::job::shard::{assemble, Part};
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::traverse::Method;
+use cdvol::render::view::camera::Camera;
 use cdvol::render::{
     render, render_part, Frame, Mode, RenderOptions, Shard, ShardLayout, Stats, Window,
 };
@@ -501,7 +501,7 @@ fn cli_shards_assemble_and_turntables() {
         assert_eq!(png(&name), png(&format!("split/{name}")), "frame {f}");
     }
     // Its frames share one frame, fitted to all five directions
-    // (render/framing.rs); given the same --frame, frame f is the single
+    // (render/view/framing.rs); given the same --frame, frame f is the single
     // render at azimuth 25 + f * 72.
     let frame = ["--frame", "40"];
     ok(&mut render_cli(

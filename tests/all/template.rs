@@ -9,12 +9,12 @@ use std::path::Path;
 use cdvol::format::reader::PackedVolume;
 use cdvol::grid::Axis;
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::{Camera, Projection};
-use cdvol::render::hit::HitMethod;
+use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::template::{
     render_template, render_template_with, walk, Template, TemplateOptions, Warp,
 };
 use cdvol::render::traverse::{trace, Flow, Method, Ray, TGrid};
+use cdvol::render::view::camera::{Camera, Projection};
 use cdvol::render::{render, Frame, Mode, RenderError, RenderOptions, Stats};
 use cdvol::tools::corpus::MemVolume;
 use cdvol::tools::phantom;

@@ -5,7 +5,7 @@
 //! at a depth behind the surface that drifts with the lattice: bands.
 //! The composite refines each onset and restarts the lattice there
 //! (render/integrate/refine.rs). Judged by
-//! [`grain`](cdvol::render::grain::grain): the high-pass energy of the
+//! [`grain`](cdvol::render::output::grain::grain): the high-pass energy of the
 //! render at the default step against the same view at a quarter of it,
 //! about 1 without grain (shaded and unshaded, on the CT phantom and
 //! the real CT); before the refinement it read 9 to 18.
@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::common::{self, ok};
-use cdvol::render::grain::{grain, Image};
+use cdvol::render::output::grain::{grain, Image};
 
 /// At most this figure: clean renders read 1.0-1.1, grain 9-18.
 const MOST: f64 = 2.0;

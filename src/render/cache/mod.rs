@@ -21,36 +21,15 @@ use std::sync::{Arc, Mutex};
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
-use super::held::{self, Held};
-use super::samples::Samples;
+use crate::render::brick::samples::Samples;
+use crate::render::brick::{occupancy, to_f32, Codes, Occupancy, Planes, RBrick};
+use crate::render::traverse::OBJECT;
+use held::Held;
 
-mod brick;
-mod grads;
+pub(crate) mod held;
 mod lru;
-mod occupancy;
 
-pub use brick::{block_maxima, max_pyramid, octree_levels, Codes, RBrick, BLOCK};
-pub use grads::GradPlane;
 use lru::Lru;
-pub use occupancy::{occupancy, Occupancy, SUB};
-
-/// A sample value as the renderer holds it: rounded to f32 and saturated
-/// to the finite f32 range (+-inf and values beyond it become +-f32::MAX,
-/// so the trilinear interpolant stays finite); NaN stays NaN. Monotone, so
-/// a value `>= iso` stays `>= to_f32(iso)`: the renderer compares against
-/// the iso value mapped the same way, and every 1-cell keeps a vertex at
-/// or above it.
-#[inline]
-pub fn to_f32(v: f64) -> f32 {
-    if v.is_nan() {
-        f32::NAN
-    } else {
-        (v as f32).clamp(-f32::MAX, f32::MAX)
-    }
-}
-
-/// Code of a 1-cell in the decoded code plane (the traversal's constant).
-pub use super::traverse::OBJECT;
 
 /// The octree above the bricks (paper section 5.1, SMART): level `j`
 /// flags which nodes of `2^j` bricks per axis hold no 1-cell, from the
@@ -142,53 +121,6 @@ const KEYS_PER_BRICK: u64 = 3;
 /// hundreds of thousands of them.
 const ENTRY_BYTES: usize = 128;
 
-/// Which planes the cache builds beside each decoded brick's codes and
-/// values. On read, a plane not built answers as if the file had none
-/// (the isotropic code, the chessboard bound, single-cell octree levels),
-/// which is always conservative.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Planes {
-    /// The octant codes of anisotropic files (section 4.2.1).
-    pub octants: bool,
-    /// The city-block and chamfer planes of files prepared with `--dda`.
-    pub dda: bool,
-    /// Octree levels inside each brick and, for power-of-two brick sizes,
-    /// above the bricks from the index (section 5.1).
-    pub octree: bool,
-    /// The max pyramid ([`RBrick::block_max`]: the largest vertex value
-    /// per node of [`BLOCK`]^3 cells and up), for bricks with values.
-    pub block_max: bool,
-    /// Each sample's vertex gradient ([`RBrick::grads`]), for bricks with
-    /// values: the shaded composite with smooth normals.
-    pub grads: bool,
-    /// The scene's iso value when it is narrower than the file's
-    /// classification (`render --iso`): each brick is rewritten for it
-    /// (render/scene.rs) before any other plane is built.
-    pub narrow: Option<f32>,
-}
-
-impl Planes {
-    /// Codes and values only.
-    pub const NONE: Planes = Planes {
-        octants: false,
-        dda: false,
-        octree: false,
-        block_max: false,
-        grads: false,
-        narrow: None,
-    };
-
-    /// Every plane the file has; no octree.
-    pub const FILE: Planes = Planes {
-        octants: true,
-        dda: true,
-        octree: false,
-        block_max: false,
-        grads: false,
-        narrow: None,
-    };
-}
-
 /// What a traversal needs of the bricks, as plain data: the cache never
 /// sees the traversal method (the render maps a method to its policy).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -210,8 +142,8 @@ pub struct BrickCache<'v> {
     /// The levels above the bricks, when `planes.octree` and the brick
     /// size is a power of two (bricks are then octree nodes).
     pyramid: Option<BrickPyramid>,
-    /// Unique in the process: what memos of derived data (render/
-    /// gradient.rs) key on, so no two caches' bricks are ever confused.
+    /// Unique in the process: what memos of derived data (render/sample/
+    /// normals.rs) key on, so no two caches' bricks are ever confused.
     id: u64,
     /// With [`BrickCache::with_occupancy`], per brick which of its
     /// sub-blocks hold a 1-cell of the scene, taken when the brick is
@@ -250,7 +182,7 @@ impl<'v> BrickCache<'v> {
     }
 
     /// This cache, also taking each decoded brick's [`Occupancy`] for the
-    /// culling of later frames (render/cull.rs): for caches that serve
+    /// culling of later frames (render/view/cull.rs): for caches that serve
     /// more than one frame (turntables, `cdvol serve`). It scans each
     /// brick with 1-cells once, on its first decoding: about 60,000
     /// instructions a 32^3 brick (docs/BENCHMARKS.md, "Later frames cull
@@ -322,7 +254,7 @@ impl<'v> BrickCache<'v> {
             }
             // A brick whose largest value lies below the scene's iso value
             // holds none of the scene's 1-cells: it is read for its codes
-            // only (render/scene.rs, `tighten`). The index gives a maximum
+            // only (render/brick/envelope.rs, `tighten`). The index gives a maximum
             // only to bricks with 1-cells, never to those `lazy` stands in.
             let free = match (self.planes.narrow, e.value_max()) {
                 (Some(iso), Some(m)) => to_f32(m) < iso,
@@ -411,14 +343,14 @@ pub struct Accessor<'a, 'v> {
     cur: usize,
     /// The bricks this accessor used (up to [`held::HELD`]), tried before
     /// the shared cache, whose every lookup takes its lock: the rays of a
-    /// tile cross the same bricks over and over (render/held.rs).
+    /// tile cross the same bricks over and over (render/cache/held.rs).
     held: Held<RBrick>,
     /// See [`BrickCache::get`].
     lazy_min: Option<u8>,
     pub counters: CacheCounters,
     pub error: Option<FormatError>,
     /// Smooth-normal gradients go through the thread's per-cell memo
-    /// (render/gradient.rs).
+    /// (render/sample/normals.rs).
     memo_gradients: bool,
     /// The last brick [`Accessor::brick_with_values`] had to read for
     /// its values, and its id.
@@ -468,7 +400,7 @@ impl<'a, 'v> Accessor<'a, 'v> {
 
     /// Whether smooth-normal gradients read through this accessor are
     /// remembered per cell in the thread's memo and answered from it
-    /// ([`vertex_gradients`](super::gradient::vertex_gradients); the same
+    /// ([`vertex_gradients`](crate::render::sample::normals::vertex_gradients); the same
     /// values either way). Off by default; the renderer turns it on where
     /// rays are denser than the cells.
     pub fn remember_gradients(&mut self, on: bool) {
@@ -548,7 +480,7 @@ impl Accessor<'_, '_> {
     /// while it reads other bricks through the accessor; `None` after a
     /// read error. It clones the `Arc` (an atomic count other threads
     /// share), so it is for cold paths only: the gradients of a cell the
-    /// plane does not hold yet (render/gradient.rs).
+    /// plane does not hold yet (render/sample/normals.rs).
     pub fn brick_arc(&mut self, c: [u32; 3]) -> Option<(Arc<RBrick>, [u32; 3])> {
         let (_, l) = self.brick(c);
         self.held.get_arc(self.cur).map(|b| (Arc::clone(b), l))
@@ -559,7 +491,7 @@ impl Accessor<'_, '_> {
     /// codes only, or stood in) comes decoded with its values
     /// ([`BrickCache::get_values`]), so that every sample whose word is a
     /// value reads as that value whichever brick it is read from. For the
-    /// smooth normals' neighbour samples (render/gradient.rs); the
+    /// smooth normals' neighbour samples (render/sample/normals.rs); the
     /// traversal keeps reading the brick as decoded.
     pub fn brick_with_values(&mut self, c: [u32; 3]) -> (&RBrick, [u32; 3]) {
         let (has, l) = {
@@ -593,7 +525,7 @@ impl Accessor<'_, '_> {
     }
 }
 
-impl super::traverse::CodeSource for Accessor<'_, '_> {
+impl crate::render::traverse::CodeSource for Accessor<'_, '_> {
     #[inline(always)]
     fn code(&mut self, c: [u32; 3], octant: Option<usize>) -> u8 {
         let (b, l) = self.brick(c);
@@ -641,8 +573,8 @@ impl super::traverse::CodeSource for Accessor<'_, '_> {
     /// chessboard lower bound (so a corrupt plane cannot stall a ray);
     /// otherwise the chessboard bound itself.
     #[inline]
-    fn distance(&mut self, c: [u32; 3], kind: super::traverse::DistKind) -> u8 {
-        use super::traverse::DistKind;
+    fn distance(&mut self, c: [u32; 3], kind: crate::render::traverse::DistKind) -> u8 {
+        use crate::render::traverse::DistKind;
         let (b, l) = self.brick(c);
         let code = b.code(l);
         if code == OBJECT {

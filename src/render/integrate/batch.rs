@@ -36,10 +36,10 @@ use std::cell::Cell;
 use glam::{Vec3A, Vec4};
 
 use super::refine::{faint64, Onset};
-use crate::render::cache::{Codes, RBrick};
-use crate::render::lut::TfLut;
+use crate::render::brick::samples::{gather8, Corners, Samples};
+use crate::render::brick::{Codes, RBrick};
 use crate::render::options::CompositeLook;
-use crate::render::samples::{gather8, Corners, Samples};
+use crate::render::sample::lut::TfLut;
 use crate::render::traverse::{Ray, OBJECT};
 
 /// Samples per batch.

@@ -4,9 +4,9 @@
 
 use super::*;
 use crate::classify::{TfPoint, TransferFunction};
-use crate::render::cache::GradPlane;
+use crate::render::brick::samples::Order;
+use crate::render::brick::GradPlane;
 use crate::render::options::{CompositeLook, GradientPoint};
-use crate::render::samples::Order;
 use proptest::prelude::*;
 
 fn tf() -> TransferFunction {

@@ -1,5 +1,5 @@
 //! Composite mode: front-to-back compositing of a transfer function
-//! (tabulated for the step by lut.rs) at samples `t = k * step_mm` along
+//! (tabulated for the step by sample/lut.rs) at samples `t = k * step_mm` along
 //! the ray, the lattice restarted where the opacity rises sharply (at
 //! onsets, refine.rs: no wood grain), stopping once the ray's opacity
 //! exceeds [`RenderOptions::early_stop`](crate::render::RenderOptions::early_stop)
@@ -26,11 +26,12 @@ use super::refine::{
 };
 use super::sample::{Look, Trilinear32};
 use super::{Ctx, Px};
-use crate::render::cache::{Accessor, RBrick};
+use crate::render::brick::RBrick;
+use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
-use crate::render::gradient::{outer_cell_gradients, vertex_gradients, VertexGradients};
-use crate::render::lut::TfLut;
-use crate::render::shade::{at, AlongRay, CellEval};
+use crate::render::sample::lut::TfLut;
+use crate::render::sample::normals::{outer_cell_gradients, vertex_gradients, VertexGradients};
+use crate::render::sample::shade::{at, AlongRay, CellEval};
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, OBJECT};
 
 /// Composites `ray` into `px.rgb` with f64 samples (the reference
@@ -607,7 +608,7 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
         if self.plane_gradients() {
             // From the brick's gradient plane where it holds them, else
             // computed (and kept there): the same values as
-            // `vertex_gradients` (render/gradient.rs).
+            // `vertex_gradients` (render/sample/normals.rs).
             self.grads = match g {
                 Some(g) => g,
                 None => outer_cell_gradients(acc, self.coords, cell),

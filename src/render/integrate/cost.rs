@@ -6,7 +6,7 @@ use super::surface::first_hit;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
-use crate::render::hit::HitMethod;
+use crate::render::sample::hit::HitMethod;
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
 
 /// The steps of `ray`; `px.hit` says whether it found the surface.

@@ -5,7 +5,7 @@ use super::surface::first_hit;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
-use crate::render::hit::HitMethod;
+use crate::render::sample::hit::HitMethod;
 use crate::render::traverse::{Ray, Real, StepCounts};
 
 /// Writes the distance of `ray`'s first hit after `t_start` into `px`

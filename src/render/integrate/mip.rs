@@ -16,9 +16,10 @@
 //! one FVT, which steps through them, draws.
 
 use super::{Ctx, Px};
-use crate::render::cache::{Accessor, BLOCK};
+use crate::render::brick::BLOCK;
+use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
-use crate::render::shade::{at, CellEval};
+use crate::render::sample::shade::{at, CellEval};
 use crate::render::traverse::{trace, Flow, Method, Ray, Real, StepCounts, Visit};
 
 /// Writes the largest value along `ray` after `t_start` into `px.rgb`
@@ -58,7 +59,7 @@ fn block_leaps(method: Method, brick_size: u32) -> bool {
 
 /// Whether a MIP with `method` leaps out of nodes of the bricks' max
 /// pyramid: CD and the octree, whose walkers leap; so the cache builds
-/// the pyramid for those only (render/policy.rs).
+/// the pyramid for those only (render/integrate/policy.rs).
 pub(crate) fn leaps_with(method: Method) -> bool {
     matches!(
         method,
@@ -91,7 +92,7 @@ impl Max {
     ///
     /// With `leaps`, at a cell that cannot raise `best`, the walk is told
     /// to leap out of the largest node of the brick's max pyramid
-    /// ([`RBrick::node_below`](crate::render::cache::RBrick::node_below))
+    /// ([`RBrick::node_below`](crate::render::brick::RBrick::node_below))
     /// whose largest vertex value is at most `best`: no value the
     /// interpolant takes in the node's cells can raise `best`, so the
     /// maximum is the same with or without them.
@@ -109,7 +110,7 @@ impl Max {
         // The interpolant never exceeds the largest vertex value (NaN
         // vertices give NaN, which max ignores): a cell whose vertices are
         // all <= best cannot raise it. For 8- and 16-bit words, one lookup
-        // (render/samples.rs); NaN, no bound, never skips.
+        // (render/brick/samples.rs); NaN, no bound, never skips.
         if b.vertex_top(l) as f64 <= self.best {
             if leaps {
                 if let Some(level) = b.node_below(l, self.best) {

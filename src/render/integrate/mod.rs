@@ -1,12 +1,12 @@
 //! Integrators: what one pixel's ray gathers from the cells the traversal
 //! reports, one file per [`Mode`]. Each is a closure over
-//! [`trace`](super::traverse::trace)'s visits (paper section 4: the
+//! [`trace`](crate::render::traverse::trace)'s visits (paper section 4: the
 //! traversal only decides which cells; sampling, hits and shading are
-//! shared in shade.rs and hit.rs, so every traversal integrates the same cells the
+//! shared in `sample/`, so every traversal integrates the same cells the
 //! same way).
 //!
 //! ```text
-//! tiles.rs (a ray per pixel) -> pixel (here) -> surface | depth | mip
+//! job/tiles.rs (a ray per pixel) -> pixel (here) -> surface | depth | mip
 //!                                               | composite | cost -> Px
 //! ```
 
@@ -15,18 +15,19 @@ mod composite;
 mod cost;
 mod depth;
 mod mip;
+pub(crate) mod policy;
 mod refine;
 mod sample;
 mod surface;
 
 pub(crate) use mip::leaps_with as mip_leaps_with;
 
-use super::cache::{Accessor, LAZY_MIN_CODE_CD};
-use super::camera::Camera;
-use super::clock::Clock;
-use super::lut::TfLut;
-use super::options::{Mode, Precision, RenderOptions};
-use super::traverse::{Ray, Real, StepCounts, TGrid};
+use crate::render::cache::{Accessor, LAZY_MIN_CODE_CD};
+use crate::render::clock::Clock;
+use crate::render::options::{Mode, Precision, RenderOptions};
+use crate::render::sample::lut::TfLut;
+use crate::render::traverse::{Ray, Real, StepCounts, TGrid};
+use crate::render::view::camera::Camera;
 
 /// Per-pixel result before colouring (image.rs colours it; part files
 /// store it).
@@ -46,7 +47,7 @@ pub struct Px {
 impl Px {
     /// The pixel of a ray that meets no 1-cell, as every integrator but
     /// the cost map draws it (no hit, no colour, no depth) and as a culled
-    /// pixel is drawn without a ray (render/cull.rs).
+    /// pixel is drawn without a ray (render/view/cull.rs).
     pub(crate) const MISS: Px = Px {
         rgb: [0.0; 3],
         alpha: 0.0,
@@ -76,11 +77,11 @@ pub(crate) struct Ctx<'a, T> {
     pub(crate) camera: &'a Camera,
     pub(crate) opts: &'a RenderOptions,
     /// The scene's iso value as stored values compare
-    /// ([`scene_iso`](super::options::scene_iso): `--iso` or the file's;
+    /// ([`scene_iso`](crate::render::options::scene_iso): `--iso` or the file's;
     /// NaN for files classified by a transfer function without `--iso`).
     pub(crate) iso: f64,
     /// The iso value smooth normals judge missing samples by when the
-    /// scene is narrower than the file ([`scene_code_at_least_1`](super::scene::scene_code_at_least_1));
+    /// scene is narrower than the file ([`scene_code_at_least_1`](crate::render::brick::envelope::scene_code_at_least_1));
     /// `None` otherwise and in `--gradient-halo` files.
     pub(crate) narrow: Option<f32>,
     /// The composite mode's transfer function, tabulated for its step.
@@ -166,7 +167,7 @@ fn finest_spacing(h: &crate::format::Header) -> f64 {
 /// The width of a pixel of `camera` in mm where its rays cross `h`'s
 /// volume (at the volume's centre, for a perspective view).
 fn pixel_mm(h: &crate::format::Header, camera: &Camera) -> f64 {
-    use super::camera::Projection;
+    use crate::render::view::camera::Projection;
     let centre = glam::DVec3::from_array(std::array::from_fn(|k| {
         let c = h.axes[k].coords();
         0.5 * (c[0] + c[c.len() - 1])
@@ -182,7 +183,7 @@ fn pixel_mm(h: &crate::format::Header, camera: &Camera) -> f64 {
 
 impl<'a, T: Real> Ctx<'a, T> {
     /// The context of a render of `h`'s volume: the iso value mapped like
-    /// the stored values ([`to_f32`](super::cache::to_f32)), the composite
+    /// the stored values ([`to_f32`](crate::render::brick::to_f32)), the composite
     /// table for the mode's step, the cells' inverse sizes.
     pub(crate) fn new(
         grid: &'a TGrid<T>,
@@ -196,8 +197,8 @@ impl<'a, T: Real> Ctx<'a, T> {
             coords,
             camera,
             opts,
-            iso: super::options::scene_iso(h, opts),
-            narrow: super::options::narrowing(h, opts).filter(|_| !h.gradient_halo),
+            iso: crate::render::options::scene_iso(h, opts),
+            narrow: crate::render::options::narrowing(h, opts).filter(|_| !h.gradient_halo),
             lut: match &opts.mode {
                 Mode::Composite { tf, step_mm } => Some(TfLut::new(tf, *step_mm)),
                 _ => None,
@@ -220,7 +221,7 @@ impl<'a, T: Real> Ctx<'a, T> {
 
 /// The pixel of `ray`: the mode's integrator, then its step count. The
 /// ray is traced from `t_start` (at least 0), before which it meets no
-/// 1-cell ([`Cover::start`](super::cull::Cover::start)); the cost map
+/// 1-cell ([`Cover::start`](crate::render::view::cull::Cover::start)); the cost map
 /// traces from 0, as it shows what the whole traversal costs.
 pub(crate) fn pixel<T: Real>(
     ctx: &Ctx<T>,

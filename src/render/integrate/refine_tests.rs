@@ -1,7 +1,7 @@
 //! Tests of refine.rs.
 use super::{ceil, cell_near, first_sample, part, Ramps};
 use crate::classify::{TfPoint, TransferFunction};
-use crate::render::lut::exact_sample;
+use crate::render::sample::lut::exact_sample;
 use crate::render::traverse::Ray;
 use glam::DVec3;
 

@@ -4,8 +4,8 @@
 
 use glam::{Vec3, Vec3A, Vec4};
 
-use crate::render::gradient::Normals;
 use crate::render::options::CompositeLook;
+use crate::render::sample::normals::Normals;
 use crate::render::traverse::Ray;
 
 /// A cell's trilinear interpolant in f32 at local coordinates: the vertex
@@ -108,7 +108,7 @@ impl<'a> Look<'a> {
     /// Sample `s` (premultiplied colour, opacity) with gradient `g` (per
     /// mm): opacity and colour scaled by the gradient opacity, the colour
     /// lit by the surface mode's headlight model
-    /// ([`shade`](crate::render::shade::shade): ambient 0.12, diffuse
+    /// ([`shade`](crate::render::sample::shade::shade): ambient 0.12, diffuse
     /// 0.75, white specular 0.25 with exponent 32, two-sided). Lane by
     /// lane, as four scalar expressions would round. Always inlined: as
     /// a call it cost the shaded composite 7 % when the unshaded marcher

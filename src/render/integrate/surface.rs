@@ -1,5 +1,5 @@
 //! Surface mode: the first iso-surface hit (paper section 5.3), shaded by
-//! the smooth gradient of [`gradient`](crate::render::gradient) or, with
+//! the smooth gradient of [`gradient`](crate::render::sample::normals) or, with
 //! `--normals cell`, the cell interpolant's own gradient; optional shadow
 //! rays are traced by the same traversal. [`first_hit`] is shared with the
 //! depth and cost modes. Hit refinement (Newton) and the shadow ray's
@@ -11,9 +11,9 @@ use glam::DVec3;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::clock::Clock;
-use crate::render::gradient::{smooth_gradient_in, Normals};
-use crate::render::hit::{find_hit_with, HitMethod};
-use crate::render::shade::{at, shade, CellEval};
+use crate::render::sample::hit::{find_hit_with, HitMethod};
+use crate::render::sample::normals::{smooth_gradient_in, Normals};
+use crate::render::sample::shade::{at, shade, CellEval};
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
 
 /// The first iso-surface hit along `ray` after `t_min`: `(t, cell values)`.

@@ -11,21 +11,22 @@ use super::{walk, Template};
 use crate::format::reader::PackedVolume;
 use crate::grid::Axis;
 use crate::progress::Progress;
-use crate::render::cache::{Accessor, BrickCache, CacheCounters, Planes};
-use crate::render::camera::{Camera, Projection};
-use crate::render::colour::{colour, Colouring};
+use crate::render::brick::Planes;
+use crate::render::cache::{Accessor, BrickCache, CacheCounters};
 use crate::render::error::RenderError;
-use crate::render::gradient::{smooth_gradient_in, Normals};
-use crate::render::hit::{find_hit_with, HitMethod};
 use crate::render::integrate::Px;
 use crate::render::options::{
     check_mode, check_scene_iso, check_tol_and_size, narrowing, scene_iso, Mode, RenderOptions,
     MAX_PIXELS,
 };
+use crate::render::output::colour::{colour, Colouring};
 use crate::render::output::Frame;
-use crate::render::shade::{self, at, CellEval};
+use crate::render::sample::hit::{find_hit_with, HitMethod};
+use crate::render::sample::normals::{smooth_gradient_in, Normals};
+use crate::render::sample::shade::{self, at, CellEval};
 use crate::render::stats::Stats;
 use crate::render::traverse::{trace, Flow, Method, Ray, StepCounts, TGrid, Visit};
+use crate::render::view::camera::{Camera, Projection};
 
 /// How the intermediate image is resampled to the final one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -197,7 +198,7 @@ pub fn render_template_with(
             )))
         }
     };
-    check_tol_and_size(opts, camera)?;
+    check_tol_and_size(opts, [camera.width, camera.height])?;
     let hdr = vol.header();
     let axes: &[Axis; 3] = &hdr.axes;
     for (k, a) in axes.iter().enumerate() {
@@ -279,7 +280,7 @@ pub fn render_template_with(
     let rows: Vec<_> = (0..size[1])
         .into_par_iter()
         .map(|pb| {
-            let policy = crate::render::policy::brick_policy(
+            let policy = crate::render::brick_policy(
                 opts.method,
                 opts.cd_lazy_min
                     .unwrap_or(crate::render::cache::LAZY_MIN_CODE_CD),

@@ -44,7 +44,7 @@
 //! that base-plane cell (origin at the start cell's centre on the base
 //! plane, the camera's direction) between its entry into and exit from
 //! the cell's box (the slab test, in mm), with the renderer's
-//! [`find_hit_with`], so hits are found exactly as [`super::render`] finds
+//! [`find_hit_with`], so hits are found exactly as [`crate::render::render`] finds
 //! them. The true ray always passes through a template cell (the cell
 //! contains the ray's point at the middle of its slab), so the interval is
 //! never empty.
@@ -90,7 +90,7 @@
 //!    crossing when that cell is entered inside the surface), or not at all
 //!    (the ray grazes the surface through skipped cells only). tests/all/template.rs
 //!    counts the FVT 1-cell visits the template skips on random volumes and
-//!    the pixels whose hit/miss or depth differs from [`super::render`] on
+//!    the pixels whose hit/miss or depth differs from [`crate::render::render`] on
 //!    a sphere phantom.
 //! 2. **Warp.** The final pixel does not trace its own ray: hit/miss comes
 //!    from a ray up to half a cell away (per minor axis, in the base plane),
@@ -140,24 +140,24 @@
 //!   traversal (its octant codes would need their own leap rule): refused
 //!   with [`RenderError::Template`] rather than rendered by another
 //!   traversal.
-//! * Eyes whose image plane cuts the volume: [`super::render`] starts rays
+//! * Eyes whose image plane cuts the volume: [`crate::render::render`] starts rays
 //!   at `t = 0`, the template at the base plane, so they would differ.
 //!
 //! The walk is always in f64 ([`RenderOptions::precision`] is ignored) and
 //! the tile size is not used: rows of the intermediate image run in
 //! parallel, each with its own [`Accessor`].
 //!
-//! [`find_hit_with`]: super::hit::find_hit_with
-//! [`trace`]: super::traverse::trace
+//! [`find_hit_with`]: crate::render::sample::hit::find_hit_with
+//! [`trace`]: crate::render::traverse::trace
 //! [`Axis::is_uniform`]: crate::grid::Axis::is_uniform
-//! [`RenderError::Template`]: super::RenderError::Template
-//! [`RenderOptions::precision`]: super::RenderOptions::precision
-//! [`Accessor`]: super::cache::Accessor
+//! [`RenderError::Template`]: crate::render::RenderError::Template
+//! [`RenderOptions::precision`]: crate::render::RenderOptions::precision
+//! [`Accessor`]: crate::render::cache::Accessor
 
 use std::ops::Range;
 
-use super::cache::OBJECT;
-use super::traverse::{CodeSource, Flow, StepCounts};
+use crate::render::traverse::OBJECT;
+use crate::render::traverse::{CodeSource, Flow, StepCounts};
 
 mod image;
 

@@ -15,8 +15,8 @@ use cdvol::classify::{Classification, TfPoint, TransferFunction};
 use cdvol::format::reader::{BrickData, CellClass, PackedVolume, Sample};
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use cdvol::render::camera::Camera;
 use cdvol::render::traverse::TGrid;
+use cdvol::render::view::camera::Camera;
 use cdvol::render::Frame;
 
 /// Writes `values` (x fastest) as a raw stack of `dtype` plus a sidecar

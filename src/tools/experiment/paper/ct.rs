@@ -10,9 +10,9 @@ use crate::input::raw::RawSource;
 use crate::input::SliceSource;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::{NoProgress, Progress};
-use crate::render::camera::Camera;
-use crate::render::hit::HitMethod;
+use crate::render::sample::hit::HitMethod;
 use crate::render::traverse::{Method, TGrid};
+use crate::render::view::camera::Camera;
 use crate::render::{render, Mode, RenderOptions};
 
 // The shared helpers of mod.rs.

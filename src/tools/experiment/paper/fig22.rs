@@ -4,12 +4,12 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use crate::progress::Progress;
+use crate::render::brick_policy;
 use crate::render::cache::{Accessor, BrickCache, LAZY_MIN_CODE_CD};
-use crate::render::camera::{Camera, Projection};
-use crate::render::hit::{HitMethod, HitParams};
-use crate::render::policy::brick_policy;
-use crate::render::shade::{at, CellEval};
+use crate::render::sample::hit::{HitMethod, HitParams};
+use crate::render::sample::shade::{at, CellEval};
 use crate::render::traverse::{trace, DistKind, Flow, Method, Ray, TGrid};
+use crate::render::view::camera::{Camera, Projection};
 
 // The shared helpers of mod.rs.
 use super::*;
@@ -44,7 +44,7 @@ pub fn fig22(o: &PaperOptions, pr: &dyn Progress) -> anyhow::Result<String> {
     .map_err(anyhow::Error::msg)?;
     let rays = all_rays(&cam);
     let coords = [h.axes[0].coords(), h.axes[1].coords(), h.axes[2].coords()];
-    let iso = crate::render::cache::to_f32(sc.iso) as f64;
+    let iso = crate::render::brick::to_f32(sc.iso) as f64;
     let params = HitParams::default();
     let cd = Method::Cd { min_leap: 1 };
     let ddam = dda(DistKind::Chessboard, true);
@@ -76,7 +76,7 @@ pub fn fig22(o: &PaperOptions, pr: &dyn Progress) -> anyhow::Result<String> {
                 }
                 Some(hm) if !is_dda => {
                     let ce = CellEval::new(coords, v.cell, acc.vertices(v.cell));
-                    match crate::render::hit::find_hit_with(r, v, &ce, iso, hm, &params) {
+                    match crate::render::sample::hit::find_hit_with(r, v, &ce, iso, hm, &params) {
                         Some(t) => {
                             found = Some(t);
                             Flow::Stop

@@ -28,10 +28,11 @@ use crate::format::reader::PackedVolume;
 use crate::input::raw::RawSource;
 use crate::prep::{prep, PrepOptions};
 use crate::progress::{NoProgress, Progress};
-use crate::render::cache::{Accessor, BrickCache, LAZY_MIN_CODE_CD, OBJECT};
-use crate::render::camera::{Camera, Projection};
-use crate::render::policy::brick_policy;
+use crate::render::brick_policy;
+use crate::render::cache::{Accessor, BrickCache, LAZY_MIN_CODE_CD};
+use crate::render::traverse::OBJECT;
 use crate::render::traverse::{trace, CodeSource, DistKind, Flow, Method, Ray, StepCounts, TGrid};
+use crate::render::view::camera::{Camera, Projection};
 use crate::tools::phantom;
 
 mod ct;

@@ -4,8 +4,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::progress::Progress;
-use crate::render::camera::Camera;
 use crate::render::traverse::{DistKind, Method, TGrid};
+use crate::render::view::camera::Camera;
 
 // The shared helpers of mod.rs.
 use super::*;

@@ -21,20 +21,20 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::cache::BrickCache;
-use super::camera::{Camera, Projection};
-pub use super::colour::Colouring;
-use super::error::RenderError;
-use super::integrate::Px;
-use super::options::{Mode, RenderOptions};
-use super::output::Frame;
-use super::stats::Stats;
 pub use super::tiles::TilePx;
 use super::tiles::{finish, render_shard, Shard, ShardLayout};
 use crate::classify::TransferFunction;
 use crate::format::reader::PackedVolume;
 use crate::fsutil::{write_atomic, WriteError};
 use crate::progress::Progress;
+use crate::render::cache::BrickCache;
+use crate::render::error::RenderError;
+use crate::render::integrate::Px;
+use crate::render::options::{Mode, RenderOptions};
+pub use crate::render::output::colour::Colouring;
+use crate::render::output::Frame;
+use crate::render::stats::Stats;
+use crate::render::view::camera::{Camera, Projection};
 
 /// Renders the tiles of `shard` (pixels before colouring, and their
 /// counters): one part of a render for [`assemble`].
@@ -45,11 +45,11 @@ pub fn render_part(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<Part, RenderError> {
-    let cache = super::policy::cache_for(vol, opts);
+    let cache = crate::render::cache_for(vol, opts);
     render_part_in(vol, &cache, camera, opts, shard, progress)
 }
 
-/// [`render_part`] with a brick cache from [`super::policy::cache_for`]
+/// [`render_part`] with a brick cache from [`crate::render::cache_for`]
 /// (with another cache the result is the same, only slower or larger).
 pub fn render_part_in(
     vol: &PackedVolume,
@@ -112,19 +112,19 @@ impl CameraKey {
 pub struct OptionsKey {
     /// [`Mode::name`].
     pub mode: String,
-    /// Surface and depth: [`HitMethod::name`](super::hit::HitMethod::name).
+    /// Surface and depth: [`HitMethod::name`](crate::render::sample::hit::HitMethod::name).
     pub hit: Option<String>,
     /// Surface: shadow rays.
     pub shadows: Option<bool>,
     /// Composite: the transfer function and the sample distance.
     pub tf: Option<TransferFunction>,
     pub step_mm: Option<f64>,
-    /// [`Method::name`](super::traverse::Method::name).
+    /// [`Method::name`](crate::render::traverse::Method::name).
     pub method: String,
     pub bisect_iters: u32,
     pub newton_iters: u32,
     pub newton_tol: f64,
-    /// [`Precision::name`](super::Precision::name).
+    /// [`Precision::name`](crate::render::Precision::name).
     pub precision: String,
     pub tile: u32,
     pub cd_lazy_min: Option<u8>,
@@ -136,8 +136,8 @@ pub struct OptionsKey {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sample_batches: Option<bool>,
     pub early_stop: Option<f64>,
-    pub look: Option<super::CompositeLook>,
-    /// Surface and composite: [`Normals::name`](super::Normals::name).
+    pub look: Option<crate::render::CompositeLook>,
+    /// Surface and composite: [`Normals::name`](crate::render::Normals::name).
     pub normals: Option<String>,
     /// The scene's iso value (`render --iso`), when given.
     #[serde(default, skip_serializing_if = "Option::is_none")]

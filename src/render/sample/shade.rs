@@ -5,7 +5,7 @@
 //! vertex values, all exact in a 1-cell; [`CellEval::gradient`] is the
 //! interpolant's own derivative (Newton's hit refinement, `--normals
 //! cell`). Smooth shading normals, which read samples outside the cell,
-//! are in [`super::gradient`].
+//! are in [`super::normals`].
 //!
 //! Finding the hit inside a 1-cell (paper section 5.3) is in
 //! [`super::hit`], which evaluates cells with this module: it imports
@@ -13,7 +13,7 @@
 
 use glam::DVec3;
 
-use super::traverse::Ray;
+use crate::render::traverse::Ray;
 
 /// A cell's geometry and values, ready for evaluation along a ray.
 pub struct CellEval {

@@ -52,11 +52,12 @@ use std::sync::Mutex;
 
 use glam::DVec3;
 
-use super::cache::{Codes, Planes, RBrick, OBJECT};
 use super::camera::{Camera, CameraError, Projection};
-use super::options::RenderOptions;
-use super::traverse::TGrid;
 use crate::format::reader::PackedVolume;
+use crate::render::brick::{Codes, Planes, RBrick};
+use crate::render::options::RenderOptions;
+use crate::render::traverse::TGrid;
+use crate::render::traverse::OBJECT;
 
 /// A box in mm: lower and upper corner.
 pub type MmBox = ([f64; 3], [f64; 3]);
@@ -291,7 +292,7 @@ struct MemoKey {
 /// 1-cells (the render reports it when a ray reads it). Remembered per
 /// file and scene for the process.
 pub fn object(vol: &PackedVolume, opts: &RenderOptions) -> Option<Object> {
-    let narrow = super::options::narrowing(vol.header(), opts);
+    let narrow = crate::render::options::narrowing(vol.header(), opts);
     let key = MemoKey {
         path: vol.path().to_path_buf(),
         len: vol.file_len(),
@@ -352,7 +353,7 @@ impl<'v> ObjectFinder<'v> {
             .map(|e| {
                 !e.has_no_object()
                     && !matches!((narrow, e.value_max()),
-                        (Some(iso), Some(m)) if super::cache::to_f32(m) < iso)
+                        (Some(iso), Some(m)) if crate::render::brick::to_f32(m) < iso)
             })
             .collect();
         ObjectFinder {
@@ -473,7 +474,7 @@ impl<'v> ObjectFinder<'v> {
             return *e;
         }
         // Codes and values only: a narrowed scene's 1-cells are judged
-        // here as render/scene.rs judges them, without its codes.
+        // here as render/brick/envelope.rs judges them, without its codes.
         let e = match RBrick::decode(self.vol, id, Planes::NONE, false) {
             Ok((b, _)) => brick_extent(&b, self.narrow),
             Err(_) => {
@@ -490,7 +491,7 @@ impl<'v> ObjectFinder<'v> {
 
 /// The box of decoded brick `b`'s 1-cells in global cells; with `narrow`,
 /// of those that are 1-cells of the scene at that iso value: a vertex at
-/// or above it (in f32, NaN never), as render/scene.rs keeps them.
+/// or above it (in f32, NaN never), as render/brick/envelope.rs keeps them.
 fn brick_extent(b: &RBrick, narrow: Option<f32>) -> Option<CellBox> {
     let first = b.first.map(u64::from);
     let [nx, ny, nz] = b.cells.map(|c| c as usize);
@@ -535,8 +536,8 @@ fn brick_extent(b: &RBrick, narrow: Option<f32>) -> Option<CellBox> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::camera::orbit_dirs;
     use super::*;
+    use crate::render::view::camera::orbit_dirs;
 
     fn ortho(cam: &Camera) -> f64 {
         match cam.projection {

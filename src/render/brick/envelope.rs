@@ -12,7 +12,7 @@
 //! file prepared for C, with no new prep.
 //!
 //! [`narrow`] rewrites each decoded brick for C' (module cache calls it
-//! when [`Planes::narrow`](super::cache::Planes::narrow) is set):
+//! when [`Planes::narrow`](crate::render::brick::Planes::narrow) is set):
 //! 1. **Classes.** A C-1-cell stays a 1-cell when its largest vertex value
 //!    is at least the scene's iso value; otherwise it becomes a 0-cell.
 //! 2. **Codes, tightened.** Left at 0, the new 0-cells would cost a
@@ -35,11 +35,11 @@
 //!    as its word would carry that code. Sampling never reads those
 //!    samples; smooth normals do (module gradient), so shading matches a
 //!    file prepared for C' where this can see it. A sample one cell
-//!    outside a brick is judged by [`scene_code_at_least_1`] when
+//!    outside a brick is judged by [`scene_code_at_least_1`](crate::render::sample::normals::scene_code_at_least_1) when
 //!    normals need it.
 //!
 //! Values compare with the iso value in f32, as the hit test does
-//! ([`to_f32`](super::cache::to_f32)): the classes are those of a file
+//! ([`to_f32`](crate::render::brick::to_f32)): the classes are those of a file
 //! prepared at V whenever V and the data are exact in f32 (every integer
 //! value of 8-, 12- and 16-bit data).
 //!
@@ -47,10 +47,10 @@
 //! prepared at the scene's iso value (tests/all/scene.rs); cost maps differ
 //! by design, since they show the steps.
 
-use super::cache::{to_f32, Accessor, Codes, RBrick};
 use super::samples::Samples;
-use super::traverse::OBJECT;
+use super::{to_f32, Codes, RBrick};
 use crate::format::reader::PackedVolume;
+use crate::render::traverse::OBJECT;
 
 /// What a narrowed brick knows of the world around it, from the index
 /// alone: per neighbour brick, a lower bound of the chessboard distance
@@ -368,50 +368,6 @@ dispatch!(
     /// [`narrow_any`].
     narrow, narrow_avx2, narrow_any, (b: &mut RBrick, iso: f32, halo: bool, edge: &Edge)
 );
-
-/// Whether the cell whose minimum corner is global sample `s` has a
-/// scene code of at least 1 (no scene 1-cell within chessboard distance
-/// 1), so that a file prepared for the scene would carry a code in `s`'s
-/// word; false when `s` is the minimum corner of no cell. Called only in
-/// narrowed renders, where every brick marks exactly the scene's 1-cells
-/// as [`OBJECT`]: [`narrow`] demotes the others, and a brick decoded
-/// without values ([`tighten`], or no 1-cell of the file's) or standing
-/// in by its index code has none. `n` are the samples per axis.
-pub(crate) fn scene_code_at_least_1(acc: &mut Accessor, n: [usize; 3], s: [usize; 3]) -> bool {
-    if (0..3).any(|k| s[k] + 1 >= n[k]) {
-        return false;
-    }
-    // Mostly the cell's code answers: codes are lower bounds of the
-    // scene's (1 or more: so is the scene's), and a narrowed brick's code
-    // 0 inside its outer layer is the scene's (the local transform found
-    // a scene 1-cell next to it). Left: code 0 on a brick's outer layer,
-    // where the neighbour that made it 0 may be no scene 1-cell.
-    let (b, l) = acc.brick(s.map(|x| x as u32));
-    let code = b.code(l);
-    if code == OBJECT {
-        return false;
-    }
-    if code >= 1 {
-        return true;
-    }
-    if !b.values.is_empty() && (0..3).all(|k| l[k] >= 1 && l[k] + 2 <= b.cells[k]) {
-        return false;
-    }
-    // The 26 cells around, those in the volume.
-    let lo: [usize; 3] = std::array::from_fn(|k| s[k].saturating_sub(1));
-    let hi: [usize; 3] = std::array::from_fn(|k| (s[k] + 1).min(n[k] - 2));
-    for z in lo[2]..=hi[2] {
-        for y in lo[1]..=hi[1] {
-            for x in lo[0]..=hi[0] {
-                let (b, l) = acc.brick([x, y, z].map(|v| v as u32));
-                if b.code(l) == OBJECT {
-                    return false;
-                }
-            }
-        }
-    }
-    true
-}
 
 #[cfg(test)]
 mod tests {

@@ -1,4 +1,4 @@
-//! The bricks one [`Accessor`](super::cache::Accessor) holds: the working
+//! The bricks one [`Accessor`](super::Accessor) holds: the working
 //! set of one tile, so that its rays go back to the shared, locked cache
 //! once per brick and tile rather than once per brick and ray.
 //!

@@ -5,30 +5,30 @@
 //! [`BrickCache`], and each pixel is computed on its own (integrate/), so
 //! the output is the same whatever the thread count, tile size or cache
 //! budget. Each tile colours its pixels as it finishes when the colours
-//! do not depend on the whole image (canvas.rs); otherwise, and for the
+//! do not depend on the whole image (output/canvas.rs); otherwise, and for the
 //! parts of a sharded render, the tiles are placed and coloured together
-//! (colour.rs).
+//! (output/colour.rs).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::cache::{Accessor, BrickCache, CacheCounters};
-use super::camera::Camera;
-use super::canvas::{Canvas, Planes};
-use super::clock::{self, Clock, KernelUse, TileTime};
-use super::colour::{colour_blocks, Colouring, PxBlock};
-use super::cull::Cover;
-use super::error::RenderError;
-use super::integrate::{pixel, Ctx, Px};
-use super::options::{check_render, Precision, RenderOptions};
-use super::output::Frame;
-use super::stats::Stats;
-use super::traverse::{Real, StepCounts, TGrid};
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 use crate::progress::Progress;
+use crate::render::cache::{Accessor, BrickCache, CacheCounters};
+use crate::render::clock::{self, Clock, KernelUse, TileTime};
+use crate::render::error::RenderError;
+use crate::render::integrate::{pixel, Ctx, Px};
+use crate::render::options::{check_render, Precision, RenderOptions};
+use crate::render::output::canvas::{Canvas, Planes};
+use crate::render::output::colour::{colour_blocks, Colouring, PxBlock};
+use crate::render::output::Frame;
+use crate::render::stats::Stats;
+use crate::render::traverse::{Real, StepCounts, TGrid};
+use crate::render::view::camera::Camera;
+use crate::render::view::cull::Cover;
 
 /// Renders `vol` as seen by `camera`: every tile, then the colouring
 /// [`shard::assemble`](super::shard::assemble) uses too, so a sharded
@@ -41,7 +41,7 @@ pub fn render(
 ) -> Result<(Frame, Stats), RenderError> {
     render_in(
         vol,
-        &super::policy::cache_for(vol, opts),
+        &crate::render::cache_for(vol, opts),
         camera,
         opts,
         progress,
@@ -169,7 +169,7 @@ fn check_shard(
     opts: &RenderOptions,
     shard: Shard,
 ) -> Result<(), RenderError> {
-    check_render(vol, camera, opts)?;
+    check_render(vol, [camera.width, camera.height], opts)?;
     if shard.n == 0 || shard.k >= shard.n {
         return Err(RenderError::Option {
             field: "shard",
@@ -304,7 +304,7 @@ pub struct TilePx {
     /// Rows.
     pub h: u32,
     /// The `w * h` pixels row by row, or none when every pixel is a miss
-    /// ([`Px::MISS`]): a tile the cover leaves out whole (render/cull.rs)
+    /// ([`Px::MISS`]): a tile the cover leaves out whole (render/view/cull.rs)
     /// is neither written nor coloured pixel by pixel.
     pub(crate) pixels: Vec<Px>,
 }
@@ -381,7 +381,7 @@ fn render_tiles<T: Real>(job: &TileJob) -> Vec<TileOut> {
         .map(|(_, t)| t)
         .collect();
     let ctx = Ctx::new(&grid, h, camera, opts);
-    let cover = super::cull::Cover::of(vol, cache, camera, opts);
+    let cover = crate::render::view::cull::Cover::of(vol, cache, camera, opts);
     progress.begin("render tiles", tiles.len() as u64);
     // One tile per rayon leaf. rayon splits an indexed range adaptively:
     // a few halvings up front and more only when a thread steals, and a
@@ -440,7 +440,7 @@ struct TileOut {
     steps: StepCounts,
     cache: CacheCounters,
     hits: u64,
-    /// Pixels left untraced (render/cull.rs).
+    /// Pixels left untraced (render/view/cull.rs).
     culled: u64,
     time: TileTime,
     error: Option<FormatError>,
@@ -467,7 +467,7 @@ impl TileOut {
 
 /// Renders the tile at `(x0, y0)`, at most `ts` pixels square, with one
 /// accessor in front of the shared cache; a pixel `cover` leaves out is a
-/// miss without a ray (render/cull.rs), and a tile it leaves out whole
+/// miss without a ray (render/view/cull.rs), and a tile it leaves out whole
 /// has no pixels to write. With a `canvas` the tile colours its pixels
 /// into it and returns none.
 fn render_tile<T: Real>(
@@ -490,7 +490,7 @@ fn render_tile<T: Real>(
             ..TileOut::skipped(x0, y0)
         };
     }
-    let policy = super::policy::brick_policy(ctx.opts.method, ctx.lazy_min);
+    let policy = crate::render::brick_policy(ctx.opts.method, ctx.lazy_min);
     let mut acc = Accessor::for_policy(cache, &policy);
     acc.remember_gradients(ctx.memo_gradients);
     let mut pixels = Vec::with_capacity((w * hh) as usize);

@@ -7,7 +7,7 @@
 //! none and is refused, and so are the float32 TIFFs of the depth, MIP
 //! and cost modes, which hold data rather than a picture (module job).
 
-use super::output::Frame;
+use super::Frame;
 
 /// How long the bar is.
 #[derive(Debug, Clone, Copy, PartialEq)]

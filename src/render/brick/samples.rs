@@ -71,7 +71,7 @@ impl Order {
 /// bits) so that the values `value` gives (`None` left out) never fall as
 /// the result rises as an unsigned integer: 0 (unsigned order) or the
 /// sign bit (two's-complement order); `None` when neither holds. Shared
-/// by [`Order::of`] and the transfer-function tables (render/tf_cells.rs).
+/// by [`Order::of`] and the transfer-function tables (render/brick/tf_cells.rs).
 pub fn rising_flip<V: PartialOrd + Copy>(
     len: usize,
     value: impl Fn(usize) -> Option<V>,

@@ -14,8 +14,8 @@
 use std::sync::{Mutex, PoisonError};
 
 use super::colour::{put, Colouring, Scale};
-use super::integrate::Px;
-use super::output::Frame;
+use super::Frame;
+use crate::render::integrate::Px;
 
 /// The planes of a frame being painted by its tiles.
 pub(crate) struct Planes {

@@ -1,9 +1,21 @@
 //! Image output, the last stage of a render: a coloured [`Frame`]
-//! (render/colour.rs makes it from the pixels by the mode's
-//! [`Colouring`](super::Colouring), and imports this module, never the
-//! other way) is written by [`save`] as PNG, TIFF or JPEG by the
-//! output's extension (plus raw f32 and 16-bit PNG depth in the depth
-//! mode).
+//! (colour.rs makes it from the pixels by the mode's
+//! [`Colouring`](crate::render::Colouring)) is written by [`save`] as
+//! PNG, TIFF or JPEG by the output's extension (plus raw f32 and 16-bit
+//! PNG depth in the depth mode).
+//!
+//! ```text
+//! colour.rs    pixels -> colours by the mode (grey, TF, depth, cost)
+//! canvas.rs    a tile's pixels painted into the frame
+//! scalebar.rs  the scale bar drawn into a frame
+//! grain.rs     the wood-grain measure of a composite image
+//! here         the frame, its bit depths and the atomic save
+//! ```
+
+pub(crate) mod canvas;
+pub(crate) mod colour;
+pub mod grain;
+pub mod scalebar;
 
 use std::path::{Path, PathBuf};
 
@@ -26,7 +38,7 @@ pub struct Frame {
     /// premultiplied, coverage), each in [0, 1]: `--bit-depth 16` rounds
     /// these to 16 bits and `--bit-depth 32` writes them as they are.
     /// Empty unless the render kept them
-    /// ([`RenderOptions::unrounded`](super::RenderOptions::unrounded)).
+    /// ([`RenderOptions::unrounded`](crate::render::RenderOptions::unrounded)).
     pub linear: Vec<f32>,
     /// Depth mode: hit distance in mm, NaN where the ray misses.
     pub depth: Option<Vec<f32>>,

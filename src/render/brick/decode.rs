@@ -1,6 +1,6 @@
 //! A decoded brick as the renderer holds it ([`RBrick`]): the dense code
 //! plane and the values decoded from the payload, and the planes built on
-//! them when the cache asks ([`Planes`](super::Planes)).
+//! them when the cache asks ([`Planes`](crate::render::brick::Planes)).
 
 use std::sync::Arc;
 
@@ -12,8 +12,9 @@ use crate::format::brick::{
 use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 
-use super::{to_f32, GradPlane, Planes, OBJECT};
-use crate::render::samples::{Samples, WordValues};
+use super::samples::{Samples, WordValues};
+use super::{to_f32, GradPlane, Planes};
+use crate::render::traverse::OBJECT;
 
 /// A brick as the renderer uses it: a dense byte plane of cell codes
 /// (255 = 1-cell) and the rescaled sample values, as f32 or as the stored
@@ -54,7 +55,7 @@ pub struct RBrick {
     pub block_max: Vec<Vec<f32>>,
     /// Per sample, its vertex gradient ([`Planes::grads`]): for the
     /// shaded composite, bricks with values only; empty otherwise. The
-    /// inner samples are ready at decode (`gradient::brick_gradients`),
+    /// inner samples are ready at decode (`gradients::brick_gradients`),
     /// the outer layer's on first use ([`GradPlane`]).
     pub grads: GradPlane,
 }
@@ -151,11 +152,11 @@ impl RBrick {
     /// The 8 vertices of local cell `l` in the brick's sample planes: its
     /// minimum corner's sample index and the row and slice steps.
     #[inline(always)]
-    fn corner_offsets(&self, l: [u32; 3]) -> crate::render::samples::Corners {
+    fn corner_offsets(&self, l: [u32; 3]) -> super::samples::Corners {
         let sx = (self.cells[0] + 1) as usize;
         let sy = (self.cells[1] + 1) as usize;
         let base = (l[2] as usize * sy + l[1] as usize) * sx + l[0] as usize;
-        crate::render::samples::Corners {
+        super::samples::Corners {
             base,
             sx,
             z: sx * sy,
@@ -206,7 +207,7 @@ impl RBrick {
     /// ([`crate::format::brick`]), then builds what rendering adds on top:
     /// the dense code plane, f32 values and the planes `planes` asks for.
     /// With [`Planes::narrow`] the brick is rewritten for the scene
-    /// (render/scene.rs) before the planes built from codes and values;
+    /// (render/brick/envelope.rs) before the planes built from codes and values;
     /// `scene_free`: the index says the scene has no 1-cell in it, so only
     /// its codes are decoded. Returns the brick and its decompressed
     /// payload size. The payload is read into per-thread buffers with a
@@ -225,7 +226,7 @@ impl RBrick {
     /// classification, even when the index says it holds no 1-cell (which
     /// [`RBrick::decode`] reads for its codes only): smooth normals read
     /// the samples of such a brick next to the object
-    /// (render/gradient.rs, "Which brick a sample is read from").
+    /// (render/sample/normals.rs, "Which brick a sample is read from").
     pub fn decode_values(vol: &PackedVolume, id: u64) -> Result<(RBrick, u64), FormatError> {
         RBrick::decode_as(vol, id, Planes::NONE, false, true)
     }
@@ -264,7 +265,7 @@ impl RBrick {
                 return (RBrick::from_payload(h, id, no_object, &r.raw, planes), len);
             };
             // Narrowed: codes and values for the file's classification,
-            // rewritten for the scene (render/scene.rs), then the planes
+            // rewritten for the scene (render/brick/envelope.rs), then the planes
             // built from them.
             let first = Planes {
                 narrow: None,
@@ -274,11 +275,11 @@ impl RBrick {
                 ..planes
             };
             let mut b = RBrick::from_payload(h, id, no_object, &r.raw, first);
-            let edge = crate::render::scene::Edge::of(vol, id, iso);
+            let edge = super::envelope::Edge::of(vol, id, iso);
             if scene_free {
-                crate::render::scene::tighten(&mut b, &edge);
+                super::envelope::tighten(&mut b, &edge);
             } else {
-                crate::render::scene::narrow(&mut b, iso, h.gradient_halo, &edge);
+                super::envelope::narrow(&mut b, iso, h.gradient_halo, &edge);
             }
             let rest = Planes {
                 octants: false,
@@ -309,8 +310,8 @@ impl RBrick {
     /// only the corner codes and no values (through the table, only the
     /// corner words are read). The values of 8- and 16-bit words are
     /// kept as words unless a plane derived from them is asked for
-    /// (render/samples.rs). Transfer functions take
-    /// render/tf_cells.rs where it can, else the reference path.
+    /// (render/brick/samples.rs). Transfer functions take
+    /// render/brick/tf_cells.rs where it can, else the reference path.
     ///
     /// [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
     pub fn from_payload(
@@ -323,10 +324,9 @@ impl RBrick {
         let iso = match h.classification {
             Classification::Iso { iso } => iso,
             Classification::TransferFunction { .. } => {
-                return crate::render::tf_cells::decode(h, id, no_object, raw, planes)
-                    .unwrap_or_else(|| {
-                        RBrick::from_payload_reference(h, id, no_object, raw, planes)
-                    })
+                return super::tf_cells::decode(h, id, no_object, raw, planes).unwrap_or_else(
+                    || RBrick::from_payload_reference(h, id, no_object, raw, planes),
+                )
             }
         };
         let mut b = RBrick::uniform(h, id, 0);
@@ -487,7 +487,7 @@ impl RBrick {
         if planes.grads && !b.values.is_empty() {
             let axes: [&[f64]; 3] = std::array::from_fn(|k| h.axes[k].coords());
             let v = b.values.to_f32();
-            let g = crate::render::gradient::brick_gradients(&v, b.first, b.cells, axes);
+            let g = super::gradients::brick_gradients(&v, b.first, b.cells, axes);
             b.grads = GradPlane::inner(&g, b.cells.map(|c| c as usize));
         }
         b.bytes = std::mem::size_of::<RBrick>()
@@ -732,5 +732,5 @@ impl RBrick {
 }
 
 #[cfg(test)]
-#[path = "brick_tests.rs"]
+#[path = "decode_tests.rs"]
 mod tests;

@@ -7,10 +7,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::integrate::Px;
-use super::options::{Mode, RenderOptions, Window};
-use super::output::Frame;
+use super::Frame;
 use crate::format::reader::PackedVolume;
+use crate::render::integrate::Px;
+use crate::render::options::{Mode, RenderOptions, Window};
 
 /// How pixels become colours: the only part of the mode colouring needs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -116,7 +116,7 @@ pub fn auto_window(mut v: Vec<f32>) -> [f64; 2] {
 /// pixels whose first pixel is at `(x0, y0)` (a tile, or a whole image).
 /// `pixels` holds them row by row, or is empty when every one is
 /// [`Px::MISS`] (a tile the cover leaves out whole,
-/// [`TilePx`](super::TilePx)).
+/// [`TilePx`](crate::render::TilePx)).
 #[derive(Clone, Copy)]
 pub(crate) struct PxBlock<'a> {
     pub(crate) x0: u32,
@@ -259,7 +259,7 @@ pub(crate) fn colour(kind: &Colouring, w: u32, h: u32, px: &[Px], unrounded: boo
 /// keep either; the grey `1 - (x - lo) / (hi - lo)` is the same for both.
 ///
 /// [`Frame::linear`] (16 bytes a pixel) is filled only when `unrounded`
-/// ([`RenderOptions::unrounded`](super::RenderOptions::unrounded)), and
+/// ([`RenderOptions::unrounded`](crate::render::RenderOptions::unrounded)), and
 /// is empty otherwise.
 pub(crate) fn colour_blocks(
     kind: &Colouring,
@@ -316,7 +316,7 @@ pub(crate) fn colour_blocks(
     let (mut rgb, mut alpha) = (vec![0u8; 3 * n], vec![0u8; n]);
     let mut linear = vec![0f32; if unrounded { 4 * n } else { 0 }];
     let mut steps = vec![0u32; n];
-    // A missed pixel (every culled one, render/cull.rs) colours as +0.0
+    // A missed pixel (every culled one, render/view/cull.rs) colours as +0.0
     // in all four channels, 0 in 8 bits, with 0 steps in every colouring
     // but the cost map's: what the planes already hold.
     let skip_misses = !matches!(scale, Scale::Cost { .. });

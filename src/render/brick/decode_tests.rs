@@ -230,7 +230,8 @@ fn tf_cell_by_its_top_value() {
     };
     for (words, class) in [([5u8, 10], OBJECT), ([5, 6], 0), ([8, 9], OBJECT)] {
         let raw: Vec<u8> = words.iter().copied().cycle().take(8).collect();
-        let fast = crate::render::tf_cells::decode(&h, 0, false, &raw, Planes::NONE).expect("fast");
+        let fast =
+            crate::render::brick::tf_cells::decode(&h, 0, false, &raw, Planes::NONE).expect("fast");
         let slow = RBrick::from_payload_reference(&h, 0, false, &raw, Planes::NONE);
         for b in [&fast, &slow] {
             assert!(
@@ -242,7 +243,7 @@ fn tf_cell_by_its_top_value() {
 }
 
 proptest! {
-    /// The transfer-function fast path (render/tf_cells.rs) equals
+    /// The transfer-function fast path (render/brick/tf_cells.rs) equals
     /// the reference on random bricks of every storage type: codes
     /// and values bit for bit, control points on, just off and between
     /// sample values, zero and positive opacities, both slopes. It
@@ -302,7 +303,7 @@ proptest! {
         prop_assert_eq!(plane_of(&fast), plane_of(&slow));
         prop_assert_eq!(value_bits(&fast), value_bits(&slow));
         prop_assert_eq!(fast.bytes, slow.bytes);
-        let ran = crate::render::tf_cells::decode(&h, 0, no_object, raw, Planes::NONE).is_some();
+        let ran = crate::render::brick::tf_cells::decode(&h, 0, no_object, raw, Planes::NONE).is_some();
         if storage.size() <= 2 && slope >= 0.0 {
             prop_assert!(ran);
         }

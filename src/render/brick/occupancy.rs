@@ -1,9 +1,10 @@
 //! Which sub-blocks of a decoded brick hold a 1-cell: what the culling of
 //! a turntable's later frames projects instead of whole bricks
-//! (render/cull.rs). The brick index knows only whether a brick holds a
+//! (render/view/cull.rs). The brick index knows only whether a brick holds a
 //! 1-cell; once a brick is decoded, its code plane says where.
 
-use super::{Codes, RBrick, OBJECT};
+use super::{Codes, RBrick};
+use crate::render::traverse::OBJECT;
 
 /// Sub-blocks per brick edge in [`Occupancy`] masks: 4 cells per edge on
 /// the default 32-cell bricks.
@@ -62,7 +63,7 @@ pub fn occupancy(b: &RBrick, brick_size: u32) -> Occupancy {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::samples::Samples;
+    use crate::render::brick::samples::Samples;
     use proptest::prelude::*;
 
     fn brick(cells: [u32; 3], codes: Codes) -> RBrick {

@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 
-use super::traverse::{Ray, RayError};
+use crate::render::traverse::{Ray, RayError};
 
 /// Why a camera cannot be placed. Fields are named as in [`Camera::look_at`]
 /// and [`Camera::orbit`].

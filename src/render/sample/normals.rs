@@ -42,7 +42,7 @@
 //! 1 of the hit cell, so it has code 0 or is a 1-cell, and its brick is
 //! never uniform. A sample stored in two bricks has the same word in
 //! both, but a brick with no 1-cell is decoded for its codes only
-//! (`render/cache/brick.rs`); such a brick is read again with its values
+//! (`render/brick/decode.rs`); such a brick is read again with its values
 //! ([`Accessor::brick_with_values`]). So a sample reads as its value
 //! wherever its word is one, and the gradients do not depend on where the
 //! bricks are cut (tests/all/normals.rs, brick sizes 4, 8 and 16 give the
@@ -53,8 +53,10 @@
 
 use glam::{DVec3, Vec3, Vec3A};
 
-use super::cache::{Accessor, RBrick};
-use super::traverse::OBJECT;
+use crate::render::brick::gradients::three_point;
+use crate::render::brick::RBrick;
+use crate::render::cache::Accessor;
+use crate::render::traverse::OBJECT;
 
 /// How surface normals are estimated (`cdvol render --normals`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -361,7 +363,7 @@ fn compute_vertex_gradients(
                 continue;
             }
             let s: [usize; 3] = std::array::from_fn(|k| c[k] + o[k] - 1);
-            if super::scene::scene_code_at_least_1(acc, n, s) {
+            if scene_code_at_least_1(acc, n, s) {
                 f[i] = f32::NAN;
             }
         }
@@ -411,72 +413,9 @@ fn compute_vertex_gradients(
     }
 }
 
-/// Per sample of a brick, its vertex gradient as [`vertex_gradients`]
-/// computes it, in f32: the shaded composite's gradient plane
-/// ([`Planes::grads`](super::cache::Planes::grads)), built once when the
-/// brick is decoded. `values` are the brick's samples (`cells + 1` per
-/// axis, x fastest), `first` its first sample's global index.
-///
-/// Only samples strictly inside the brick's samples get a gradient (NaN on
-/// the outer layer): their 6 neighbours are in this brick, which
-/// [`vertex_gradients`] reads them from whichever of their cells asks, and
-/// the gaps and weights along each axis are the sample's own, so the
-/// gradient is a function of the sample alone. A sample on the outer
-/// layer has neighbours in other bricks; the plane ([`GradPlane`]) takes
-/// its gradient when a 1-cell first computes it ([`outer_cell_gradients`]).
-///
-/// [`GradPlane`]: super::cache::GradPlane
-pub(crate) fn brick_gradients(
-    values: &[f32],
-    first: [u32; 3],
-    cells: [u32; 3],
-    coords: [&[f64]; 3],
-) -> Vec<Vec3> {
-    let s = cells.map(|c| c as usize + 1);
-    let mut out = vec![Vec3::NAN; values.len()];
-    if s.iter().any(|&k| k < 3) {
-        return out;
-    }
-    // Per axis and inner local sample: the inverse gaps before and after
-    // and the weight `h- / (h- + h+)`, the same expressions as
-    // [`vertex_gradients`]' per-cell ones.
-    let axis: [Vec<([f64; 2], f64)>; 3] = std::array::from_fn(|k| {
-        let x = coords[k];
-        (0..s[k])
-            .map(|ls| {
-                let g = first[k] as usize + ls;
-                if ls == 0 || ls + 1 == s[k] {
-                    return ([f64::NAN; 2], f64::NAN);
-                }
-                let (hm, hp) = (x[g] - x[g - 1], x[g + 1] - x[g]);
-                ([1.0 / hm, 1.0 / hp], hm / (hm + hp))
-            })
-            .collect()
-    });
-    let stride = [1, s[0], s[0] * s[1]];
-    for z in 1..s[2] - 1 {
-        for y in 1..s[1] - 1 {
-            let row = (z * s[1] + y) * s[0];
-            for x in 1..s[0] - 1 {
-                let i = row + x;
-                let at = [x, y, z];
-                let f0 = values[i] as f64;
-                out[i] = DVec3::from_array(std::array::from_fn(|k| {
-                    let fm = values[i - stride[k]] as f64;
-                    let fp = values[i + stride[k]] as f64;
-                    let (inv, lam) = axis[k][at[k]];
-                    three_point(f0, fm, fp, inv, lam).0
-                }))
-                .as_vec3();
-            }
-        }
-    }
-    out
-}
-
 /// The 8 vertex gradients of 1-cell `cell` (x fastest), as
 /// [`vertex_gradients`] gives them, in f32: from its brick's gradient
-/// plane ([`brick_gradients`]) when the cache built one and the cell is
+/// plane ([`brick_gradients`](crate::render::brick::gradients::brick_gradients)) when the cache built one and the cell is
 /// set in it (from the decode on for a cell strictly inside the brick),
 /// else computed, one vertex at a time, and kept in the plane for the
 /// next ray ([`GradPlane`], [`outer_cell_gradients`]).
@@ -485,7 +424,7 @@ pub(crate) fn brick_gradients(
 /// cell's values and calls [`outer_cell_gradients`] for the rest; this is
 /// the same per cell on its own, for tests.
 ///
-/// [`GradPlane`]: super::cache::GradPlane
+/// [`GradPlane`]: crate::render::brick::GradPlane
 #[cfg(test)]
 pub(crate) fn cell_gradients(
     acc: &mut Accessor,
@@ -507,7 +446,7 @@ pub(crate) fn cell_gradients(
 /// once all 8 are kept. Without a plane, or after a read error (nothing
 /// is kept then), all 8 are computed.
 ///
-/// [`RBrick::grad_cell`]: super::cache::RBrick::grad_cell
+/// [`RBrick::grad_cell`]: crate::render::brick::RBrick::grad_cell
 #[cold]
 pub(crate) fn outer_cell_gradients(
     acc: &mut Accessor,
@@ -598,23 +537,48 @@ fn value_elsewhere(acc: &mut Accessor, n: [usize; 3], p: [usize; 3]) -> f32 {
     b.values.get(b.sample_index(ls))
 }
 
-/// The derivative at a sample `f0` from its neighbours `fm` before and
-/// `fp` after (module docs: three-point rule, one-sided where a neighbour
-/// is NaN), and whether it was one-sided; `inv` the inverse gaps before
-/// and after, `lam` the weight `h- / (h- + h+)`
-/// (module docs). The one rule of [`vertex_gradients`] and
-/// [`brick_gradients`].
-#[inline(always)]
-fn three_point(f0: f64, fm: f64, fp: f64, inv: [f64; 2], lam: f64) -> (f64, bool) {
-    // Slopes before and after the vertex (NaN where missing).
-    let sm = (f0 - fm) * inv[0];
-    let sp = (fp - f0) * inv[1];
-    match (sm.is_nan(), sp.is_nan()) {
-        (false, false) => (sm + lam * (sp - sm), false),
-        (true, false) => (sp, true),
-        (false, true) => (sm, true),
-        (true, true) => (f64::NAN, false),
+/// Whether the cell whose minimum corner is global sample `s` has a
+/// scene code of at least 1 (no scene 1-cell within chessboard distance
+/// 1), so that a file prepared for the scene would carry a code in `s`'s
+/// word; false when `s` is the minimum corner of no cell. Called only in
+/// narrowed renders, where every brick marks exactly the scene's 1-cells
+/// as [`OBJECT`]: [`narrow`] demotes the others, and a brick decoded
+/// without values ([`tighten`], or no 1-cell of the file's) or standing
+/// in by its index code has none. `n` are the samples per axis.
+pub(crate) fn scene_code_at_least_1(acc: &mut Accessor, n: [usize; 3], s: [usize; 3]) -> bool {
+    if (0..3).any(|k| s[k] + 1 >= n[k]) {
+        return false;
     }
+    // Mostly the cell's code answers: codes are lower bounds of the
+    // scene's (1 or more: so is the scene's), and a narrowed brick's code
+    // 0 inside its outer layer is the scene's (the local transform found
+    // a scene 1-cell next to it). Left: code 0 on a brick's outer layer,
+    // where the neighbour that made it 0 may be no scene 1-cell.
+    let (b, l) = acc.brick(s.map(|x| x as u32));
+    let code = b.code(l);
+    if code == OBJECT {
+        return false;
+    }
+    if code >= 1 {
+        return true;
+    }
+    if !b.values.is_empty() && (0..3).all(|k| l[k] >= 1 && l[k] + 2 <= b.cells[k]) {
+        return false;
+    }
+    // The 26 cells around, those in the volume.
+    let lo: [usize; 3] = std::array::from_fn(|k| s[k].saturating_sub(1));
+    let hi: [usize; 3] = std::array::from_fn(|k| (s[k] + 1).min(n[k] - 2));
+    for z in lo[2]..=hi[2] {
+        for y in lo[1]..=hi[1] {
+            for x in lo[0]..=hi[0] {
+                let (b, l) = acc.brick([x, y, z].map(|v| v as u32));
+                if b.code(l) == OBJECT {
+                    return false;
+                }
+            }
+        }
+    }
+    true
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@
 //! visits (paper section 4: the traversal only decides which cells), and a
 //! ray that visits none is drawn as a miss: no hit, no sample, no maximum.
 //! A 1-cell lies inside a brick the index does not mark as holding no
-//! 1-cell (for a narrowed scene, render/scene.rs, also one whose index
+//! 1-cell (for a narrowed scene, render/brick/envelope.rs, also one whose index
 //! value maximum reaches the scene's iso value). So a pixel whose ray
 //! passes through none of those bricks' boxes is a miss, whatever the
 //! traversal, and the culled image is the traced one byte for byte
@@ -36,10 +36,11 @@
 
 use glam::DVec3;
 
-use super::cache::{BrickCache, SUB};
 use super::camera::{Camera, Projection};
-use super::options::{Mode, RenderOptions};
 use crate::format::reader::PackedVolume;
+use crate::render::brick::SUB;
+use crate::render::cache::BrickCache;
+use crate::render::options::{Mode, RenderOptions};
 
 /// The pixels whose rays may meet a 1-cell: one bit a pixel, row by row;
 /// and per square of [`NEAR_PX`] pixels, where along those rays the first
@@ -80,7 +81,7 @@ impl Cover {
             return None;
         }
         let h = vol.header();
-        let narrow = super::options::narrowing(h, opts);
+        let narrow = crate::render::options::narrowing(h, opts);
         let (w, hh) = (camera.width, camera.height);
         let stride = (w as usize).div_ceil(64);
         let near_w = w.div_ceil(NEAR_PX) as usize;
@@ -98,8 +99,8 @@ impl Cover {
                 continue;
             }
             if let (Some(iso), Some(m)) = (narrow, e.value_max()) {
-                // As render/scene.rs judges a brick: no scene 1-cell.
-                if super::cache::to_f32(m) < iso {
+                // As render/brick/envelope.rs judges a brick: no scene 1-cell.
+                if crate::render::brick::to_f32(m) < iso {
                     continue;
                 }
             }

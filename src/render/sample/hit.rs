@@ -5,7 +5,7 @@
 //! evaluation in [`super::shade`] is.
 
 use super::shade::{at, CellEval};
-use super::traverse::{Ray, Visit};
+use crate::render::traverse::{Ray, Visit};
 
 /// How the ray/iso-surface intersection inside a 1-cell is found (paper
 /// section 5.3, Fig. 22).

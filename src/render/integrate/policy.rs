@@ -3,10 +3,11 @@
 //! to build and when a brick may stand in unread. The cache itself never
 //! sees the method.
 
-use super::cache::{BrickCache, BrickPolicy, Planes, LAZY_MIN_CODE_CD};
-use super::traverse::{DistKind, Method};
-use super::RenderOptions;
 use crate::format::reader::PackedVolume;
+use crate::render::brick::Planes;
+use crate::render::cache::{BrickCache, BrickPolicy, LAZY_MIN_CODE_CD};
+use crate::render::traverse::{DistKind, Method};
+use crate::render::RenderOptions;
 
 /// The policy of `method`. FVT never needs the codes of a brick without
 /// 1-cells, so it reads none; CD reads them unless the brick's smallest
@@ -57,12 +58,12 @@ pub fn brick_policy(method: Method, cd_lazy_min: u8) -> BrickPolicy {
 pub fn cache_for<'v>(vol: &'v PackedVolume, opts: &RenderOptions) -> BrickCache<'v> {
     // The planes do not depend on the stand-in threshold.
     let mut planes = brick_policy(opts.method, LAZY_MIN_CODE_CD).planes;
-    planes.narrow = super::options::narrowing(vol.header(), opts);
+    planes.narrow = crate::render::options::narrowing(vol.header(), opts);
     planes.grads = gradient_plane(opts) && planes.narrow.is_none();
     // MIP leaps out of nodes that cannot raise a ray's maximum, with the
     // traversals that leap (integrate/mip.rs).
-    planes.block_max = matches!(opts.mode, super::options::Mode::Mip)
-        && super::integrate::mip_leaps_with(opts.method);
+    planes.block_max = matches!(opts.mode, crate::render::options::Mode::Mip)
+        && super::mip_leaps_with(opts.method);
     BrickCache::with_planes(vol, opts.cache_bytes, planes)
 }
 
@@ -73,8 +74,8 @@ pub fn cache_for<'v>(vol: &'v PackedVolume, opts: &RenderOptions) -> BrickCache<
 /// times a brick's values and codes, counted against the cache budget;
 /// docs/BENCHMARKS.md ("Shaded composite: a gradient plane per brick").
 pub fn gradient_plane(opts: &RenderOptions) -> bool {
-    matches!(opts.mode, super::options::Mode::Composite { .. })
-        && opts.sampling == super::options::Precision::F32
-        && opts.normals == super::gradient::Normals::Smooth
+    matches!(opts.mode, crate::render::options::Mode::Composite { .. })
+        && opts.sampling == crate::render::options::Precision::F32
+        && opts.normals == crate::render::sample::normals::Normals::Smooth
         && (opts.look.shade || !opts.look.gradient_opacity.is_empty())
 }

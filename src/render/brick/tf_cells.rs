@@ -23,7 +23,7 @@
 //! edges, xy faces, cells), as the iso path's OR of sample kinds. Files
 //! whose values do not rise with the words (a negative slope), and wider
 //! words, take the reference path. A property test checks this path
-//! against the reference decoder bit for bit (render/cache/brick.rs).
+//! against the reference decoder bit for bit (render/brick/decode.rs).
 //!
 //! [`Classification::cell_of_words`]: crate::classify::Classification::cell_of_words
 //! [`TransferFunction::nonzero_on`]: crate::classify::TransferFunction::nonzero_on
@@ -33,11 +33,11 @@ use crate::classify::Classification;
 use crate::format::brick::{decode_words, SampleTable, Values, SAMPLE_CODE};
 use crate::format::Header;
 
-use super::cache::{to_f32, Codes, Planes, RBrick};
 use super::samples::Samples;
+use super::{to_f32, Codes, Planes, RBrick};
 
 use super::samples::rising_flip;
-use super::traverse::OBJECT;
+use crate::render::traverse::OBJECT;
 
 /// What a [`TfWords`] is built from: the storage, code encoding, rescale
 /// and classification of a file.

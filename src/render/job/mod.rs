@@ -4,32 +4,42 @@
 //! numbered frames sharing one brick cache, and write the images, parts
 //! and statistics. The CLI only converts its arguments into a
 //! [`RenderJob`].
+//!
+//! ```text
+//! tiles.rs  one frame: Morton-ordered tiles, one rayon task each, a ray
+//!           per pixel through the integrators
+//! shard.rs  parts of a sharded render: write, read, assemble
+//! here      the job: camera framing, turntables, numbered frames
+//! ```
+
+pub mod shard;
+pub(crate) mod tiles;
 
 use std::path::{Path, PathBuf};
 
-use super::cache::BrickCache;
-use super::camera::{orbit_dirs, Camera, CameraError, Projection};
-use super::error::RenderError;
-use super::framing::Framing;
-use super::options::Mode;
-use super::options::RenderOptions;
-use super::output::{image_files, stage_on, Bits, ImageSpec, SaveError};
-use super::scalebar::{ScaleBar, ScaleBarError};
-use super::shard::{render_part, PartError};
-use super::stats::Stats;
-use super::template::render_template;
-use super::tiles::{render, render_in, Shard};
-use super::traverse::TGrid;
 use crate::format::reader::PackedVolume;
 use crate::fsutil::{FileSet, OutputError, WriteError};
 use crate::orient::{AxisMap, NamedView, Orientation};
 use crate::progress::Progress;
+use crate::render::cache::BrickCache;
+use crate::render::error::RenderError;
+use crate::render::job::shard::{render_part, PartError};
+use crate::render::job::tiles::{render, render_in, Shard};
+use crate::render::options::Mode;
+use crate::render::options::RenderOptions;
+use crate::render::output::scalebar::{ScaleBar, ScaleBarError};
+use crate::render::output::{image_files, stage_on, Bits, ImageSpec, SaveError};
+use crate::render::stats::Stats;
+use crate::render::template::render_template;
+use crate::render::traverse::TGrid;
+use crate::render::view::camera::{orbit_dirs, Camera, CameraError, Projection};
+use crate::render::view::framing::Framing;
 
 /// Where the camera stands.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum View {
     /// Around the centre of the object's box (the volume's for a scene
-    /// with no 1-cell; render/framing.rs), degrees: in patient axes (LPS:
+    /// with no 1-cell; render/view/framing.rs), degrees: in patient axes (LPS:
     /// 0,0 looks at the face, head up) when the file records its
     /// orientation, else in the file's sample axes.
     Orbit { az_deg: f64, el_deg: f64 },
@@ -52,7 +62,7 @@ pub struct CameraSpec {
     /// for orthographic.
     pub persp_fov_deg: Option<f64>,
     /// Orthographic frame height in mm (default: the object fits,
-    /// render/framing.rs).
+    /// render/view/framing.rs).
     pub frame_mm: Option<f64>,
     pub width: u32,
     pub height: u32,
@@ -60,7 +70,7 @@ pub struct CameraSpec {
 
 impl CameraSpec {
     /// What this camera frames on `vol` for `opts`'s scene
-    /// (render/framing.rs): the object's box ([`Framing::of`]), fitted to
+    /// (render/view/framing.rs): the object's box ([`Framing::of`]), fitted to
     /// the directions of all `frames` frames of a turntable over
     /// `orbit_deg` degrees (1 and 0 for a single image), so that one frame
     /// fits them all; only the volume for an exact eye (no brick read).
@@ -95,7 +105,7 @@ impl CameraSpec {
     /// The camera for `framing`, turned by `az_turn_deg` of azimuth
     /// (turntables; 0 for a single image). Orbits and named views look at
     /// the centre of the object's box with the frame `framing` fits
-    /// ([`super::framing::orbit`]; `frame_mm` when given). With an
+    /// ([`crate::render::view::framing::orbit`]; `frame_mm` when given). With an
     /// `orientation`, orbits and named views are in patient axes: placed
     /// in LPS, then turned into sample axes through the nearest signed
     /// permutation (and mirrored when the sample axes are mirrored in the
@@ -121,7 +131,7 @@ impl CameraSpec {
             return Camera::look_at(eye, target, up, projection, self.width, self.height);
         }
         let map = orientation.map_or(AxisMap::IDENTITY, Orientation::nearest);
-        let cam = super::framing::orbit(
+        let cam = crate::render::view::framing::orbit(
             framing,
             self.direction(az_turn_deg, orientation)?,
             self.persp_fov_deg,
@@ -138,7 +148,7 @@ impl CameraSpec {
         &self,
         az_turn_deg: f64,
         orientation: Option<&Orientation>,
-    ) -> Result<super::framing::Dir, CameraError> {
+    ) -> Result<crate::render::view::framing::Dir, CameraError> {
         let (back, up) = match (self.view, orientation) {
             (View::Named(v), None) => return Err(CameraError::NoOrientation { view: v.name() }),
             (View::Named(v), Some(_)) => {
@@ -273,7 +283,7 @@ pub enum JobError {
 pub const RENDER_BYTES_PER_PIXEL: u64 = 64;
 
 /// Bytes a pixel of one frame costs at most in [`render_memory`] when the
-/// tiles colour their own pixels into 8-bit planes (render/canvas.rs:
+/// tiles colour their own pixels into 8-bit planes (render/output/canvas.rs:
 /// surface, composite, MIP with a given window) and keep none: the RGB
 /// bytes, coverage and step counts (3 + 1 + 4), a MIP's values (4), the
 /// encoder's copy (4) and the PNG's bytes (at most about 4). Measured: 7.1
@@ -287,7 +297,9 @@ pub const PAINTED_BYTES_PER_PIXEL: u64 = 24;
 /// whole images by tiles at all (not the template renderer, not the part
 /// file of a shard).
 pub fn render_bytes_per_pixel(vol: &PackedVolume, opts: &RenderOptions, painted: bool) -> u64 {
-    let paints = painted && !opts.unrounded && super::colour::Colouring::of(vol, opts).paints();
+    let paints = painted
+        && !opts.unrounded
+        && crate::render::output::colour::Colouring::of(vol, opts).paints();
     match paints {
         true => PAINTED_BYTES_PER_PIXEL,
         false => RENDER_BYTES_PER_PIXEL,
@@ -368,7 +380,7 @@ pub fn run(
         return Err(JobError::TurntableLookAt { frames: job.frames });
     }
     let orientation = vol.header().orientation.as_ref();
-    // One frame for all of a turntable's frames (render/framing.rs).
+    // One frame for all of a turntable's frames (render/view/framing.rs).
     let framing = job
         .camera
         .framing(vol, &job.options, job.frames, job.orbit_deg, orientation)?;
@@ -444,7 +456,7 @@ pub fn run(
         }
         // The bar must fit before any ray.
         if let Some((mm, mm_per_px)) = bar_scale(job.scale_bar, &camera) {
-            super::scalebar::layout(mm, mm_per_px, width, height)?;
+            crate::render::output::scalebar::layout(mm, mm_per_px, width, height)?;
         }
     }
     crate::fsutil::check_outputs(&job.outputs()?, &[vol.path().to_path_buf()], None)?;
@@ -473,7 +485,7 @@ fn render_one(
     cam: &Camera,
     job: &RenderJob,
     progress: &dyn Progress,
-) -> Result<(super::Frame, Stats), RenderError> {
+) -> Result<(crate::render::Frame, Stats), RenderError> {
     // 16-bit and float outputs need the frame's unrounded colour.
     let opts = if job.image.bits != Bits::Eight && !job.options.unrounded {
         std::borrow::Cow::Owned(RenderOptions {
@@ -519,12 +531,12 @@ fn bar_scale(bar: Option<ScaleBar>, cam: &Camera) -> Option<(f64, f64)> {
 
 /// Draws `bar` into `frame` as seen by `cam`.
 fn add_scale_bar(
-    frame: &mut super::Frame,
+    frame: &mut crate::render::Frame,
     cam: &Camera,
     bar: Option<ScaleBar>,
 ) -> Result<(), ScaleBarError> {
     if let Some((mm, mm_per_px)) = bar_scale(bar, cam) {
-        super::scalebar::draw(frame, mm, mm_per_px)?;
+        crate::render::output::scalebar::draw(frame, mm, mm_per_px)?;
     }
     Ok(())
 }
@@ -557,8 +569,8 @@ fn turntable(
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
     let (mut set, mut total, mut per_frame) = (FileSet::new(), Stats::default(), Vec::new());
     // Later frames cull by the sub-blocks of the bricks earlier ones
-    // decoded (render/cull.rs).
-    let cache = super::policy::cache_for(vol, &job.options).with_occupancy();
+    // decoded (render/view/cull.rs).
+    let cache = crate::render::cache_for(vol, &job.options).with_occupancy();
     for f in 0..job.frames {
         if job.shard.is_some_and(|s| f % s.n != s.k) {
             continue;

@@ -46,7 +46,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::{Vec3, Vec3A};
 
-use crate::render::samples::{gather8_ref, Corners};
+use super::samples::{gather8_ref, Corners};
 
 /// A brick's gradient plane: per sample its gradient, and per cell
 /// whether its 8 vertices hold theirs. Empty for bricks without one.

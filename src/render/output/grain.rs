@@ -48,7 +48,7 @@
 
 /// A render as [`grain`] reads it: `width x height` pixels, colour over
 /// black (`rgb`, 3 a pixel) and coverage (`alpha`, 1 a pixel), 8 bits
-/// each (a [`Frame`](super::Frame)'s `rgb` and `alpha`).
+/// each (a [`Frame`](crate::render::Frame)'s `rgb` and `alpha`).
 #[derive(Clone, Copy, Debug)]
 pub struct Image<'a> {
     /// Pixels per row.
@@ -63,7 +63,7 @@ pub struct Image<'a> {
 
 impl<'a> Image<'a> {
     /// The image of a rendered frame.
-    pub fn of(frame: &'a super::Frame) -> Image<'a> {
+    pub fn of(frame: &'a crate::render::Frame) -> Image<'a> {
         Image {
             width: frame.width as usize,
             height: frame.height as usize,
