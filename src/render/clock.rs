@@ -18,6 +18,7 @@
 //! function, shading, and the cell-by-cell advance between samples; the
 //! traversal's leaps between runs are traversal).
 
+use std::cell::Cell;
 use std::time::Instant;
 
 use crate::render::cache::Accessor;
@@ -57,10 +58,14 @@ fn ticks() -> u64 {
     }
 }
 
-/// The split clock of one tile (one thread at a time).
-pub(crate) struct Clock {
-    /// Whether the current ray is timed.
-    timed: bool,
+/// The split clock of the tile a thread is rendering: per-thread state,
+/// as pbrt's `STAT_COUNTER`s are, so no integrator carries it. A tile runs
+/// on one thread from [`start_tile`] to [`stop_tile`] (it calls no rayon
+/// join inside), its rays between [`begin_ray`] and [`end_ray`], and the
+/// integrators mark their sampling sections with [`enter`] and [`leave`].
+/// The tiles' [`TileTime`]s are merged at the end of the frame ([`split`]).
+#[derive(Debug, Clone, Copy)]
+struct Clock {
     ray_start: u64,
     ray_decode: f64,
     section_start: Option<(u64, f64)>,
@@ -73,7 +78,130 @@ pub(crate) struct Clock {
     /// Decode seconds inside timed rays and inside their sections.
     decode_ray: f64,
     decode_sample: f64,
-    tile_start: (Instant, u64),
+}
+
+impl Clock {
+    const IDLE: Clock = Clock {
+        ray_start: 0,
+        ray_decode: 0.0,
+        section_start: None,
+        sections: 0,
+        ray_ticks: 0,
+        sample_ticks: 0,
+        readings_ray: 0,
+        readings_sample: 0,
+        decode_ray: 0.0,
+        decode_sample: 0.0,
+    };
+}
+
+thread_local! {
+    /// Whether the thread's current ray is timed: the one reading on the
+    /// hot path ([`enter`], [`leave`]).
+    static TIMED: Cell<bool> = const { Cell::new(false) };
+    /// The thread's tile clock; touched only by timed rays and at a
+    /// tile's start and stop.
+    static CLOCK: Cell<Clock> = const { Cell::new(Clock::IDLE) };
+    /// When the thread's tile started: wall time and ticks.
+    static TILE_START: Cell<Option<(Instant, u64)>> = const { Cell::new(None) };
+}
+
+/// Applies `f` to the thread's clock.
+#[inline]
+fn with_clock(f: impl FnOnce(&mut Clock)) {
+    CLOCK.with(|c| {
+        let mut k = c.get();
+        f(&mut k);
+        c.set(k);
+    });
+}
+
+/// A tile begins on this thread: its clock starts now.
+pub(crate) fn start_tile() {
+    TIMED.with(|t| t.set(false));
+    CLOCK.with(|c| c.set(Clock::IDLE));
+    TILE_START.with(|s| s.set(Some((Instant::now(), ticks()))));
+}
+
+/// Ray `i` of the tile begins; it is timed when [`is_timed`].
+#[inline]
+pub(crate) fn begin_ray(i: u32, acc: &Accessor) {
+    let timed = is_timed(i);
+    TIMED.with(|t| t.set(timed));
+    if timed {
+        with_clock(|k| {
+            k.sections = 0;
+            k.ray_decode = acc.counters.decode_seconds;
+            k.ray_start = ticks();
+        });
+    }
+}
+
+/// The current ray ends.
+#[inline]
+pub(crate) fn end_ray(acc: &Accessor) {
+    if TIMED.with(|t| t.replace(false)) {
+        with_clock(|k| {
+            k.ray_ticks += ticks().wrapping_sub(k.ray_start);
+            k.decode_ray += acc.counters.decode_seconds - k.ray_decode;
+            // A ray reads twice, a section twice more inside it.
+            k.readings_ray += 1 + 2 * k.sections;
+            k.readings_sample += k.sections;
+        });
+    }
+}
+
+/// A sampling section begins (sections do not nest).
+#[inline]
+pub(crate) fn enter(acc: &Accessor) {
+    if TIMED.with(|t| t.get()) {
+        with_clock(|k| {
+            debug_assert!(k.section_start.is_none(), "sections do not nest");
+            k.section_start = Some((ticks(), acc.counters.decode_seconds));
+        });
+    }
+}
+
+/// The current sampling section ends.
+#[inline]
+pub(crate) fn leave(acc: &Accessor) {
+    if TIMED.with(|t| t.get()) {
+        with_clock(|k| {
+            if let Some((k0, d0)) = k.section_start.take() {
+                k.sample_ticks += ticks().wrapping_sub(k0);
+                k.decode_sample += acc.counters.decode_seconds - d0;
+                k.sections += 1;
+            }
+        });
+    }
+}
+
+/// The thread's tile ends: its time, split. A thread that started no
+/// tile reports nothing.
+pub(crate) fn stop_tile() -> TileTime {
+    TIMED.with(|t| t.set(false));
+    let k = CLOCK.with(|c| c.replace(Clock::IDLE));
+    let Some((t0, k0)) = TILE_START.with(|s| s.take()) else {
+        return TileTime::default();
+    };
+    let seconds = t0.elapsed().as_secs_f64();
+    let dk = ticks().wrapping_sub(k0);
+    if dk == 0 || seconds <= 0.0 {
+        return TileTime {
+            seconds,
+            ..TileTime::default()
+        };
+    }
+    let per_tick = seconds / dk as f64;
+    let reading = reading_ticks();
+    let net = |t: u64, readings: u64, decode: f64| {
+        (t.saturating_sub(readings * reading) as f64 * per_tick - decode).max(0.0)
+    };
+    TileTime {
+        seconds,
+        timed_ray: net(k.ray_ticks, k.readings_ray, k.decode_ray),
+        timed_sample: net(k.sample_ticks, k.readings_sample, k.decode_sample),
+    }
 }
 
 /// A tile's time: its whole time and its share per phase, in seconds.
@@ -85,92 +213,6 @@ pub(crate) struct TileTime {
     /// and the clock's own readings taken out.
     pub(crate) timed_ray: f64,
     pub(crate) timed_sample: f64,
-}
-
-impl Clock {
-    /// A clock started now.
-    pub(crate) fn start() -> Clock {
-        Clock {
-            timed: false,
-            ray_start: 0,
-            ray_decode: 0.0,
-            section_start: None,
-            sections: 0,
-            ray_ticks: 0,
-            sample_ticks: 0,
-            readings_ray: 0,
-            readings_sample: 0,
-            decode_ray: 0.0,
-            decode_sample: 0.0,
-            tile_start: (Instant::now(), ticks()),
-        }
-    }
-
-    /// Ray `i` of the tile begins; it is timed when [`is_timed`].
-    #[inline]
-    pub(crate) fn begin_ray(&mut self, i: u32, acc: &Accessor) {
-        self.timed = is_timed(i);
-        if self.timed {
-            self.sections = 0;
-            self.ray_decode = acc.counters.decode_seconds;
-            self.ray_start = ticks();
-        }
-    }
-
-    /// The current ray ends.
-    #[inline]
-    pub(crate) fn end_ray(&mut self, acc: &Accessor) {
-        if self.timed {
-            self.ray_ticks += ticks().wrapping_sub(self.ray_start);
-            self.decode_ray += acc.counters.decode_seconds - self.ray_decode;
-            // A ray reads twice, a section twice more inside it.
-            self.readings_ray += 1 + 2 * self.sections;
-            self.readings_sample += self.sections;
-            self.timed = false;
-        }
-    }
-
-    /// A sampling section begins (sections do not nest).
-    #[inline]
-    pub(crate) fn enter(&mut self, acc: &Accessor) {
-        if self.timed {
-            debug_assert!(self.section_start.is_none(), "sections do not nest");
-            self.section_start = Some((ticks(), acc.counters.decode_seconds));
-        }
-    }
-
-    /// The current sampling section ends.
-    #[inline]
-    pub(crate) fn leave(&mut self, acc: &Accessor) {
-        if let Some((k0, d0)) = self.section_start.take() {
-            self.sample_ticks += ticks().wrapping_sub(k0);
-            self.decode_sample += acc.counters.decode_seconds - d0;
-            self.sections += 1;
-        }
-    }
-
-    /// The tile's time, split.
-    pub(crate) fn stop(self) -> TileTime {
-        let (t0, k0) = self.tile_start;
-        let seconds = t0.elapsed().as_secs_f64();
-        let dk = ticks().wrapping_sub(k0);
-        if dk == 0 || seconds <= 0.0 {
-            return TileTime {
-                seconds,
-                ..TileTime::default()
-            };
-        }
-        let per_tick = seconds / dk as f64;
-        let reading = reading_ticks();
-        let net = |t: u64, readings: u64, decode: f64| {
-            (t.saturating_sub(readings * reading) as f64 * per_tick - decode).max(0.0)
-        };
-        TileTime {
-            seconds,
-            timed_ray: net(self.ray_ticks, self.readings_ray, self.decode_ray),
-            timed_sample: net(self.sample_ticks, self.readings_sample, self.decode_sample),
-        }
-    }
 }
 
 /// The cost of one reading of [`ticks`], in ticks (the least of a few

@@ -575,7 +575,14 @@ fn lanes<const GRAD: bool, const RECT: bool>(
         // ([`shaded`]); that may end the batch early, to be taken again
         // from the same onset state.
         let (lit, tf_w) = if GRAD {
-            let (lit, tf_w, upto) = shaded(x, b, &object, &value, &u, &local, &code_at, n);
+            let lanes = Lanes {
+                object: &object,
+                value: &value,
+                u: &u,
+                local: &local,
+                code_at: &code_at,
+            };
+            let (lit, tf_w, upto) = shaded(x, b, &lanes, n);
             if upto < n {
                 x.onset.clear.set(batch_gap);
                 x.onset.faint_k.set(batch_faint.0);
@@ -667,27 +674,41 @@ fn missed(
     (taken, End::Gradients)
 }
 
+/// A batch's samples, per lane: whether its cell is a 1-cell, its value,
+/// its local coordinates in the cell, the cell in the brick and the
+/// cell's index in the brick's code plane.
+#[derive(Clone, Copy)]
+struct Lanes<'a> {
+    object: &'a [bool; LANES],
+    value: &'a [f32; LANES],
+    u: &'a [[f32; LANES]; 3],
+    local: &'a [[u32; 3]; LANES],
+    code_at: &'a [usize; LANES],
+}
+
 /// The first `n` samples of a batch lit: per lane the table's colour and
 /// opacity at `value` where `object`, with the gradient interpolated at
 /// `u` from the gradient plane of brick `b` (`local`: the cell in the
-/// brick, `code_at`: its index in the code plane), or from
+/// brick, `code_at`: its index in the code plane; [`Lanes`]), or from
 /// [`Again::given`] for a cell the plane has not set, scaled by the
 /// gradient opacity and shaded by [`light`], as `Look::apply` does each.
 /// Also the table's opacities before the gradient opacity scales them,
 /// and how many lanes it lit: fewer than `n` when neither holds a
 /// sample's cell's gradients.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn shaded(
     x: &Batches,
     b: &RBrick,
-    object: &[bool; LANES],
-    value: &[f32; LANES],
-    u: &[[f32; LANES]; 3],
-    local: &[[u32; 3]; LANES],
-    code_at: &[usize; LANES],
+    lanes: &Lanes,
     n: usize,
 ) -> ([Vec4; LANES], [f32; LANES], usize) {
+    let Lanes {
+        object,
+        value,
+        u,
+        local,
+        code_at,
+    } = *lanes;
     let mut lit = [Vec4::ZERO; LANES];
     for j in 0..n {
         if object[j] {

@@ -85,17 +85,24 @@ struct Scene {
     ray: Ray,
 }
 
-#[allow(clippy::too_many_arguments)]
-fn scene(
+/// A scene's brick: its cells, first cell, which axes are uniform, the
+/// mean spacing and the first sample's position per axis.
+struct Shape {
     cells: [u32; 3],
     first: [u32; 3],
     uniform: [bool; 3],
     h: [f64; 3],
     s0: [f64; 3],
-    at: [f64; 3],
-    dir: [f64; 3],
-    next: &mut impl FnMut() -> u32,
-) -> Scene {
+}
+
+fn scene(shape: Shape, at: [f64; 3], dir: [f64; 3], next: &mut impl FnMut() -> u32) -> Scene {
+    let Shape {
+        cells,
+        first,
+        uniform,
+        h,
+        s0,
+    } = shape;
     let len = dir.iter().map(|d| d * d).sum::<f64>().sqrt();
     let c = cells.map(|c| c as usize);
     let samples = (c[0] + 1) * (c[1] + 1) * (c[2] + 1);
@@ -277,7 +284,12 @@ proptest! {
         seed in any::<u64>(),
     ) {
         prop_assume!(dir.iter().map(|d| d * d).sum::<f64>() > 1e-3);
-        let sc = scene(cells, first, uniform, h, s0, at, dir, &mut rng(seed));
+        let sc = scene(
+            Shape { cells, first, uniform, h, s0 },
+            at,
+            dir,
+            &mut rng(seed),
+        );
         let (vals, codes) = (&sc.vals, &sc.codes);
         let b = brick(first, cells, Samples::F32(vals.clone()), codes.clone());
         let lut = TfLut::new(&tf(), step);
@@ -340,7 +352,12 @@ proptest! {
         prop_assume!(dir.iter().map(|d| d * d).sum::<f64>() > 1e-3);
         prop_assume!(eye.iter().map(|d| d * d).sum::<f64>() > 1e-3);
         let mut next = rng(seed);
-        let sc = scene(cells, first, uniform, h, s0, at, dir, &mut next);
+        let sc = scene(
+            Shape { cells, first, uniform, h, s0 },
+            at,
+            dir,
+            &mut next,
+        );
         // Whole-number gradients in [-20, 20] per vertex; the plane
         // has the inner ones, then every cell but about one in
         // `unset + 1` (none with 0) is filled.
@@ -440,7 +457,16 @@ fn batches_taken_again_keep_the_carried_transmittance() {
         let at = [0.02, 0.03 + 0.01 * (seed % 5) as f64, 0.5];
         let dir = [1.0, 0.6 + 0.05 * (seed % 7) as f64, 0.01];
         let mut sc = scene(
-            cells, [0; 3], [true; 3], [1.0; 3], [0.0; 3], at, dir, &mut next,
+            Shape {
+                cells,
+                first: [0; 3],
+                uniform: [true; 3],
+                h: [1.0; 3],
+                s0: [0.0; 3],
+            },
+            at,
+            dir,
+            &mut next,
         );
         sc.codes = vec![OBJECT; c[0] * c[1] * c[2]];
         let g32: Vec<glam::Vec3> = (0..samples)
@@ -550,11 +576,13 @@ fn index_maps_find_the_cells_of_positions() {
 fn batches_stop_at_onsets() {
     let cells = [8u32, 1, 1];
     let mut sc = scene(
-        cells,
-        [0; 3],
-        [true; 3],
-        [1.0; 3],
-        [0.0; 3],
+        Shape {
+            cells,
+            first: [0; 3],
+            uniform: [true; 3],
+            h: [1.0; 3],
+            s0: [0.0; 3],
+        },
         [0.01, 0.5, 0.5],
         [1.0, 0.0, 0.0],
         &mut rng(1),

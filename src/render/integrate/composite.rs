@@ -22,13 +22,13 @@ use glam::{Vec3, Vec3A, Vec4};
 
 use super::batch::{self, trilinear_vec, Batches, End};
 use super::refine::{
-    band, cell_at, faint, faint64, first_sample, part, part32, rephase, How, Onset, Took,
+    band, cell_at, faint, faint64, first_sample, part, part32, rephase, Course, How, Onset, Took,
 };
 use super::sample::{Look, Trilinear32};
 use super::{Ctx, Px};
 use crate::render::brick::RBrick;
 use crate::render::cache::Accessor;
-use crate::render::clock::Clock;
+use crate::render::clock;
 use crate::render::sample::lut::TfLut;
 use crate::render::sample::normals::{outer_cell_gradients, vertex_gradients, VertexGradients};
 use crate::render::sample::shade::{at, AlongRay, CellEval};
@@ -36,13 +36,11 @@ use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, OBJECT};
 
 /// Composites `ray` into `px.rgb` with f64 samples (the reference
 /// sampler, `--sample-precision f64`); `px.hit` when anything is opaque.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn composite<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     t_start: f64,
     acc: &mut Accessor,
-    clock: &mut Clock,
     lut: &TfLut,
     step: f64,
     px: &mut Px,
@@ -61,7 +59,7 @@ pub(super) fn composite<T: Real>(
         alpha: 0.0,
         last: ([0.0; 4], 1.0),
     };
-    let counts = march(ctx, ray, t_start, acc, clock, lut, step, &mut s);
+    let counts = march(ctx, &Course { ray, lut, step }, t_start, acc, &mut s);
     px.hit = s.alpha > 0.0;
     px.alpha = s.alpha as f32;
     px.rgb = s.col.map(|x| x as f32);
@@ -75,13 +73,11 @@ pub(super) fn composite<T: Real>(
 /// lookup. The samples and their cells are [`composite`]'s;
 /// docs/TRADEOFFS.md ("Sampling precision") measures the image
 /// difference.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn composite32<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     t_start: f64,
     acc: &mut Accessor,
-    clock: &mut Clock,
     lut: &TfLut,
     step: f64,
     px: &mut Px,
@@ -90,26 +86,23 @@ pub(super) fn composite32<T: Real>(
     // One marcher per look: without shading or gradient opacity, its
     // sample loop holds no gradient code at all.
     if look.on {
-        march32::<T, true>(ctx, ray, t_start, acc, clock, lut, step, look, px)
+        march32::<T, true>(ctx, &Course { ray, lut, step }, t_start, acc, look, px)
     } else {
-        march32::<T, false>(ctx, ray, t_start, acc, clock, lut, step, look, px)
+        march32::<T, false>(ctx, &Course { ray, lut, step }, t_start, acc, look, px)
     }
 }
 
 /// [`composite32`] with the look's `on` fixed at compile time (`LOOK`).
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn march32<T: Real, const LOOK: bool>(
     ctx: &Ctx<T>,
-    ray: &Ray,
+    course: &Course,
     t_start: f64,
     acc: &mut Accessor,
-    clock: &mut Clock,
-    lut: &TfLut,
-    step: f64,
     look: Look,
     px: &mut Px,
 ) -> StepCounts {
+    let Course { ray, lut, step } = *course;
     debug_assert_eq!(look.on, LOOK);
     // With a look, the batches weight and light their samples by smooth
     // normals (the brick's gradient plane); the cell interpolant's
@@ -137,7 +130,7 @@ fn march32<T: Real, const LOOK: bool>(
         last: Cell::new((Vec4::ZERO, 1.0)),
         batches,
     };
-    let counts = march(ctx, ray, t_start, acc, clock, lut, step, &mut s);
+    let counts = march(ctx, course, t_start, acc, &mut s);
     px.hit = s.acc.w > 0.0;
     px.alpha = s.acc.w;
     px.rgb = s.acc.truncate().to_array();
@@ -210,17 +203,14 @@ const RESUME_CODE: u8 = 2;
 /// Every exact traversal yields the same first 1-cell after a given `t`
 /// (module traverse), so the marched samples, and the image, are the
 /// same whichever traversal finds the runs.
-#[allow(clippy::too_many_arguments)]
 fn march<T: Real, P: Sampler>(
     ctx: &Ctx<T>,
-    ray: &Ray,
+    course: &Course,
     t_start: f64,
     acc: &mut Accessor,
-    clock: &mut Clock,
-    lut: &TfLut,
-    step: f64,
     s: &mut P,
 ) -> StepCounts {
+    let Course { ray, step, .. } = *course;
     let coords = ctx.coords;
     let inv_step = 1.0 / step;
     let n: [u32; 3] = std::array::from_fn(|a| (coords[a].len() - 1) as u32);
@@ -258,7 +248,7 @@ fn march<T: Real, P: Sampler>(
             return counts;
         };
         // The run marcher is the sampling section (render/clock.rs).
-        clock.enter(acc);
+        clock::enter(acc);
         let resume = 'run: {
             let mut cell = v.cell;
             let mut tn: [f64; 3] = std::array::from_fn(|a| ahead(a, cell[a]));
@@ -352,7 +342,7 @@ fn march<T: Real, P: Sampler>(
                         k,
                         counts,
                     };
-                    let flow = batched_samples(ctx, ray, acc, s, step, &mut at, &ahead, &onset);
+                    let flow = batched_samples(ctx, course, acc, s, &mut at, &ahead, &onset);
                     (cell, tn, k, counts) = (at.cell, at.tn, at.k, at.counts);
                     match flow {
                         Batched::None => {}
@@ -365,7 +355,7 @@ fn march<T: Real, P: Sampler>(
                 // ramp (after a partial sample), in its cell; the faint
                 // sample before it keeps the part of its step before.
                 if let (Some(ko), Some(ramps)) = (refine, ramps) {
-                    let Some(r) = rephase(ctx, ray, acc, lut, ramps, cell, ko * step, step) else {
+                    let Some(r) = rephase(ctx, course, acc, ramps, cell, ko * step) else {
                         break 'run None;
                     };
                     if let Some(keep) = onset.kept(ko, r.from, step) {
@@ -377,7 +367,7 @@ fn march<T: Real, P: Sampler>(
                 }
             }
         };
-        clock.leave(acc);
+        clock::leave(acc);
         match resume {
             Some((t, k)) => (t_min, k_next) = (t, k),
             None => return counts,
@@ -415,18 +405,17 @@ enum Batched {
 /// small (while it was inline, the compiler's inlining elsewhere changed
 /// and the shaded composite, which never batches, ran 3-6 % more
 /// instructions).
-#[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn batched_samples<T: Real, P: Sampler>(
     ctx: &Ctx<T>,
-    ray: &Ray,
+    course: &Course,
     acc: &mut Accessor,
     s: &mut P,
-    step: f64,
     at: &mut Marched,
     ahead: &impl Fn(usize, u32) -> f64,
     onset: &Onset,
 ) -> Batched {
+    let Course { ray, step, .. } = *course;
     let (taken, end) = s.batch(acc, at.cell, at.k, onset);
     if taken == 0 {
         // Nothing, or an onset at the first sample, which the marcher

@@ -5,7 +5,6 @@
 use super::surface::first_hit;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
-use crate::render::clock::Clock;
 use crate::render::sample::hit::HitMethod;
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
 
@@ -14,13 +13,12 @@ pub(super) fn cost<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     acc: &mut Accessor,
-    clock: &mut Clock,
     px: &mut Px,
 ) -> StepCounts {
     if ctx.iso.is_nan() {
         trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |_, _| Flow::Stop)
     } else {
-        let (found, counts) = first_hit(ctx, ray, 0.0, HitMethod::Int, acc, clock);
+        let (found, counts) = first_hit(ctx, ray, 0.0, HitMethod::Int, acc);
         px.hit = found.is_some();
         counts
     }

@@ -4,7 +4,6 @@
 use super::surface::first_hit;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
-use crate::render::clock::Clock;
 use crate::render::sample::hit::HitMethod;
 use crate::render::traverse::{Ray, Real, StepCounts};
 
@@ -15,11 +14,10 @@ pub(super) fn depth<T: Real>(
     ray: &Ray,
     t_start: f64,
     acc: &mut Accessor,
-    clock: &mut Clock,
     hit: HitMethod,
     px: &mut Px,
 ) -> StepCounts {
-    let (found, counts) = first_hit(ctx, ray, t_start, hit, acc, clock);
+    let (found, counts) = first_hit(ctx, ray, t_start, hit, acc);
     if let Some((t, _)) = found {
         px.hit = true;
         px.depth = t as f32;

@@ -18,7 +18,7 @@
 use super::{Ctx, Px};
 use crate::render::brick::BLOCK;
 use crate::render::cache::Accessor;
-use crate::render::clock::Clock;
+use crate::render::clock;
 use crate::render::sample::shade::{at, CellEval};
 use crate::render::traverse::{trace, Flow, Method, Ray, Real, StepCounts, Visit};
 
@@ -29,16 +29,15 @@ pub(super) fn mip<T: Real>(
     ray: &Ray,
     t_start: f64,
     acc: &mut Accessor,
-    clock: &mut Clock,
     px: &mut Px,
 ) -> StepCounts {
     let coords = ctx.coords;
     let mut m = Max::default();
     let leaps = block_leaps(ctx.opts.method, acc.brick_size());
     let counts = trace(ctx.grid, ray, t_start, ctx.opts.method, acc, |v, acc| {
-        clock.enter(acc);
+        clock::enter(acc);
         let flow = m.raise(coords, ray, v, acc, leaps);
-        clock.leave(acc);
+        clock::leave(acc);
         flow
     });
     if m.best > f64::NEG_INFINITY {

@@ -23,7 +23,6 @@ mod surface;
 pub(crate) use mip::leaps_with as mip_leaps_with;
 
 use crate::render::cache::{Accessor, LAZY_MIN_CODE_CD};
-use crate::render::clock::Clock;
 use crate::render::options::{Mode, Precision, RenderOptions};
 use crate::render::sample::lut::TfLut;
 use crate::render::traverse::{Ray, Real, StepCounts, TGrid};
@@ -228,7 +227,6 @@ pub(crate) fn pixel<T: Real>(
     ray: &Ray,
     t_start: f64,
     acc: &mut Accessor,
-    clock: &mut Clock,
 ) -> (Px, StepCounts) {
     let mut px = Px {
         depth: f32::NAN,
@@ -236,19 +234,19 @@ pub(crate) fn pixel<T: Real>(
     };
     let counts = match &ctx.opts.mode {
         Mode::Surface { hit, shadows } => {
-            surface::surface(ctx, ray, t_start, acc, clock, *hit, *shadows, &mut px)
+            surface::surface(ctx, ray, t_start, acc, *hit, *shadows, &mut px)
         }
-        Mode::Depth { hit } => depth::depth(ctx, ray, t_start, acc, clock, *hit, &mut px),
-        Mode::Mip => mip::mip(ctx, ray, t_start, acc, clock, &mut px),
-        Mode::Cost => cost::cost(ctx, ray, acc, clock, &mut px),
+        Mode::Depth { hit } => depth::depth(ctx, ray, t_start, acc, *hit, &mut px),
+        Mode::Mip => mip::mip(ctx, ray, t_start, acc, &mut px),
+        Mode::Cost => cost::cost(ctx, ray, acc, &mut px),
         Mode::Composite { step_mm, .. } => {
             let lut = ctx.lut.as_ref().expect("composite renders carry a table");
             match ctx.opts.sampling {
                 Precision::F32 => {
-                    composite::composite32(ctx, ray, t_start, acc, clock, lut, *step_mm, &mut px)
+                    composite::composite32(ctx, ray, t_start, acc, lut, *step_mm, &mut px)
                 }
                 Precision::F64 => {
-                    composite::composite(ctx, ray, t_start, acc, clock, lut, *step_mm, &mut px)
+                    composite::composite(ctx, ray, t_start, acc, lut, *step_mm, &mut px)
                 }
             }
         }

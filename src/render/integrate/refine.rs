@@ -365,6 +365,16 @@ impl Onset {
     }
 }
 
+/// What one composite ray marches along: the ray, the transfer
+/// function's table for the step, and the step in mm (the lattice's
+/// spacing).
+#[derive(Clone, Copy)]
+pub(super) struct Course<'a> {
+    pub ray: &'a Ray,
+    pub lut: &'a TfLut,
+    pub step: f64,
+}
+
 /// Where [`rephase`] restarts the lattice.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Restart {
@@ -391,17 +401,15 @@ pub(super) struct Restart {
 /// (`[onset, t]` when the sample at `t` is past it, else
 /// `[onset, onset + step]`), after one partial sample at the middle of
 /// `[onset, top]` for the ramp; else at the onset.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn rephase<T: Real>(
     ctx: &Ctx<T>,
-    ray: &Ray,
+    course: &Course,
     acc: &mut Accessor,
-    lut: &TfLut,
     ramps: &Ramps,
     cell: [u32; 3],
     t: f64,
-    step: f64,
 ) -> Option<Restart> {
+    let Course { ray, lut, step } = *course;
     let mut p = Probe {
         coords: ctx.coords,
         ray,

@@ -10,7 +10,7 @@ use glam::DVec3;
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
-use crate::render::clock::Clock;
+use crate::render::clock;
 use crate::render::sample::hit::{find_hit_with, HitMethod};
 use crate::render::sample::normals::{smooth_gradient_in, Normals};
 use crate::render::sample::shade::{at, shade, CellEval};
@@ -23,9 +23,8 @@ pub(super) fn first_hit<T: Real>(
     t_min: f64,
     hit: HitMethod,
     acc: &mut Accessor,
-    clock: &mut Clock,
 ) -> (Option<(f64, CellEval)>, StepCounts) {
-    let (found, s) = first_hit_cell(ctx, ray, t_min, hit, acc, clock);
+    let (found, s) = first_hit_cell(ctx, ray, t_min, hit, acc);
     (found.map(|(t, c, _)| (t, c)), s)
 }
 
@@ -36,7 +35,6 @@ fn first_hit_cell<T: Real>(
     t_min: f64,
     hit: HitMethod,
     acc: &mut Accessor,
-    clock: &mut Clock,
 ) -> (Option<(f64, CellEval, [u32; 3])>, StepCounts) {
     let g = ctx.grid;
     let coords = ctx.coords;
@@ -44,11 +42,11 @@ fn first_hit_cell<T: Real>(
     // walk (the cell is evaluated again from them, to the same bits).
     let mut found = None;
     let s = trace(g, ray, t_min, ctx.opts.method, acc, |v, acc| {
-        clock.enter(acc);
+        clock::enter(acc);
         let f = acc.vertices(v.cell);
         let c = CellEval::new(coords, v.cell, f);
         let t_hit = find_hit_with(ray, v, &c, ctx.iso, hit, &ctx.opts.hit_params);
-        clock.leave(acc);
+        clock::leave(acc);
         match t_hit {
             Some(t) => {
                 found = Some((t, v.cell, f));
@@ -78,17 +76,12 @@ fn first_hit_cell<T: Real>(
 /// the ambient level, lit or not ([`shade`]), so a ray that goes through
 /// the object changes nothing. Test: `shadow_acne` (an analytic sphere
 /// over a plane, every hit method).
-fn shadow_hit<T: Real>(
-    ctx: &Ctx<T>,
-    ray: &Ray,
-    acc: &mut Accessor,
-    clock: &mut Clock,
-) -> (bool, StepCounts) {
+fn shadow_hit<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (bool, StepCounts) {
     let coords = ctx.coords;
     let mut out = false;
     let mut hit = false;
     let s = trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |v, acc| {
-        clock.enter(acc);
+        clock::enter(acc);
         let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
         let below = |t: f64| !(c.value(at(ray, t)) >= ctx.iso);
         if !out && below(v.t_enter) {
@@ -108,7 +101,7 @@ fn shadow_hit<T: Real>(
             out = below(v.t_exit);
             Flow::Continue
         };
-        clock.leave(acc);
+        clock::leave(acc);
         flow
     });
     (hit, s)
@@ -116,23 +109,21 @@ fn shadow_hit<T: Real>(
 
 /// Shades the first hit of `ray` after `t_start` into `px`; with
 /// `shadows`, a shadow ray towards a key light decides whether it is lit.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn surface<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     t_start: f64,
     acc: &mut Accessor,
-    clock: &mut Clock,
     hit: HitMethod,
     shadows: bool,
     px: &mut Px,
 ) -> StepCounts {
-    let (found, mut counts) = first_hit_cell(ctx, ray, t_start, hit, acc, clock);
+    let (found, mut counts) = first_hit_cell(ctx, ray, t_start, hit, acc);
     let Some((t, c, cell)) = found else {
         return counts;
     };
     px.hit = true;
-    clock.enter(acc);
+    clock::enter(acc);
     let p = at(ray, t);
     let grad = c.gradient(p);
     let normal = match ctx.opts.normals {
@@ -157,7 +148,7 @@ pub(super) fn surface<T: Real>(
     } else {
         to_eye
     };
-    clock.leave(acc);
+    clock::leave(acc);
     let mut lit = true;
     if shadows {
         // Shadow ray from just outside the surface, traced with the same
@@ -170,7 +161,7 @@ pub(super) fn surface<T: Real>(
             origin: p + sign * eps * out + eps * to_light,
             dir: to_light,
         };
-        let (sh, s2) = shadow_hit(ctx, &sray, acc, clock);
+        let (sh, s2) = shadow_hit(ctx, &sray, acc);
         counts.add(&s2);
         lit = !sh;
     }

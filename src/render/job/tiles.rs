@@ -18,7 +18,7 @@ use crate::format::reader::PackedVolume;
 use crate::format::FormatError;
 use crate::progress::Progress;
 use crate::render::cache::{Accessor, BrickCache, CacheCounters};
-use crate::render::clock::{self, Clock, KernelUse, TileTime};
+use crate::render::clock::{self, KernelUse, TileTime};
 use crate::render::error::RenderError;
 use crate::render::integrate::{pixel, Ctx, Px};
 use crate::render::options::{check_render, Precision, RenderOptions};
@@ -497,7 +497,7 @@ fn render_tile<T: Real>(
     let mut steps = StepCounts::default();
     let mut hits = 0;
     let mut culled = 0;
-    let mut clock = Clock::start();
+    clock::start_tile();
     // An exact traversal visits the same 1-cells from the cover's start as
     // from the volume's entry; the others' walks depend on where they
     // start, so they start at the entry.
@@ -510,13 +510,13 @@ fn render_tile<T: Real>(
                 continue;
             }
             let ray = cam.ray(x, y);
-            clock.begin_ray(pixels.len() as u32, &acc);
+            clock::begin_ray(pixels.len() as u32, &acc);
             let t0 = match cover {
                 Some(c) if exact => c.start(x, y),
                 _ => 0.0,
             };
-            let (p, s) = pixel(ctx, &ray, t0, &mut acc, &mut clock);
-            clock.end_ray(&acc);
+            let (p, s) = pixel(ctx, &ray, t0, &mut acc);
+            clock::end_ray(&acc);
             steps.add(&s);
             hits += p.hit as u64;
             pixels.push(p);
@@ -527,7 +527,7 @@ fn render_tile<T: Real>(
         pixels = Vec::new();
     }
     TileOut {
-        time: clock.stop(),
+        time: clock::stop_tile(),
         x0,
         y0,
         w,

@@ -290,9 +290,7 @@ pub fn render_template_with(
             let mut out = Vec::with_capacity(size[0] as usize);
             for pa in 0..size[0] {
                 let (ray, start) = setup.ray(pa, pb);
-                let (px, c) = inter_pixel(
-                    &setup, &ray, start, min_leap, &opts.mode, iso, opts, &mut acc,
-                );
+                let (px, c) = inter_pixel(&setup, &ray, start, min_leap, iso, opts, &mut acc);
                 counts.add(&c);
                 out.push(px);
             }
@@ -323,7 +321,13 @@ pub fn render_template_with(
         .for_each(|(y, row)| {
             for (x, p) in row.iter_mut().enumerate() {
                 *p = warp_pixel(
-                    &setup, &inter, camera, x as u32, y as u32, topts.warp, diag, &opts.mode,
+                    &setup,
+                    &inter,
+                    camera,
+                    [x as u32, y as u32],
+                    topts.warp,
+                    diag,
+                    &opts.mode,
                 );
             }
         });
@@ -336,17 +340,16 @@ pub fn render_template_with(
 }
 
 /// Traces one template ray: its intermediate pixel and step counts.
-#[allow(clippy::too_many_arguments)]
 fn inter_pixel(
     st: &Setup,
     ray: &Ray,
     start: [i64; 2],
     min_leap: Option<u8>,
-    mode: &Mode,
     iso: f64,
     opts: &RenderOptions,
     acc: &mut Accessor,
 ) -> (IPx, StepCounts) {
+    let mode = &opts.mode;
     let mut px = IPx::default();
     let hit = match mode {
         Mode::Surface { hit, .. } | Mode::Depth { hit } => Some(*hit),
@@ -424,14 +427,12 @@ fn inter_pixel(
     (px, counts)
 }
 
-/// The final pixel `(x, y)` from the intermediate image.
-#[allow(clippy::too_many_arguments)]
+/// The final pixel `[x, y]` from the intermediate image.
 fn warp_pixel(
     st: &Setup,
     inter: &[IPx],
     camera: &Camera,
-    x: u32,
-    y: u32,
+    [x, y]: [u32; 2],
     warp: Warp,
     diag: f64,
     mode: &Mode,

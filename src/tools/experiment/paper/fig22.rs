@@ -85,7 +85,12 @@ pub fn fig22(o: &PaperOptions, pr: &dyn Progress) -> anyhow::Result<String> {
                     }
                 }
                 Some(hm) => {
-                    found = equidistant_hit(&grid, coords, acc, r, v.t_enter, iso, hm, &params);
+                    let surface = IsoHit {
+                        iso,
+                        hit: hm,
+                        params: &params,
+                    };
+                    found = equidistant_hit(&grid, coords, acc, r, v.t_enter, &surface);
                     Flow::Stop
                 }
             });
@@ -178,20 +183,30 @@ pub fn fig22(o: &PaperOptions, pr: &dyn Progress) -> anyhow::Result<String> {
     Ok(s)
 }
 
+/// The surface an equidistant sampler looks for: the iso value, and how
+/// the hit is refined between the last two samples.
+struct IsoHit<'a> {
+    iso: f64,
+    hit: HitMethod,
+    params: &'a HitParams,
+}
+
 /// The iso-surface along `r` from `t0` (the first 1-cell's entry) by
 /// equidistant samples (the 3D DDA's own, one cell along the major axis),
-/// refined between the last two by `hit` (Fig. 21b).
-#[allow(clippy::too_many_arguments)]
+/// refined between the last two by `surface.hit` (Fig. 21b).
 fn equidistant_hit(
     grid: &TGrid<f64>,
     coords: [&[f64]; 3],
     acc: &mut Accessor,
     r: &Ray,
     t0: f64,
-    iso: f64,
-    hit: HitMethod,
-    p: &HitParams,
+    surface: &IsoHit,
 ) -> Option<f64> {
+    let IsoHit {
+        iso,
+        hit,
+        params: p,
+    } = *surface;
     let (lo, hi) = grid.bounds();
     let (_, t_out) = slab(lo, hi, r)?;
     let h: [f64; 3] = std::array::from_fn(|k| coords[k][1] - coords[k][0]);
