@@ -17,7 +17,17 @@ pub use crate::classify::CellClass;
 /// reads (`pread`), so only the bricks asked for are ever read, and
 /// resident memory is what the caller keeps, not what it has touched (a
 /// memory map would count every page read towards RSS).
+///
+/// A handle: cloning it is cheap and shares the open file, its header and
+/// its index, so a brick cache or a renderer can own one
+/// ([`BrickCache`](crate::render::Renderer) holds a clone) without borrowing.
+#[derive(Clone)]
 pub struct PackedVolume {
+    inner: std::sync::Arc<Packed>,
+}
+
+/// What a [`PackedVolume`] shares between its clones.
+struct Packed {
     path: PathBuf,
     file: File,
     len: u64,
@@ -270,12 +280,14 @@ impl PackedVolume {
             }
         }
         Ok(PackedVolume {
-            path: p(),
-            file: f,
-            len,
-            header,
-            index,
-            crc,
+            inner: std::sync::Arc::new(Packed {
+                path: p(),
+                file: f,
+                len,
+                header,
+                index,
+                crc,
+            }),
         })
     }
 
@@ -283,30 +295,30 @@ impl PackedVolume {
     /// identifies the file's contents, e.g. across the parts of a sharded
     /// render.
     pub fn checksum(&self) -> u32 {
-        self.crc
+        self.inner.crc
     }
 
     pub fn path(&self) -> &Path {
-        &self.path
+        &self.inner.path
     }
 
     pub fn header(&self) -> &Header {
-        &self.header
+        &self.inner.header
     }
 
     pub fn index(&self) -> &[IndexEntry] {
-        &self.index
+        &self.inner.index
     }
 
     pub fn file_len(&self) -> u64 {
-        self.len
+        self.inner.len
     }
 
     fn brick_err(&self, id: u64, msg: String) -> FormatError {
         FormatError::Brick {
-            path: self.path.clone(),
+            path: self.inner.path.clone(),
             brick: id,
-            coords: self.header.brick_coords(id),
+            coords: self.inner.header.brick_coords(id),
             msg,
         }
     }
@@ -336,8 +348,8 @@ impl PackedVolume {
         comp: &mut Vec<u8>,
         raw: &mut Vec<u8>,
     ) -> Result<bool, FormatError> {
-        let e = *self.index.get(id as usize).ok_or_else(|| {
-            self.brick_err(id, format!("no such brick (file has {})", self.index.len()))
+        let e = *self.inner.index.get(id as usize).ok_or_else(|| {
+            self.brick_err(id, format!("no such brick (file has {})", self.inner.index.len()))
         })?;
         comp.clear();
         raw.clear();
@@ -345,10 +357,10 @@ impl PackedVolume {
             return Ok(false);
         }
         comp.resize(e.length as usize, 0);
-        self.file
+        self.inner.file
             .read_exact_at(comp, e.offset)
             .map_err(|source| FormatError::Io {
-                path: self.path.clone(),
+                path: self.inner.path.clone(),
                 what: "cannot read brick payload",
                 source,
             })?;
@@ -362,7 +374,7 @@ impl PackedVolume {
                 ),
             ));
         }
-        let want = self.header.payload_len(self.header.brick_coords(id)) as usize;
+        let want = self.inner.header.payload_len(self.inner.header.brick_coords(id)) as usize;
         raw.reserve_exact(want);
         dctx.decompress_to_buffer(comp.as_slice(), raw)
             .map_err(|x| self.brick_err(id, format!("cannot decompress: {x}")))?;
@@ -372,14 +384,14 @@ impl PackedVolume {
                 format!("payload is {} bytes, expected {want}", raw.len()),
             ));
         }
-        if self.header.byte_planes() {
+        if self.inner.header.byte_planes() {
             // The stored bytes are no longer needed: the words are joined
             // from `raw` into that buffer, the rest of the payload (octant
             // codes, DDA planes) follows them, and the two trade places.
-            let n = self.header.words_len(self.header.brick_coords(id)) as usize;
+            let n = self.inner.header.words_len(self.inner.header.brick_coords(id)) as usize;
             comp.clear();
             comp.reserve_exact(raw.len());
-            super::planes::join_into(&raw[..n], self.header.storage.size(), comp);
+            super::planes::join_into(&raw[..n], self.inner.header.storage.size(), comp);
             comp.extend_from_slice(&raw[n..]);
             std::mem::swap(comp, raw);
         }
@@ -388,12 +400,12 @@ impl PackedVolume {
 
     /// Reads and decodes brick `id`.
     pub fn read_brick(&self, id: u64) -> Result<Brick, FormatError> {
-        let h = &self.header;
+        let h = &self.inner.header;
         let coords = h.brick_coords(id);
         let first = std::array::from_fn(|k| coords[k] * h.brick_size as u64);
         let samples = h.brick_samples(coords).map(|s| s as usize);
         let data = match self.read_payload(id)? {
-            None => BrickData::Uniform(self.index[id as usize].uniform_code),
+            None => BrickData::Uniform(self.inner.index[id as usize].uniform_code),
             Some(raw) => {
                 let n = samples.iter().product::<usize>();
                 let (mut values, mut codes) = (Vec::new(), Vec::new());
@@ -427,7 +439,7 @@ impl PackedVolume {
             BrickData::Uniform(c) => CellClass::Empty(*c),
             BrickData::Words { .. } => {
                 let v = brick.vertices(l).expect("words brick");
-                let rs = self.header.rescale;
+                let rs = self.inner.header.rescale;
                 let codes = v.map(|s| match s {
                     Sample::Code(c) => Some(c),
                     Sample::Value(_) => None,
@@ -436,7 +448,7 @@ impl PackedVolume {
                     Sample::Value(x) => rs.apply(x),
                     Sample::Code(_) => f64::NAN,
                 });
-                self.header.classification.cell_of_words(codes, values)
+                self.inner.header.classification.cell_of_words(codes, values)
             }
         }
     }

@@ -142,7 +142,7 @@ struct SceneKey {
 pub struct Engine<'v> {
     pub files: &'v [Served],
     pub cache_bytes: usize,
-    slot: Mutex<Option<(SceneKey, BrickCache<'v>)>>,
+    slot: Mutex<Option<(SceneKey, BrickCache)>>,
     sessions: Mutex<HashMap<String, Arc<AtomicBool>>>,
     pool: rayon::ThreadPool,
     pub counters: Counters,
@@ -264,7 +264,7 @@ impl<'v> Engine<'v> {
 
     /// The render slot; a handler that panicked while holding it left
     /// only a cache behind, which is dropped.
-    fn lock_slot(&self) -> MutexGuard<'_, Option<(SceneKey, BrickCache<'v>)>> {
+    fn lock_slot(&self) -> MutexGuard<'_, Option<(SceneKey, BrickCache)>> {
         self.slot.lock().unwrap_or_else(|poisoned| {
             let mut g = poisoned.into_inner();
             *g = None;

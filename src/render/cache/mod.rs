@@ -134,8 +134,10 @@ pub struct BrickPolicy {
 }
 
 /// Decoded bricks under a byte budget, shared by all threads.
-pub struct BrickCache<'v> {
-    vol: &'v PackedVolume,
+pub struct BrickCache {
+    /// A handle on the file (shared, cheap to clone): the cache owns it,
+    /// so it borrows nothing.
+    vol: PackedVolume,
     budget: usize,
     lru: Mutex<Lru<Arc<RBrick>>>,
     planes: Planes,
@@ -154,9 +156,9 @@ pub struct BrickCache<'v> {
 /// The next [`BrickCache`]'s id.
 static NEXT_CACHE_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
-impl<'v> BrickCache<'v> {
+impl BrickCache {
     /// A cache that builds every plane the file has, and no octree.
-    pub fn new(vol: &'v PackedVolume, budget_bytes: usize) -> BrickCache<'v> {
+    pub fn new(vol: &PackedVolume, budget_bytes: usize) -> BrickCache {
         BrickCache::with_planes(vol, budget_bytes, Planes::FILE)
     }
 
@@ -165,13 +167,13 @@ impl<'v> BrickCache<'v> {
     /// a brick with each decoded brick (one byte per node, ~1/7 byte per
     /// cell, counted against the budget).
     pub fn with_planes(
-        vol: &'v PackedVolume,
+        vol: &PackedVolume,
         budget_bytes: usize,
         planes: Planes,
-    ) -> BrickCache<'v> {
+    ) -> BrickCache {
         let bs = vol.header().brick_size;
         BrickCache {
-            vol,
+            vol: vol.clone(),
             budget: budget_bytes,
             lru: Mutex::new(Lru::new(vol.header().brick_count() * KEYS_PER_BRICK)),
             planes,
@@ -187,7 +189,7 @@ impl<'v> BrickCache<'v> {
     /// brick with 1-cells once, on its first decoding: about 60,000
     /// instructions a 32^3 brick (docs/BENCHMARKS.md, "Later frames cull
     /// by sub-blocks").
-    pub fn with_occupancy(mut self) -> BrickCache<'v> {
+    pub fn with_occupancy(mut self) -> BrickCache {
         let n = self.vol.header().brick_count();
         self.occupied = Some((0..n).map(|_| std::sync::OnceLock::new()).collect());
         self
@@ -203,16 +205,16 @@ impl<'v> BrickCache<'v> {
     }
 
     /// This cache, also building the octree ([`Planes::octree`]).
-    pub fn with_octree(self) -> BrickCache<'v> {
+    pub fn with_octree(self) -> BrickCache {
         let planes = Planes {
             octree: true,
             ..self.planes
         };
-        BrickCache::with_planes(self.vol, self.budget, planes)
+        BrickCache::with_planes(&self.vol, self.budget, planes)
     }
 
     pub fn volume(&self) -> &PackedVolume {
-        self.vol
+        &self.vol
     }
 
     /// Distinct bricks whose payload was read.
@@ -260,7 +262,7 @@ impl<'v> BrickCache<'v> {
                 (Some(iso), Some(m)) => to_f32(m) < iso,
                 _ => false,
             };
-            decoded(c, || RBrick::decode(self.vol, id, self.planes, free))
+            decoded(c, || RBrick::decode(&self.vol, id, self.planes, free))
         })?;
         if inserted && !lazy {
             c.bricks_read += 1;
@@ -284,7 +286,7 @@ impl<'v> BrickCache<'v> {
     pub fn get_values(&self, id: u64, c: &mut CacheCounters) -> Result<Arc<RBrick>, FormatError> {
         let key = id * KEYS_PER_BRICK + 2;
         let (b, inserted) = self.cached(key, c, |c| {
-            decoded(c, || RBrick::decode_values(self.vol, id))
+            decoded(c, || RBrick::decode_values(&self.vol, id))
         })?;
         if inserted {
             c.bricks_read_values += 1;
@@ -332,8 +334,8 @@ fn decoded(
 }
 
 /// Per-tile front of the cache: the current brick and the first error.
-pub struct Accessor<'a, 'v> {
-    cache: &'a BrickCache<'v>,
+pub struct Accessor<'a> {
+    cache: &'a BrickCache,
     brick_size: u32,
     bricks: [u64; 3],
     cur_id: u64,
@@ -367,21 +369,21 @@ pub const HELD: usize = held::HELD;
 /// off (docs/BENCHMARKS.md, "Render levers").
 pub const LAZY_MIN_CODE_CD: u8 = 16;
 
-impl<'a, 'v> Accessor<'a, 'v> {
+impl<'a> Accessor<'a> {
     /// An accessor that decodes every brick it enters.
-    pub fn new(cache: &'a BrickCache<'v>) -> Accessor<'a, 'v> {
+    pub fn new(cache: &'a BrickCache) -> Accessor<'a> {
         Accessor::with_lazy(cache, None)
     }
 
     /// An accessor that stands bricks in as `policy` allows (its planes
     /// are the cache's business).
-    pub fn for_policy(cache: &'a BrickCache<'v>, policy: &BrickPolicy) -> Accessor<'a, 'v> {
+    pub fn for_policy(cache: &'a BrickCache, policy: &BrickPolicy) -> Accessor<'a> {
         Accessor::with_lazy(cache, policy.stand_in_min)
     }
 
     /// An accessor that stands in a brick without 1-cells by its index
     /// code when that code is at least `lazy_min` (see [`BrickCache::get`]).
-    pub fn with_lazy(cache: &'a BrickCache<'v>, lazy_min: Option<u8>) -> Accessor<'a, 'v> {
+    pub fn with_lazy(cache: &'a BrickCache, lazy_min: Option<u8>) -> Accessor<'a> {
         let h = cache.volume().header();
         Accessor {
             cache,
@@ -475,7 +477,7 @@ impl<'a, 'v> Accessor<'a, 'v> {
     }
 }
 
-impl Accessor<'_, '_> {
+impl Accessor<'_> {
     /// [`Accessor::brick`] as a shared handle, which the caller may keep
     /// while it reads other bricks through the accessor; `None` after a
     /// read error. It clones the `Arc` (an atomic count other threads
@@ -525,7 +527,7 @@ impl Accessor<'_, '_> {
     }
 }
 
-impl crate::render::traverse::CodeSource for Accessor<'_, '_> {
+impl crate::render::traverse::CodeSource for Accessor<'_> {
     #[inline(always)]
     fn code(&mut self, c: [u32; 3], octant: Option<usize>) -> u8 {
         let (b, l) = self.brick(c);
@@ -594,7 +596,7 @@ impl crate::render::traverse::CodeSource for Accessor<'_, '_> {
     }
 }
 
-impl Accessor<'_, '_> {
+impl Accessor<'_> {
     /// The 8 vertex values of global cell `c`, x fastest (all finite or
     /// NaN as stored; exact for a 1-cell).
     #[inline]

@@ -699,13 +699,13 @@ impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {
 /// the gradients of a cell its plane has not set, computed (and kept in
 /// the plane) as the one-at-a-time sampler computes them
 /// ([`outer_cell_gradients`]).
-struct BatchSource<'a, 'c, 'v> {
-    acc: &'a mut Accessor<'c, 'v>,
+struct BatchSource<'a, 'c> {
+    acc: &'a mut Accessor<'c>,
     cell: [u32; 3],
     coords: [&'a [f64]; 3],
 }
 
-impl batch::Source for BatchSource<'_, '_, '_> {
+impl batch::Source for BatchSource<'_, '_> {
     #[inline(always)]
     fn brick(&mut self) -> &RBrick {
         self.acc.brick(self.cell).0

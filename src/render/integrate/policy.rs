@@ -55,7 +55,7 @@ pub fn brick_policy(method: Method, cd_lazy_min: u8) -> BrickPolicy {
 /// planes its traversal needs.
 /// A scene narrower than the file's classification (`render --iso`)
 /// rewrites each brick for it ([`Planes::narrow`]).
-pub fn cache_for<'v>(vol: &'v PackedVolume, opts: &RenderOptions) -> BrickCache<'v> {
+pub fn cache_for(vol: &PackedVolume, opts: &RenderOptions) -> BrickCache {
     // The planes do not depend on the stand-in threshold.
     let mut planes = brick_policy(opts.method, LAZY_MIN_CODE_CD).planes;
     planes.narrow = crate::render::options::narrowing(vol.header(), opts);

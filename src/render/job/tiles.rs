@@ -151,9 +151,9 @@ pub(crate) fn render_shard(
 /// and options, which tiles ([`Shard`]), progress, a flag that skips the
 /// tiles not yet started once set, and where the tiles colour their
 /// pixels (none: they return them).
-struct TileJob<'a, 'v, 'c> {
+struct TileJob<'a, 'c> {
     vol: &'a PackedVolume,
-    cache: &'a BrickCache<'v>,
+    cache: &'a BrickCache,
     camera: &'a Camera,
     opts: &'a RenderOptions,
     shard: Shard,

@@ -184,7 +184,7 @@ fn all_rays(cam: &Camera) -> Vec<Ray> {
         .collect()
 }
 
-fn cache_for(vol: &PackedVolume, m: Method) -> BrickCache<'_> {
+fn cache_for(vol: &PackedVolume, m: Method) -> BrickCache {
     let planes = brick_policy(m, LAZY_MIN_CODE_CD).planes;
     BrickCache::with_planes(vol, 1 << 30, planes)
 }
