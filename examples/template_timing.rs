@@ -9,10 +9,10 @@ use cdvol::format::reader::PackedVolume;
 use cdvol::input::raw::RawSource;
 use cdvol::prep::{prep, PrepOptions};
 use cdvol::progress::NoProgress;
-use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::template::render_template;
 use cdvol::render::traverse::{Method, TGrid};
 use cdvol::render::view::camera::Camera;
+use cdvol::render::HitMethod;
 use cdvol::render::{render, Frame, Mode, RenderOptions, Stats};
 use cdvol::tools::phantom;
 

@@ -17,13 +17,7 @@
 use std::error::Error;
 use std::path::PathBuf;
 
-use cdvol::format::reader::PackedVolume;
-use cdvol::look::{resolve, Ask};
-use cdvol::progress::NoProgress;
-use cdvol::render::sample::hit::HitMethod;
-use cdvol::render::view::camera::orbit_dirs;
-use cdvol::render::view::framing::{self, Framing};
-use cdvol::render::{default_method, render, save, RenderOptions};
+use cdvol::{Look, View, Volume};
 
 fn main() -> Result<(), Box<dyn Error>> {
     let mut args = std::env::args_os().skip(1);
@@ -33,48 +27,29 @@ fn main() -> Result<(), Box<dyn Error>> {
     let out_dir = args
         .next()
         .map_or_else(|| PathBuf::from("."), PathBuf::from);
-    let vol = PackedVolume::open(&file)?;
-
+    let vol = Volume::open(&file)?;
+    // One renderer for the three views: the bricks the first decodes are
+    // there for the others.
+    let renderer = vol.renderer();
     // What `cdvol render FILE` draws with no options: the file's look if
-    // it has one, else a surface; shaded with Newton hits.
-    let look = resolve(
-        vol.header(),
-        &Ask {
-            mode: None,
-            preset: None,
-            preset_range: None,
-            force: false,
-            iso: None,
-            tf: None,
-            window: None,
-            shade: false,
-            hit: HitMethod::Newton,
-            shadows: true,
-            step_mm: 0.5,
-        },
-    )?;
-    let mut opts = RenderOptions::new(look.mode, default_method(vol.header()));
-    opts.iso = look.iso;
-    opts.window = look.window;
-    opts.look = look.look;
-
-    // One framing for all three views: the object's box.
-    let framing = Framing::of(&vol, &opts);
+    // it has one, else a surface at its iso value.
+    let look = Look::default();
     for (name, az, el) in [
         ("front", 0.0, 0.0),
         ("side", 90.0, 0.0),
         ("above", 35.0, 50.0),
     ] {
-        let camera = framing::orbit(&framing, orbit_dirs(az, el), None, None, 512, 512)?;
-        let (frame, stats) = render(&vol, &camera, &opts, &NoProgress)?;
+        let image = renderer.render(&View::orbit(az, el, 512, 512), &look)?;
         let path = out_dir.join(format!("view-{name}.png"));
-        save(&frame, &path)?;
+        image.save(&path)?;
+        let s = &image.stats;
         println!(
-            "{} ({} mode, {:.1} steps per ray, {:.2} s)",
+            "{} ({} mode, {:.1} steps per ray, {} bricks read, {:.2} s)",
             path.display(),
-            opts.mode.name(),
-            stats.steps as f64 / stats.rays.max(1) as f64,
-            stats.seconds_total
+            renderer.options(&look)?.mode.name(),
+            s.steps as f64 / s.rays.max(1) as f64,
+            s.cache_misses,
+            s.seconds_total
         );
     }
     Ok(())

@@ -21,9 +21,9 @@ use cdvol::format::reader::PackedVolume;
 use cdvol::info::Info;
 use cdvol::prep::{prep, PrepOptions, PrepReport};
 use cdvol::progress::Progress;
-use cdvol::render::sample::hit::HitMethod;
 use cdvol::render::view::camera::orbit_dirs;
 use cdvol::render::view::framing::{self, Framing};
+use cdvol::render::HitMethod;
 use cdvol::render::{default_method, render, Mode, RenderOptions};
 use cdvol::tools::phantom;
 

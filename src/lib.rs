@@ -24,6 +24,12 @@
 //!                      dda; paper Figs. 11-12) -> integrate (surface,
 //!                      depth, mip, composite, cost) -> output (PNG)
 //! ```
+//! ## From another program
+//! [`Volume::open`] a packed file, take its [`Renderer`] (which owns its
+//! brick cache and can be shared across threads) and
+//! [`render`](Renderer::render) a [`View`] in a [`Look`] to an [`Image`];
+//! the images are those `cdvol render` writes for the same view and look.
+//!
 //! docs/DESIGN.md maps every room: what it owns and what it may import
 //! (checked by tests/all/layout.rs).
 //!
@@ -45,6 +51,7 @@ compile_error!(
     "cdvol's packed format is little-endian and is only built for little-endian targets"
 );
 
+mod api;
 pub mod batch;
 pub mod classify;
 pub mod dt;
@@ -69,3 +76,6 @@ pub mod render;
 pub mod serve;
 #[cfg(feature = "tools")]
 pub mod tools;
+
+pub use api::{Error, Image, Look, Renderer, Volume};
+pub use render::job::{Aim, View};

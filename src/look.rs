@@ -19,7 +19,7 @@ use crate::classify::TransferFunction;
 use crate::format::landmarks::Landmarks;
 use crate::format::{Header, ModalityRecord};
 use crate::presets::{Modality, Preset, PresetError};
-use crate::render::sample::hit::HitMethod;
+use crate::render::HitMethod;
 use crate::render::{CompositeLook, Mode, Window};
 
 /// Why a preset cannot be used on a file.
@@ -201,6 +201,26 @@ pub struct Ask {
     pub hit: HitMethod,
     pub shadows: bool,
     pub step_mm: f64,
+}
+
+impl Default for Ask {
+    /// What `cdvol render FILE` asks with no options: the file's look, or
+    /// a surface at its iso value; `--hit int`, no shadows, 0.5 mm steps.
+    fn default() -> Ask {
+        Ask {
+            mode: None,
+            preset: None,
+            preset_range: None,
+            force: false,
+            iso: None,
+            tf: None,
+            window: None,
+            shade: false,
+            hit: HitMethod::Int,
+            shadows: false,
+            step_mm: 0.5,
+        }
+    }
 }
 
 /// What [`resolve`] decided: the fields of

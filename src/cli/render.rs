@@ -7,7 +7,7 @@ use clap::{Args, ValueEnum};
 
 use super::heading;
 
-use cdvol::render::sample::hit::HitMethod;
+use cdvol::render::HitMethod;
 use cdvol::render::{Precision, ShardLayout};
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

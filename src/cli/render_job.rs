@@ -7,10 +7,10 @@ use clap::ValueEnum;
 use cdvol::classify::TransferFunction;
 use cdvol::format::reader::PackedVolume;
 use cdvol::look::{resolve, Ask, ModeKind, ResolveError};
-use cdvol::render::job::{CameraSpec, JobError, RenderJob, View};
-use cdvol::render::sample::hit::HitParams;
+use cdvol::render::job::{Aim, JobError, RenderJob, View};
 use cdvol::render::traverse::{DistKind, Method};
 use cdvol::render::view::camera::CameraError;
+use cdvol::render::HitParams;
 use cdvol::render::{default_method, CompositeLook, RenderError, RenderOptions, Shard, Window};
 
 use super::render::*;
@@ -122,11 +122,11 @@ impl RenderArgs {
                 self.cache_mb
             );
         }
-        let view = match (self.eye, self.target, self.up) {
-            (Some(eye), Some(target), Some(up)) => View::LookAt { eye, target, up },
+        let aim = match (self.eye, self.target, self.up) {
+            (Some(eye), Some(target), Some(up)) => Aim::LookAt { eye, target, up },
             (None, None, None) => match self.view.unwrap_or(ViewArg::Angles([0.0, 0.0])) {
-                ViewArg::Angles([az_deg, el_deg]) => View::Orbit { az_deg, el_deg },
-                ViewArg::Named(v) => View::Named(v),
+                ViewArg::Angles([az_deg, el_deg]) => Aim::Orbit { az_deg, el_deg },
+                ViewArg::Named(v) => Aim::Named(v),
             },
             _ => anyhow::bail!("--eye, --target and --up go together: give all three or none"),
         };
@@ -141,8 +141,8 @@ impl RenderArgs {
             ),
         })?;
         Ok(RenderJob {
-            camera: CameraSpec {
-                view,
+            camera: View {
+                aim,
                 persp_fov_deg: self.persp.then_some(self.fov),
                 frame_mm: self.frame,
                 width: self.width,

@@ -19,8 +19,8 @@ pub use crate::classify::CellClass;
 /// memory map would count every page read towards RSS).
 ///
 /// A handle: cloning it is cheap and shares the open file, its header and
-/// its index, so a brick cache or a renderer can own one
-/// ([`BrickCache`](crate::render::Renderer) holds a clone) without borrowing.
+/// its index, so a brick cache or a [`Renderer`](crate::Renderer) owns
+/// one instead of borrowing it.
 #[derive(Clone)]
 pub struct PackedVolume {
     inner: std::sync::Arc<Packed>,
@@ -349,7 +349,10 @@ impl PackedVolume {
         raw: &mut Vec<u8>,
     ) -> Result<bool, FormatError> {
         let e = *self.inner.index.get(id as usize).ok_or_else(|| {
-            self.brick_err(id, format!("no such brick (file has {})", self.inner.index.len()))
+            self.brick_err(
+                id,
+                format!("no such brick (file has {})", self.inner.index.len()),
+            )
         })?;
         comp.clear();
         raw.clear();
@@ -357,7 +360,8 @@ impl PackedVolume {
             return Ok(false);
         }
         comp.resize(e.length as usize, 0);
-        self.inner.file
+        self.inner
+            .file
             .read_exact_at(comp, e.offset)
             .map_err(|source| FormatError::Io {
                 path: self.inner.path.clone(),
@@ -374,7 +378,10 @@ impl PackedVolume {
                 ),
             ));
         }
-        let want = self.inner.header.payload_len(self.inner.header.brick_coords(id)) as usize;
+        let want = self
+            .inner
+            .header
+            .payload_len(self.inner.header.brick_coords(id)) as usize;
         raw.reserve_exact(want);
         dctx.decompress_to_buffer(comp.as_slice(), raw)
             .map_err(|x| self.brick_err(id, format!("cannot decompress: {x}")))?;
@@ -388,7 +395,10 @@ impl PackedVolume {
             // The stored bytes are no longer needed: the words are joined
             // from `raw` into that buffer, the rest of the payload (octant
             // codes, DDA planes) follows them, and the two trade places.
-            let n = self.inner.header.words_len(self.inner.header.brick_coords(id)) as usize;
+            let n = self
+                .inner
+                .header
+                .words_len(self.inner.header.brick_coords(id)) as usize;
             comp.clear();
             comp.reserve_exact(raw.len());
             super::planes::join_into(&raw[..n], self.inner.header.storage.size(), comp);
@@ -448,7 +458,10 @@ impl PackedVolume {
                     Sample::Value(x) => rs.apply(x),
                     Sample::Code(_) => f64::NAN,
                 });
-                self.inner.header.classification.cell_of_words(codes, values)
+                self.inner
+                    .header
+                    .classification
+                    .cell_of_words(codes, values)
             }
         }
     }

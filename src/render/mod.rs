@@ -30,22 +30,44 @@
 //! Output is the same whatever the thread count, tile size or cache budget:
 //! every pixel is computed on its own, from the same values.
 
+// The renderer's insides (the decoded brick, the cache and its accessor,
+// what a ray does at a cell, the template renderer of the paper's
+// experiments) are the library's own: a caller renders
+// through `Renderer` or `render`. The tests, benchmarks and tools that
+// check them from outside reach them with the feature `internals` (on
+// with `tools`), hidden from the API docs.
+#[cfg(feature = "internals")]
+#[doc(hidden)]
 pub mod brick;
+#[cfg(not(feature = "internals"))]
+mod brick;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
 pub mod cache;
+#[cfg(not(feature = "internals"))]
+mod cache;
 mod clock;
 mod error;
 mod integrate;
 pub mod job;
 mod options;
 pub mod output;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
 pub mod sample;
+#[cfg(not(feature = "internals"))]
+mod sample;
 mod stats;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
 pub mod template;
+#[cfg(not(feature = "internals"))]
+mod template;
 pub mod traverse;
 pub mod view;
 
 pub use error::RenderError;
-pub use integrate::policy::{brick_policy, cache_for, gradient_plane};
+pub use integrate::policy::{brick_policy, cache_for, gradient_plane, planes_for};
 pub use integrate::{lazy_min_for, LAZY_DENSE_PIXELS, LAZY_MIN_CODE_SPARSE};
 pub use job::shard::{render_part, render_part_in};
 pub use job::tiles::{
@@ -53,12 +75,14 @@ pub use job::tiles::{
 };
 pub use options::{
     default_method, mode_name, CompositeLook, GradientPoint, Mode, Precision, RenderOptions,
-    Window, EARLY_STOP, MAX_PIXELS, MIN_STEP_MM,
+    Window, DEFAULT_CACHE_BYTES, EARLY_STOP, MAX_PIXELS, MIN_STEP_MM,
 };
 pub use output::colour::Colouring;
 pub use output::{
     image_files, save, save_on, stage, stage_on, Background, BackgroundError, Bits, Frame,
     ImageSpec, SaveError,
 };
+pub use sample::hit::{HitMethod, HitParams};
 pub use sample::normals::Normals;
 pub use stats::Stats;
+pub use traverse::Method;

@@ -254,7 +254,7 @@ impl RenderOptions {
             mode,
             method,
             tile: 32,
-            cache_bytes: 512 << 20,
+            cache_bytes: DEFAULT_CACHE_BYTES,
             cd_lazy_min: None,
             precision: Precision::F64,
             hit_params: HitParams::default(),
@@ -270,6 +270,9 @@ impl RenderOptions {
         }
     }
 }
+
+/// The brick cache's default budget in bytes (`render --cache-mb 512`).
+pub const DEFAULT_CACHE_BYTES: usize = 512 << 20;
 
 /// Arithmetic of the traversal. Shading and hits are always f64.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

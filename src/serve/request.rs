@@ -1,6 +1,6 @@
 //! What a browser may ask of `cdvol serve`: the query string of an image
 //! request parsed into a checked [`ViewRequest`], every number bounded, and
-//! its conversion into the renderer's [`CameraSpec`] and
+//! its conversion into the renderer's [`View`] and
 //! [`RenderOptions`] with the defaults of `cdvol render` (so the image is
 //! the one `cdvol render` writes for [`ViewRequest::command`]).
 //!
@@ -10,10 +10,10 @@
 use crate::format::reader::PackedVolume;
 use crate::format::Header;
 use crate::orient::NamedView;
-use crate::render::job::{CameraSpec, View};
-use crate::render::sample::hit::HitMethod;
+use crate::render::job::{Aim, View};
 use crate::render::traverse::TGrid;
 use crate::render::view::camera::Camera;
+use crate::render::HitMethod;
 use crate::render::{RenderOptions, Window};
 
 /// Largest image edge the server renders: a frame then needs at most
@@ -265,16 +265,16 @@ impl ViewRequest {
 
     /// The camera: an orbit or named view, or, when panned, the same
     /// view's eye and target shifted (`--eye --target --up`).
-    pub fn camera(&self, vol: &PackedVolume) -> Result<CameraSpec, RequestError> {
+    pub fn camera(&self, vol: &PackedVolume) -> Result<View, RequestError> {
         let view = match self.view {
-            Some(v) => View::Named(v),
-            None => View::Orbit {
+            Some(v) => Aim::Named(v),
+            None => Aim::Orbit {
                 az_deg: self.az_deg,
                 el_deg: self.el_deg,
             },
         };
-        let spec = CameraSpec {
-            view,
+        let spec = View {
+            aim: view,
             persp_fov_deg: None,
             frame_mm: self.frame_mm,
             width: self.width,
@@ -308,8 +308,8 @@ impl ViewRequest {
             crate::render::view::camera::Projection::Ortho { frame_mm } => frame_mm,
             crate::render::view::camera::Projection::Persp { .. } => dist,
         };
-        Ok(CameraSpec {
-            view: View::LookAt {
+        Ok(View {
+            aim: Aim::LookAt {
                 eye: eye.to_array(),
                 target: target.to_array(),
                 up: cam.up.to_array(),
@@ -343,7 +343,7 @@ impl ViewRequest {
 
     /// `spec` placed against `vol`, framing this request's scene as
     /// `cdvol render` does (render/view/framing.rs).
-    pub fn place(&self, vol: &PackedVolume, spec: &CameraSpec) -> Result<Camera, RequestError> {
+    pub fn place(&self, vol: &PackedVolume, spec: &View) -> Result<Camera, RequestError> {
         let orientation = vol.header().orientation.as_ref();
         spec.framing(vol, &self.options(vol.header(), 0)?, 1, 0.0, orientation)
             .and_then(|framing| spec.place(&framing, 0.0, orientation))
@@ -369,7 +369,7 @@ impl ViewRequest {
 
     /// The `cdvol render` command that writes this image as `view.png`,
     /// `path` being the file as named on the server's command line.
-    pub fn command(&self, path: &str, spec: &CameraSpec) -> String {
+    pub fn command(&self, path: &str, spec: &View) -> String {
         let mut a: Vec<String> = vec!["cdvol".into(), "render".into(), quote(path)];
         a.extend([
             "-o".into(),
@@ -396,10 +396,10 @@ impl ViewRequest {
         }
         flag("--width", self.width.to_string());
         flag("--height", self.height.to_string());
-        match spec.view {
-            View::Named(v) => flag("--view", v.name().into()),
-            View::Orbit { az_deg, el_deg } => flag("--view", format!("{az_deg},{el_deg}")),
-            View::LookAt { eye, target, up } => {
+        match spec.aim {
+            Aim::Named(v) => flag("--view", v.name().into()),
+            Aim::Orbit { az_deg, el_deg } => flag("--view", format!("{az_deg},{el_deg}")),
+            Aim::LookAt { eye, target, up } => {
                 let t = |p: [f64; 3]| format!("{},{},{}", p[0], p[1], p[2]);
                 flag("--eye", t(eye));
                 flag("--target", t(target));

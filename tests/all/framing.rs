@@ -12,7 +12,7 @@
 use std::path::Path;
 
 use cdvol::format::reader::{CellClass, PackedVolume, Sample};
-use cdvol::render::job::{CameraSpec, View};
+use cdvol::render::job::{Aim, View};
 use cdvol::render::traverse::{Method, TGrid};
 use cdvol::render::view::camera::{orbit_dirs, Camera, Projection};
 use cdvol::render::view::framing::{object_box, Framing, MmBox};
@@ -297,8 +297,8 @@ fn a_turntable_shares_one_frame_that_fits_every_frame() {
     // The same frame through the library, and a single image end-on fits
     // the rod's own end.
     let vol = PackedVolume::open(&cdv).unwrap();
-    let spec = CameraSpec {
-        view: View::Orbit {
+    let spec = View {
+        aim: Aim::Orbit {
             az_deg: 0.0,
             el_deg: 0.0,
         },
@@ -316,8 +316,8 @@ fn a_turntable_shares_one_frame_that_fits_every_frame() {
         .map(|f| frame(spec.place(&turn, 90.0 * f as f64, None).unwrap()))
         .collect();
     assert!(frames.iter().all(|&f| f == frames[0]), "{frames:?}");
-    let end_on = CameraSpec {
-        view: View::Orbit {
+    let end_on = View {
+        aim: Aim::Orbit {
             az_deg: 90.0,
             el_deg: 0.0,
         },
@@ -344,8 +344,8 @@ fn a_scene_without_1_cells_frames_the_volume_as_before() {
     let framing = Framing::of(&vol, &surface(None));
     let bounds = TGrid::<f64>::new(&vol.header().axes).bounds();
     assert_eq!(framing, Framing::volume(bounds));
-    let spec = CameraSpec {
-        view: View::Orbit {
+    let spec = View {
+        aim: Aim::Orbit {
             az_deg: 30.0,
             el_deg: 20.0,
         },

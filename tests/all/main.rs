@@ -51,6 +51,7 @@ mod hostile_readers;
 mod hostile_serve;
 mod input_kinds;
 mod layout;
+mod library;
 mod mip;
 mod modality;
 mod no_debug_text;

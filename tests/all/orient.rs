@@ -250,27 +250,27 @@ fn mask(vol: &Path, view: Option<&str>, out: &Path) -> Vec<Vec<bool>> {
 /// pixels right of and below the image's centre, the camera placed by the
 /// library as `cdvol render` places it.
 fn origin_px(vol: &Path, view: Option<&str>) -> [i64; 2] {
-    use cdvol::render::job::{CameraSpec, View};
+    use cdvol::render::job::{Aim, View};
     let v = cdvol::format::reader::PackedVolume::open(vol).unwrap();
     let h = v.header();
     let view = match view {
         Some(n) if cdvol::orient::NamedView::parse(n).is_some() => {
-            View::Named(cdvol::orient::NamedView::parse(n).unwrap())
+            Aim::Named(cdvol::orient::NamedView::parse(n).unwrap())
         }
         Some(a) => {
             let (az, el) = a.split_once(',').unwrap();
-            View::Orbit {
+            Aim::Orbit {
                 az_deg: az.parse().unwrap(),
                 el_deg: el.parse().unwrap(),
             }
         }
-        None => View::Orbit {
+        None => Aim::Orbit {
             az_deg: 0.0,
             el_deg: 0.0,
         },
     };
-    let spec = CameraSpec {
-        view,
+    let spec = View {
+        aim: view,
         persp_fov_deg: None,
         frame_mm: Some(FRAME),
         width: PX,

@@ -166,11 +166,7 @@ impl BrickCache {
     /// bricks are built now from the index (no brick read), those inside
     /// a brick with each decoded brick (one byte per node, ~1/7 byte per
     /// cell, counted against the budget).
-    pub fn with_planes(
-        vol: &PackedVolume,
-        budget_bytes: usize,
-        planes: Planes,
-    ) -> BrickCache {
+    pub fn with_planes(vol: &PackedVolume, budget_bytes: usize, planes: Planes) -> BrickCache {
         let bs = vol.header().brick_size;
         BrickCache {
             vol: vol.clone(),
@@ -215,6 +211,11 @@ impl BrickCache {
 
     pub fn volume(&self) -> &PackedVolume {
         &self.vol
+    }
+
+    /// The planes this cache builds beside each brick.
+    pub fn planes(&self) -> Planes {
+        self.planes
     }
 
     /// Distinct bricks whose payload was read.

@@ -576,7 +576,7 @@ struct Sampler32<'a, const LOOK: bool> {
     /// it ([`Sampler::trim`]; the batches set it too).
     last: Cell<(Vec4, f32)>,
     /// The grid's index map when samples go in batches (batch.rs).
-    batches: Option<&'a batch::IndexMap>,
+    batches: Option<&'a super::index_map::IndexMap>,
 }
 
 impl<const LOOK: bool> Sampler for Sampler32<'_, LOOK> {

@@ -14,6 +14,7 @@ mod batch;
 mod composite;
 mod cost;
 mod depth;
+mod index_map;
 mod mip;
 pub(crate) mod policy;
 mod refine;
@@ -101,7 +102,7 @@ pub(crate) struct Ctx<'a, T> {
     /// Where the composite takes its samples in batches
     /// ([`RenderOptions::sample_batches`]): the grid's map from positions
     /// to cells (batch.rs).
-    pub(crate) index_map: Option<batch::IndexMap>,
+    pub(crate) index_map: Option<index_map::IndexMap>,
 }
 
 /// Whether neighbouring rays of `camera` meet the same cells often enough
@@ -210,7 +211,7 @@ impl<'a, T: Real> Ctx<'a, T> {
             memo_gradients: rays_meet_cells_again(h, camera),
             lazy_min: opts.cd_lazy_min.unwrap_or_else(|| lazy_min_for(h, camera)),
             index_map: if opts.sample_batches && matches!(opts.mode, Mode::Composite { .. }) {
-                batch::IndexMap::of(coords, std::array::from_fn(|k| h.axes[k].is_uniform()))
+                index_map::IndexMap::of(coords, std::array::from_fn(|k| h.axes[k].is_uniform()))
             } else {
                 None
             },

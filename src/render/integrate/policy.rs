@@ -52,10 +52,15 @@ pub fn brick_policy(method: Method, cd_lazy_min: u8) -> BrickPolicy {
 }
 
 /// The brick cache a render with `opts` uses: its byte budget and the
-/// planes its traversal needs.
-/// A scene narrower than the file's classification (`render --iso`)
-/// rewrites each brick for it ([`Planes::narrow`]).
+/// planes its traversal needs ([`planes_for`]).
 pub fn cache_for(vol: &PackedVolume, opts: &RenderOptions) -> BrickCache {
+    BrickCache::with_planes(vol, opts.cache_bytes, planes_for(vol, opts))
+}
+
+/// The planes a render with `opts` needs beside each brick's codes and
+/// values. A scene narrower than the file's classification (`render
+/// --iso`) rewrites each brick for it ([`Planes::narrow`]).
+pub fn planes_for(vol: &PackedVolume, opts: &RenderOptions) -> Planes {
     // The planes do not depend on the stand-in threshold.
     let mut planes = brick_policy(opts.method, LAZY_MIN_CODE_CD).planes;
     planes.narrow = crate::render::options::narrowing(vol.header(), opts);
@@ -64,7 +69,7 @@ pub fn cache_for(vol: &PackedVolume, opts: &RenderOptions) -> BrickCache {
     // traversals that leap (integrate/mip.rs).
     planes.block_max = matches!(opts.mode, crate::render::options::Mode::Mip)
         && super::mip_leaps_with(opts.method);
-    BrickCache::with_planes(vol, opts.cache_bytes, planes)
+    planes
 }
 
 /// Whether the bricks carry a gradient plane

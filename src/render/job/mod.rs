@@ -37,7 +37,7 @@ use crate::render::view::framing::Framing;
 
 /// Where the camera stands.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum View {
+pub enum Aim {
     /// Around the centre of the object's box (the volume's for a scene
     /// with no 1-cell; render/view/framing.rs), degrees: in patient axes (LPS:
     /// 0,0 looks at the face, head up) when the file records its
@@ -56,8 +56,8 @@ pub enum View {
 
 /// The camera of a job, before it is placed against the volume.
 #[derive(Debug, Clone, PartialEq)]
-pub struct CameraSpec {
-    pub view: View,
+pub struct View {
+    pub aim: Aim,
     /// Perspective with this vertical field of view in degrees; `None`
     /// for orthographic.
     pub persp_fov_deg: Option<f64>,
@@ -68,7 +68,7 @@ pub struct CameraSpec {
     pub height: u32,
 }
 
-impl CameraSpec {
+impl View {
     /// What this camera frames on `vol` for `opts`'s scene
     /// (render/view/framing.rs): the object's box ([`Framing::of`]), fitted to
     /// the directions of all `frames` frames of a turntable over
@@ -82,7 +82,7 @@ impl CameraSpec {
         orbit_deg: f64,
         orientation: Option<&Orientation>,
     ) -> Result<Framing, CameraError> {
-        if let View::LookAt { .. } = self.view {
+        if let Aim::LookAt { .. } = self.aim {
             return Ok(Framing::volume(
                 TGrid::<f64>::new(&vol.header().axes).bounds(),
             ));
@@ -117,7 +117,7 @@ impl CameraSpec {
         az_turn_deg: f64,
         orientation: Option<&Orientation>,
     ) -> Result<Camera, CameraError> {
-        if let View::LookAt { eye, target, up } = self.view {
+        if let Aim::LookAt { eye, target, up } = self.aim {
             let projection = match self.persp_fov_deg {
                 Some(fov_deg) => Projection::Persp { fov_deg },
                 None => {
@@ -149,9 +149,9 @@ impl CameraSpec {
         az_turn_deg: f64,
         orientation: Option<&Orientation>,
     ) -> Result<crate::render::view::framing::Dir, CameraError> {
-        let (back, up) = match (self.view, orientation) {
-            (View::Named(v), None) => return Err(CameraError::NoOrientation { view: v.name() }),
-            (View::Named(v), Some(_)) => {
+        let (back, up) = match (self.aim, orientation) {
+            (Aim::Named(v), None) => return Err(CameraError::NoOrientation { view: v.name() }),
+            (Aim::Named(v), Some(_)) => {
                 let (az, el) = v.az_el();
                 let (back, up) = orbit_dirs(az + az_turn_deg, el);
                 if v.is_axial() {
@@ -163,9 +163,9 @@ impl CameraSpec {
                     (back, up)
                 }
             }
-            (View::Orbit { az_deg, el_deg }, _) => orbit_dirs(az_deg + az_turn_deg, el_deg),
+            (Aim::Orbit { az_deg, el_deg }, _) => orbit_dirs(az_deg + az_turn_deg, el_deg),
             // `place` places exact eyes itself.
-            (View::LookAt { .. }, _) => orbit_dirs(az_turn_deg, 0.0),
+            (Aim::LookAt { .. }, _) => orbit_dirs(az_turn_deg, 0.0),
         };
         let map = orientation.map_or(AxisMap::IDENTITY, Orientation::nearest);
         Ok((map.to_sample(back), map.to_sample(up)))
@@ -175,7 +175,7 @@ impl CameraSpec {
 /// One `cdvol render` run.
 #[derive(Debug, Clone)]
 pub struct RenderJob {
-    pub camera: CameraSpec,
+    pub camera: View,
     pub options: RenderOptions,
     /// Template-based CD (paper section 4.2.2, render/template/) instead of the
     /// tile renderer; leaps like `options.method`.
@@ -376,7 +376,7 @@ pub fn run(
     job: &RenderJob,
     progress: &dyn Progress,
 ) -> Result<(Vec<PathBuf>, Stats), JobError> {
-    if job.frames > 1 && matches!(job.camera.view, View::LookAt { .. }) {
+    if job.frames > 1 && matches!(job.camera.aim, Aim::LookAt { .. }) {
         return Err(JobError::TurntableLookAt { frames: job.frames });
     }
     let orientation = vol.header().orientation.as_ref();

@@ -45,7 +45,7 @@
 //!   around the volume's centre, as [`Camera::orbit_dir`] always has.
 //!
 //! Explicit cameras (`--eye --target --up`) are placed as given
-//! ([`crate::render::job::CameraSpec::place`]).
+//! ([`crate::render::job::View::place`]).
 
 use std::collections::{BTreeMap, HashMap};
 use std::sync::Mutex;
