@@ -342,6 +342,23 @@ fn named_modules(line: &str, here: &[String], modules: &[Vec<String>]) -> Vec<Ve
     out
 }
 
+/// Every source file under `src` (its path relative to `src`, with `/`)
+/// and its module.
+fn source_modules(src: &Path) -> Vec<(String, Vec<String>)> {
+    rust_files(src)
+        .into_iter()
+        .map(|f| {
+            let rel = f
+                .strip_prefix(src)
+                .unwrap()
+                .to_string_lossy()
+                .replace('\\', "/");
+            let m = module_of(&rel);
+            (rel, m)
+        })
+        .collect()
+}
+
 /// No two modules of `src/` import each other, directly or round a
 /// circle (issue 52). A child naming its parent is not counted (the
 /// parent declares it; what the parent re-exports from another child is
@@ -350,18 +367,7 @@ fn named_modules(line: &str, here: &[String], modules: &[Vec<String>]) -> Vec<Ve
 #[test]
 fn no_import_circles() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let files: Vec<(String, Vec<String>)> = rust_files(&src)
-        .into_iter()
-        .map(|f| {
-            let rel = f
-                .strip_prefix(&src)
-                .unwrap()
-                .to_string_lossy()
-                .replace('\\', "/");
-            let m = module_of(&rel);
-            (rel, m)
-        })
-        .collect();
+    let files = source_modules(&src);
     let modules: Vec<Vec<String>> = files.iter().map(|(_, m)| m.clone()).collect();
     let index = |m: &Vec<String>| modules.iter().position(|x| x == m);
     let mut edges: Vec<Vec<usize>> = vec![Vec::new(); modules.len()];
@@ -463,18 +469,7 @@ fn render_stage(module: &[String]) -> Option<usize> {
 #[test]
 fn render_stages_import_one_way() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let files: Vec<(String, Vec<String>)> = rust_files(&src)
-        .into_iter()
-        .map(|f| {
-            let rel = f
-                .strip_prefix(&src)
-                .unwrap()
-                .to_string_lossy()
-                .replace('\\', "/");
-            let m = module_of(&rel);
-            (rel, m)
-        })
-        .collect();
+    let files = source_modules(&src);
     let modules: Vec<Vec<String>> = files.iter().map(|(_, m)| m.clone()).collect();
     let file_of = |m: &Vec<String>| {
         files

@@ -4,30 +4,12 @@
 //! byte for byte; one renderer serves threads at once and keeps its cache
 //! across frames; its errors name what was refused.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use cdvol::look::ModeKind;
 use cdvol::{Error, Look, Renderer, View, Volume};
 
-use crate::common::{cdvol, ok};
-
-/// A CT phantom prepared with `prep` (a preset gives the file a look).
-fn prepared(dir: &Path, name: &str, prep: &[&str]) -> PathBuf {
-    let input = dir.join("ct.json");
-    if !input.exists() {
-        ok(cdvol()
-            .args(["-q", "phantom", "ct", "--dims", "48,48,32", "-o"])
-            .arg(&input));
-    }
-    let out = dir.join(format!("{name}.cdv"));
-    ok(cdvol()
-        .args(["-q", "prep"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .args(prep));
-    out
-}
+use crate::common::{cdvol, ok, prepared_ct_phantom};
 
 /// The PNG `cdvol render FILE ARGS` writes.
 fn cli_png(dir: &Path, file: &Path, name: &str, args: &[&str]) -> Vec<u8> {
@@ -51,8 +33,8 @@ fn lib_png(dir: &Path, r: &Renderer, name: &str, view: &View, look: &Look) -> Ve
 #[test]
 fn the_library_draws_what_the_cli_draws() {
     let d = tempfile::tempdir().unwrap();
-    let looked = prepared(d.path(), "looked", &["--preset", "ct-bone"]);
-    let plain = prepared(d.path(), "plain", &["--envelope", "auto"]);
+    let looked = prepared_ct_phantom(d.path(), "looked", &["--preset", "ct-bone"]);
+    let plain = prepared_ct_phantom(d.path(), "plain", &["--envelope", "auto"]);
     let size = ["--width", "96", "--height", "80"];
     let with = |extra: &[&'static str]| -> Vec<&'static str> {
         size.iter().chain(extra).copied().collect()
@@ -124,7 +106,7 @@ fn one_renderer_serves_threads_and_keeps_its_cache() {
     send_sync::<Renderer>();
     send_sync::<Volume>();
     let d = tempfile::tempdir().unwrap();
-    let file = prepared(d.path(), "plain", &["--envelope", "auto"]);
+    let file = prepared_ct_phantom(d.path(), "plain", &["--envelope", "auto"]);
     let r = Volume::open(&file).unwrap().renderer();
     let views: Vec<View> = (0..6)
         .map(|k| View::orbit(60.0 * k as f64, 15.0, 64, 64))
@@ -164,7 +146,7 @@ fn library_errors_say_what_was_refused() {
     assert!(matches!(e, Error::Format(_)), "{e:?}");
     assert!(e.to_string().contains("nothing.cdv"), "{e}");
 
-    let file = prepared(d.path(), "plain", &["--envelope", "auto"]);
+    let file = prepared_ct_phantom(d.path(), "plain", &["--envelope", "auto"]);
     let r = Volume::open(&file).unwrap().renderer();
     // An MR preset on a CT file.
     let e = r

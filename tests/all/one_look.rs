@@ -4,7 +4,7 @@
 //! (`cdvol::look::resolve`, `cdvol::render::default_method`), so the same
 //! request gives the same render options in both.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use clap::FromArgMatches;
 
@@ -13,7 +13,7 @@ use cdvol::render::RenderOptions;
 use cdvol::serve::request::ViewRequest;
 
 use crate::cli;
-use crate::common::{cdvol, ok};
+use crate::common::prepared_ct_phantom;
 
 /// The render options `cdvol render FILE -o x.png ARGS` would use.
 fn cli_options(vol: &PackedVolume, file: &Path, args: &[&str]) -> RenderOptions {
@@ -48,30 +48,13 @@ fn decided(o: &RenderOptions) -> String {
     )
 }
 
-fn prepared(dir: &Path, name: &str, prep: &[&str]) -> PathBuf {
-    let input = dir.join("ct.json");
-    if !input.exists() {
-        ok(cdvol()
-            .args(["-q", "phantom", "ct", "--dims", "48,48,32", "-o"])
-            .arg(&input));
-    }
-    let out = dir.join(format!("{name}.cdv"));
-    ok(cdvol()
-        .args(["-q", "prep"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .args(prep));
-    out
-}
-
 #[test]
 fn render_and_serve_resolve_a_look_alike() {
     let d = tempfile::tempdir().unwrap();
     // A file prepared with a preset (its look), with octant codes (its
     // default traversal is cd-aniso).
-    let looked = prepared(d.path(), "looked", &["--preset", "ct-bone", "--aniso"]);
-    let plain = prepared(d.path(), "plain", &["--envelope", "auto"]);
+    let looked = prepared_ct_phantom(d.path(), "looked", &["--preset", "ct-bone", "--aniso"]);
+    let plain = prepared_ct_phantom(d.path(), "plain", &["--envelope", "auto"]);
     let cases: [(&Path, &[&str], &str); 9] = [
         (&looked, &[], "mode=composite"),
         (&looked, &["--mode", "composite"], "mode=composite"),
@@ -116,7 +99,7 @@ fn render_and_serve_resolve_a_look_alike() {
 #[test]
 fn a_tf_without_a_mode_keeps_the_files_look_out() {
     let d = tempfile::tempdir().unwrap();
-    let looked = prepared(d.path(), "looked", &["--preset", "ct-bone"]);
+    let looked = prepared_ct_phantom(d.path(), "looked", &["--preset", "ct-bone"]);
     let tf = d.path().join("tf.json");
     let bone = cdvol::presets::get("ct-bone").unwrap();
     std::fs::write(&tf, serde_json::to_string(&bone.tf).unwrap()).unwrap();

@@ -317,6 +317,25 @@ pub fn ok(c: &mut Command) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// A 48 x 48 x 32 CT phantom (`dir/ct.json`, written once) prepared by
+/// `cdvol prep` with `prep` into `dir/NAME.cdv`.
+pub fn prepared_ct_phantom(dir: &Path, name: &str, prep: &[&str]) -> PathBuf {
+    let input = dir.join("ct.json");
+    if !input.exists() {
+        ok(cdvol()
+            .args(["-q", "phantom", "ct", "--dims", "48,48,32", "-o"])
+            .arg(&input));
+    }
+    let out = dir.join(format!("{name}.cdv"));
+    ok(cdvol()
+        .args(["-q", "prep"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .args(prep));
+    out
+}
+
 /// Runs `c`, requires it to fail (non-zero exit) and returns its standard
 /// error.
 pub fn fails(c: &mut Command) -> String {
