@@ -115,7 +115,7 @@ fn one_renderer_serves_threads_and_keeps_its_cache() {
         .iter()
         .map(|v| r.render(v, &Look::default()).unwrap().frame.rgb)
         .collect();
-    // The same views again, from three threads at once through the one
+    // The same views again, one thread each, all at once through the one
     // renderer: the same pixels, and (warm) no brick read again.
     let together: Vec<(Vec<u8>, u64)> = std::thread::scope(|s| {
         let hs: Vec<_> = views
