@@ -1,10 +1,10 @@
 //! `cdvol render`: a tile-parallel CPU ray caster over packed files, the
 //! last stage of the pipeline (`input -> classify -> dt -> format ->
-//! render`). One file a stage:
+//! render`), arranged by the stages of a frame:
 //!
 //! ```text
 //! options.rs   Mode, RenderOptions; the checks before any ray
-//! stats.rs     counters of a render (`--stats`); clock.rs its kernel time
+//! stats.rs     counters of a render (`--stats`); clock.rs where its time goes
 //! error.rs     RenderError
 //!
 //! stage folders, each importing only those above it in this list
