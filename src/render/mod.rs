@@ -30,39 +30,31 @@
 //! Output is the same whatever the thread count, tile size or cache budget:
 //! every pixel is computed on its own, from the same values.
 
+/// Declares modules that are the library's own: private, or public and
+/// hidden from the API docs with the feature `internals`.
+macro_rules! internal_mods {
+    ($($m:ident),*) => {$(
+        #[cfg(feature = "internals")]
+        #[doc(hidden)]
+        pub mod $m;
+        #[cfg(not(feature = "internals"))]
+        mod $m;
+    )*};
+}
+
 // The renderer's insides (the decoded brick, the cache and its accessor,
 // what a ray does at a cell, the template renderer of the paper's
-// experiments) are the library's own: a caller renders
-// through `Renderer` or `render`. The tests, benchmarks and tools that
-// check them from outside reach them with the feature `internals` (on
-// with `tools`), hidden from the API docs.
-#[cfg(feature = "internals")]
-#[doc(hidden)]
-pub mod brick;
-#[cfg(not(feature = "internals"))]
-mod brick;
-#[cfg(feature = "internals")]
-#[doc(hidden)]
-pub mod cache;
-#[cfg(not(feature = "internals"))]
-mod cache;
+// experiments) are the library's own: a caller renders through `Renderer`
+// or `render`. The tests, benchmarks and tools that check them from
+// outside reach them with the feature `internals` (on with `tools`).
+internal_mods!(brick, cache, sample, template);
 mod clock;
 mod error;
 mod integrate;
 pub mod job;
 mod options;
 pub mod output;
-#[cfg(feature = "internals")]
-#[doc(hidden)]
-pub mod sample;
-#[cfg(not(feature = "internals"))]
-mod sample;
 mod stats;
-#[cfg(feature = "internals")]
-#[doc(hidden)]
-pub mod template;
-#[cfg(not(feature = "internals"))]
-mod template;
 pub mod traverse;
 pub mod view;
 

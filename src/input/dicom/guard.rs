@@ -6,7 +6,7 @@
 //! - **Nesting.** dicom-object builds a data set by recursion, one frame
 //!   per sequence and item, so a file of 100,000 nested sequences
 //!   overflowed the stack (SIGSEGV: no error, no batch.json).
-//!   [`check_nesting`] first walks the file with dicom-parser's lazy token
+//!   [`check_structure`] first walks the file with dicom-parser's lazy token
 //!   reader, which keeps its open sequences in a `Vec`, skips values
 //!   without reading them into memory and never recurses, and refuses
 //!   nesting deeper than [`MAX_NESTING`] before dicom-object sees the file.

@@ -7,7 +7,7 @@
 
 use glam::{DVec3, Vec3};
 
-/// Per sample of a brick, its vertex gradient as [`vertex_gradients`]
+/// Per sample of a brick, its vertex gradient as [`vertex_gradients`](crate::render::sample::normals::vertex_gradients)
 /// computes it, in f32: the shaded composite's gradient plane
 /// ([`Planes::grads`](crate::render::brick::Planes::grads)), built once when the
 /// brick is decoded. `values` are the brick's samples (`cells + 1` per
@@ -15,11 +15,11 @@ use glam::{DVec3, Vec3};
 ///
 /// Only samples strictly inside the brick's samples get a gradient (NaN on
 /// the outer layer): their 6 neighbours are in this brick, which
-/// [`vertex_gradients`] reads them from whichever of their cells asks, and
+/// [`vertex_gradients`](crate::render::sample::normals::vertex_gradients) reads them from whichever of their cells asks, and
 /// the gaps and weights along each axis are the sample's own, so the
 /// gradient is a function of the sample alone. A sample on the outer
 /// layer has neighbours in other bricks; the plane ([`GradPlane`]) takes
-/// its gradient when a 1-cell first computes it ([`outer_cell_gradients`]).
+/// its gradient when a 1-cell first computes it ([`outer_cell_gradients`](crate::render::sample::normals::outer_cell_gradients)).
 ///
 /// [`GradPlane`]: crate::render::brick::GradPlane
 pub(crate) fn brick_gradients(
@@ -35,7 +35,7 @@ pub(crate) fn brick_gradients(
     }
     // Per axis and inner local sample: the inverse gaps before and after
     // and the weight `h- / (h- + h+)`, the same expressions as
-    // [`vertex_gradients`]' per-cell ones.
+    // [`vertex_gradients`](crate::render::sample::normals::vertex_gradients)' per-cell ones.
     let axis: [Vec<([f64; 2], f64)>; 3] = std::array::from_fn(|k| {
         let x = coords[k];
         (0..s[k])
@@ -74,7 +74,7 @@ pub(crate) fn brick_gradients(
 /// `fp` after (module docs: three-point rule, one-sided where a neighbour
 /// is NaN), and whether it was one-sided; `inv` the inverse gaps before
 /// and after, `lam` the weight `h- / (h- + h+)`
-/// (module docs). The one rule of [`vertex_gradients`] and
+/// (module docs). The one rule of [`vertex_gradients`](crate::render::sample::normals::vertex_gradients) and
 /// [`brick_gradients`].
 #[inline(always)]
 pub(crate) fn three_point(f0: f64, fm: f64, fp: f64, inv: [f64; 2], lam: f64) -> (f64, bool) {

@@ -81,7 +81,7 @@ pub(crate) struct Ctx<'a, T> {
     /// NaN for files classified by a transfer function without `--iso`).
     pub(crate) iso: f64,
     /// The iso value smooth normals judge missing samples by when the
-    /// scene is narrower than the file ([`scene_code_at_least_1`](crate::render::brick::envelope::scene_code_at_least_1));
+    /// scene is narrower than the file ([`scene_code_at_least_1`](crate::render::sample::normals::scene_code_at_least_1));
     /// `None` otherwise and in `--gradient-halo` files.
     pub(crate) narrow: Option<f32>,
     /// The composite mode's transfer function, tabulated for its step.

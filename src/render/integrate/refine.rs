@@ -60,7 +60,7 @@
 //!   the bisection's f64 value disagree by a rounding at the threshold,
 //!   the marcher does not refine the same onset again and again.
 //!
-//! The grain figure of [`render::grain`](crate::render::output::grain) (a
+//! The grain figure of [`render::output::grain`](crate::render::output::grain) (a
 //! render at 0.5 mm against 0.125 mm; 1 is clean) with an
 //! opaque-from-threshold function coloured by value falls from 11.8 (9.2
 //! shaded) to 1.0 on the real CT and from 17.6 (15.9) to 1.0 on the CT

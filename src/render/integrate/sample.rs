@@ -99,7 +99,7 @@ impl<'a> Look<'a> {
     }
 
     /// Whether the batches can take this look's samples: shading and
-    /// gradient opacity by smooth normals ([`batch::run`] weights and
+    /// gradient opacity by smooth normals ([`batch::run`](super::batch::run) weights and
     /// lights them as [`Look::apply`] does).
     pub fn batches(&self) -> bool {
         self.on && self.smooth

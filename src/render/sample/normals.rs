@@ -542,8 +542,8 @@ fn value_elsewhere(acc: &mut Accessor, n: [usize; 3], p: [usize; 3]) -> f32 {
 /// 1), so that a file prepared for the scene would carry a code in `s`'s
 /// word; false when `s` is the minimum corner of no cell. Called only in
 /// narrowed renders, where every brick marks exactly the scene's 1-cells
-/// as [`OBJECT`]: [`narrow`] demotes the others, and a brick decoded
-/// without values ([`tighten`], or no 1-cell of the file's) or standing
+/// as [`OBJECT`]: [`narrow`](crate::render::brick::envelope::narrow) demotes the others, and a brick decoded
+/// without values ([`tighten`](crate::render::brick::envelope::tighten), or no 1-cell of the file's) or standing
 /// in by its index code has none. `n` are the samples per axis.
 pub(crate) fn scene_code_at_least_1(acc: &mut Accessor, n: [usize; 3], s: [usize; 3]) -> bool {
     if (0..3).any(|k| s[k] + 1 >= n[k]) {

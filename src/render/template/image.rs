@@ -83,7 +83,7 @@ struct Setup<'a> {
     dir: [f64; 3],
     /// Base-plane position along the major axis, mm.
     base: f64,
-    /// Intermediate image size (minor[0], minor[1]).
+    /// Intermediate image size (`minor[0]`, `minor[1]`).
     size: [u32; 2],
     /// The scene's iso value for smooth normals when narrower than the
     /// file's and the file has no gradient halo (module scene).
