@@ -25,17 +25,21 @@
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 
+use crate::export::{write_raw, ExportWhat, RawError};
+use crate::format::histogram::ValueHistogram;
 use crate::format::reader::PackedVolume;
 use crate::format::{FormatError, Header};
+use crate::info::Info;
 use crate::look::{resolve, Ask, ResolveError};
 use crate::presets::Preset;
-use crate::progress::NoProgress;
+use crate::progress::{NoProgress, Progress};
 use crate::render::cache::BrickCache;
 use crate::render::job::{Aim, View};
 use crate::render::traverse::Method;
 use crate::render::view::camera::CameraError;
 use crate::render::{
-    default_method, planes_for, render_in, Frame, RenderError, RenderOptions, SaveError, Stats,
+    default_method, float_rgba, planes_for, render_in, rgba8, Background, Frame, RenderError,
+    RenderOptions, SaveError, Stats,
 };
 
 /// Why a library call failed: the file, the look, the view, the render or
@@ -52,6 +56,9 @@ pub enum Error {
     Render(#[from] RenderError),
     #[error(transparent)]
     Save(#[from] SaveError),
+    /// An array export whose brick does not decode.
+    #[error(transparent)]
+    Export(#[from] RawError),
 }
 
 /// A packed file, open. Cloning it is cheap and shares the open file.
@@ -84,6 +91,34 @@ impl Volume {
         Renderer::new(self)
     }
 
+    /// What `cdvol info` reports of the file (`cdvol info --json` prints
+    /// it as JSON).
+    pub fn info(&self) -> Info {
+        Info::of(&self.packed)
+    }
+
+    /// The histogram of the file's rescaled values that prep recorded;
+    /// `None` for files written before it was.
+    pub fn histogram(&self) -> Option<&ValueHistogram> {
+        self.header().summary.histogram.as_ref()
+    }
+
+    /// `what` of the whole volume as `cdvol export` writes its raw file
+    /// (little-endian, x fastest): the samples (`header().dims`) in the
+    /// file's type (`header().dtype`), or one `u8` per cell for codes and
+    /// classes (`header().cells()`). Decoded one brick slab at a time
+    /// into the array returned.
+    pub fn export(&self, what: ExportWhat, progress: &dyn Progress) -> Result<Vec<u8>, Error> {
+        let h = self.header();
+        let (n, size) = match what {
+            ExportWhat::Values => (h.dims, h.dtype.size() as u64),
+            _ => (h.cells(), 1),
+        };
+        let mut out = Vec::with_capacity((n.iter().product::<u64>() * size) as usize);
+        write_raw(&self.packed, what, &mut out, progress)?;
+        Ok(out)
+    }
+
     /// The reader underneath, for the lower-level calls of
     /// [`render`](crate::render).
     pub fn packed(&self) -> &PackedVolume {
@@ -102,6 +137,9 @@ pub struct Look {
     /// The traversal; `None`: the file's default (CD on the grid it was
     /// prepared for, [`default_method`]).
     pub method: Option<Method>,
+    /// Keep the colour before rounding ([`Image::rgba_f32`], `render
+    /// --bit-depth 16` and `32`).
+    pub unrounded: bool,
 }
 
 impl Look {
@@ -145,6 +183,20 @@ pub struct Image {
 }
 
 impl Image {
+    /// The image at 8 bits a channel, four a pixel, row by row from the
+    /// top: the colour `save` writes over `background` (a PNG's bytes) and
+    /// the coverage; with [`Background::Transparent`] the PNG's straight
+    /// RGBA.
+    pub fn rgba8(&self, background: Background) -> Vec<u8> {
+        rgba8(&self.frame, background)
+    }
+
+    /// [`Image::rgba8`] unrounded, as `--bit-depth 32` writes it; empty
+    /// unless the look kept it ([`Look::unrounded`]).
+    pub fn rgba_f32(&self, background: Background) -> Vec<f32> {
+        float_rgba(&self.frame, background)
+    }
+
     /// Writes the image (PNG, TIFF or JPEG by the extension) through a
     /// temporary file renamed when complete.
     pub fn save(&self, path: &Path) -> Result<(), Error> {
@@ -188,6 +240,7 @@ impl Renderer {
         opts.iso = r.iso;
         opts.window = r.window;
         opts.look = r.look;
+        opts.unrounded = look.unrounded;
         opts.cache_bytes = self.cache_bytes;
         Ok(opts)
     }

@@ -175,78 +175,14 @@ pub fn export(
         "cannot create a temporary file beside the output",
     ))?;
     let mut w = BufWriter::with_capacity(1 << 20, tmp);
-
-    let [nx, ny, nz] = h.dims.map(|d| d as usize);
-    let [ncx, ncy, ncz] = h.cells().map(|c| c as usize);
-    let b = h.brick_size as usize;
-    let [nbx, nby, nbz] = h.bricks.map(|n| n as usize);
-    let fill = if h.dtype.is_float() {
-        f64::NAN
-    } else {
-        h.summary.raw_min.unwrap_or(0.0)
-    };
-    progress.begin("export", nbz as u64);
-    for bz in 0..nbz {
-        // Decode the slab's bricks in parallel (one slab in memory).
-        let ids: Vec<u64> = (0..nby)
-            .flat_map(|by| (0..nbx).map(move |bx| (bz * nby + by) * nbx + bx))
-            .map(|i| i as u64)
-            .collect();
-        let bricks: Vec<Brick> = ids
-            .par_iter()
-            .map(|&id| vol.read_brick(id))
-            .collect::<Result<_, _>>()?;
-        let brick_at = |bx: usize, by: usize| &bricks[by * nbx + bx];
-        let mut line: Vec<u8> = Vec::new();
-        match what {
-            ExportWhat::Values => {
-                let z0 = bz * b;
-                let z1 = if bz + 1 == nbz { nz } else { z0 + b };
-                for z in z0..z1 {
-                    for y in 0..ny {
-                        line.clear();
-                        let by = (y / b).min(nby - 1);
-                        for x in 0..nx {
-                            let bx = (x / b).min(nbx - 1);
-                            let br = brick_at(bx, by);
-                            let l = [x - bx * b, y - by * b, z - z0];
-                            let v = match br.sample(l) {
-                                Some(Sample::Value(v)) => v,
-                                _ => fill,
-                            };
-                            push_value(&mut line, h.dtype, v);
-                        }
-                        w.write_all(&line).map_err(io(&raw_path, "cannot write"))?;
-                    }
-                }
-            }
-            ExportWhat::Codes | ExportWhat::Classes => {
-                let z0 = bz * b;
-                let z1 = (z0 + b).min(ncz);
-                for z in z0..z1 {
-                    for y in 0..ncy {
-                        line.clear();
-                        let by = y / b;
-                        for x in 0..ncx {
-                            let bx = x / b;
-                            let l = [x - bx * b, y - by * b, z - z0];
-                            let c = vol.cell_class(brick_at(bx, by), l);
-                            line.push(match (what, c) {
-                                (ExportWhat::Classes, CellClass::Object) => 1,
-                                (ExportWhat::Classes, CellClass::Empty(_)) => 0,
-                                (_, CellClass::Object) => OBJECT_MARKER,
-                                (_, CellClass::Empty(code)) => code.min(254) as u8,
-                            });
-                        }
-                        w.write_all(&line).map_err(io(&raw_path, "cannot write"))?;
-                    }
-                }
-            }
-        }
-        drop(bricks);
-        progress.advance(1);
-    }
-    progress.end();
+    write_raw(vol, what, &mut w, progress).map_err(|e| match e {
+        RawError::Format(e) => ExportError::Format(e),
+        RawError::Write(source) => ExportError::Io {
+            path: raw_path.clone(),
+            what: "cannot write",
+            source,
+        },
+    })?;
     let tmp = w.into_inner().map_err(|e| ExportError::Io {
         path: raw_path.clone(),
         what: "cannot flush",
@@ -256,6 +192,8 @@ pub fn export(
     let mut set = FileSet::new();
     set.add(tmp, &raw_path);
 
+    let [nx, ny, nz] = h.dims.map(|d| d as usize);
+    let [ncx, ncy, ncz] = h.cells().map(|c| c as usize);
     // The sidecar.
     let (dims, dtype, axes): ([usize; 3], &'static str, [Vec<f64>; 3]) = match what {
         ExportWhat::Values => (
@@ -307,6 +245,102 @@ pub fn export(
     set.add_bytes(out_json, &json)?;
     set.commit()?;
     Ok(raw_path)
+}
+
+/// Why [`write_raw`] stopped: a brick that does not decode, or the
+/// writer's error.
+#[derive(Debug, thiserror::Error)]
+pub enum RawError {
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error("cannot write: {0}")]
+    Write(std::io::Error),
+}
+
+/// Writes `what` of `vol` to `w` as the raw array [`export`] writes
+/// (little-endian, x fastest), one brick slab in memory at a time: the
+/// samples (`dims`) in the file's type for `Values`, one `u8` per cell
+/// for `Codes` and `Classes`.
+pub fn write_raw(
+    vol: &PackedVolume,
+    what: ExportWhat,
+    w: &mut impl Write,
+    progress: &dyn Progress,
+) -> Result<(), RawError> {
+    let h = vol.header();
+
+    let [nx, ny, nz] = h.dims.map(|d| d as usize);
+    let [ncx, ncy, ncz] = h.cells().map(|c| c as usize);
+    let b = h.brick_size as usize;
+    let [nbx, nby, nbz] = h.bricks.map(|n| n as usize);
+    let fill = if h.dtype.is_float() {
+        f64::NAN
+    } else {
+        h.summary.raw_min.unwrap_or(0.0)
+    };
+    progress.begin("export", nbz as u64);
+    for bz in 0..nbz {
+        // Decode the slab's bricks in parallel (one slab in memory).
+        let ids: Vec<u64> = (0..nby)
+            .flat_map(|by| (0..nbx).map(move |bx| (bz * nby + by) * nbx + bx))
+            .map(|i| i as u64)
+            .collect();
+        let bricks: Vec<Brick> = ids
+            .par_iter()
+            .map(|&id| vol.read_brick(id))
+            .collect::<Result<_, _>>()?;
+        let brick_at = |bx: usize, by: usize| &bricks[by * nbx + bx];
+        let mut line: Vec<u8> = Vec::new();
+        match what {
+            ExportWhat::Values => {
+                let z0 = bz * b;
+                let z1 = if bz + 1 == nbz { nz } else { z0 + b };
+                for z in z0..z1 {
+                    for y in 0..ny {
+                        line.clear();
+                        let by = (y / b).min(nby - 1);
+                        for x in 0..nx {
+                            let bx = (x / b).min(nbx - 1);
+                            let br = brick_at(bx, by);
+                            let l = [x - bx * b, y - by * b, z - z0];
+                            let v = match br.sample(l) {
+                                Some(Sample::Value(v)) => v,
+                                _ => fill,
+                            };
+                            push_value(&mut line, h.dtype, v);
+                        }
+                        w.write_all(&line).map_err(RawError::Write)?;
+                    }
+                }
+            }
+            ExportWhat::Codes | ExportWhat::Classes => {
+                let z0 = bz * b;
+                let z1 = (z0 + b).min(ncz);
+                for z in z0..z1 {
+                    for y in 0..ncy {
+                        line.clear();
+                        let by = y / b;
+                        for x in 0..ncx {
+                            let bx = x / b;
+                            let l = [x - bx * b, y - by * b, z - z0];
+                            let c = vol.cell_class(brick_at(bx, by), l);
+                            line.push(match (what, c) {
+                                (ExportWhat::Classes, CellClass::Object) => 1,
+                                (ExportWhat::Classes, CellClass::Empty(_)) => 0,
+                                (_, CellClass::Object) => OBJECT_MARKER,
+                                (_, CellClass::Empty(code)) => code.min(254) as u8,
+                            });
+                        }
+                        w.write_all(&line).map_err(RawError::Write)?;
+                    }
+                }
+            }
+        }
+        drop(bricks);
+        progress.advance(1);
+    }
+    progress.end();
+    Ok(())
 }
 
 fn push_value(out: &mut Vec<u8>, dtype: Dtype, v: f64) {

@@ -5,6 +5,7 @@
 //! of raw sample values at a time. Nothing downstream knows the file format.
 //! Today the raw stack with a JSON sidecar ([`sidecar`]) implements it.
 
+pub mod array;
 pub mod describe;
 pub mod dicom;
 pub mod gz;
@@ -234,6 +235,14 @@ pub trait SliceSource: Send + Sync {
 /// one is at fault, the field and what was expected.
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
+    /// An array given in memory (the Python package's numpy arrays) has
+    /// a bad shape, dtype or strides.
+    #[error("array {name}: {field}: {msg}")]
+    Array {
+        name: String,
+        field: String,
+        msg: String,
+    },
     /// A sidecar field is missing or has a bad value.
     #[error("{}: field `{field}`: {msg}", path.display())]
     Field {

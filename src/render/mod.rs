@@ -30,15 +30,17 @@
 //! Output is the same whatever the thread count, tile size or cache budget:
 //! every pixel is computed on its own, from the same values.
 
-/// Declares modules that are the library's own: private, or public and
-/// hidden from the API docs with the feature `internals`.
+/// Declares modules that are the library's own: crate-private, or public
+/// and hidden from the API docs with the feature `internals`.
 macro_rules! internal_mods {
     ($($m:ident),*) => {$(
         #[cfg(feature = "internals")]
         #[doc(hidden)]
         pub mod $m;
+        // What only the tests and tools use is unused without them.
         #[cfg(not(feature = "internals"))]
-        mod $m;
+        #[allow(dead_code)]
+        pub(crate) mod $m;
     )*};
 }
 
@@ -71,8 +73,8 @@ pub use options::{
 };
 pub use output::colour::Colouring;
 pub use output::{
-    image_files, save, save_on, stage, stage_on, Background, BackgroundError, Bits, Frame,
-    ImageSpec, SaveError,
+    float_rgba, image_files, rgba8, save, save_on, stage, stage_on, Background, BackgroundError,
+    Bits, Frame, ImageSpec, SaveError,
 };
 pub use sample::hit::{HitMethod, HitParams};
 pub use sample::normals::Normals;

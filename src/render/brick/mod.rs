@@ -23,6 +23,8 @@ mod occupancy;
 pub mod samples;
 pub(crate) mod tf_cells;
 
+// Some are used only by the tests and tools (feature `internals`).
+#[cfg_attr(not(feature = "internals"), allow(unused_imports))]
 pub use decode::{block_maxima, max_pyramid, octree_levels, Codes, RBrick, BLOCK};
 pub use grads::GradPlane;
 pub use occupancy::{occupancy, Occupancy, SUB};

@@ -352,27 +352,59 @@ fn float_tiff(frame: &Frame, bg: Background) -> Result<Vec<u8>, tiff::TiffError>
         enc.write_image::<colortype::Gray32Float>(w, h, v)?;
         return Ok(buf.into_inner());
     }
+    let px = float_rgba(frame, bg);
+    match bg {
+        Background::Colour(_) => {
+            let out: Vec<f32> = px
+                .chunks_exact(4)
+                .flat_map(|p| [p[0], p[1], p[2]])
+                .collect();
+            enc.write_image::<colortype::RGB32Float>(w, h, &out)?;
+        }
+        Background::Transparent => enc.write_image::<colortype::RGBA32Float>(w, h, &px)?,
+    }
+    Ok(buf.into_inner())
+}
+
+/// The colour of `frame` at 8 bits as [`save`] writes it, four channels
+/// a pixel: the colour over `bg` and the coverage, or with a transparent
+/// background the straight RGBA of the PNG.
+pub fn rgba8(frame: &Frame, bg: Background) -> Vec<u8> {
+    match composited(frame, bg, false) {
+        image::DynamicImage::ImageRgba8(b) => b.into_raw(),
+        img => img
+            .into_rgb8()
+            .into_raw()
+            .chunks_exact(3)
+            .zip(&frame.alpha)
+            .flat_map(|(c, &a)| [c[0], c[1], c[2], a])
+            .collect(),
+    }
+}
+
+/// The colour of `frame` unrounded, four channels a pixel, as the
+/// float32 TIFF of `--bit-depth 32` holds it: the colour over `bg` and the
+/// coverage, or with a transparent background straight RGBA. Empty when
+/// the render did not keep it ([`Frame::linear`]).
+pub fn float_rgba(frame: &Frame, bg: Background) -> Vec<f32> {
     let px = frame.linear.chunks_exact(4);
     match bg {
         Background::Colour(c) => {
             let c = c.map(|x| x as f32 / 255.0);
-            let out: Vec<f32> = px
-                .flat_map(|p| (0..3).map(move |k| (p[k] + (1.0 - p[3]) * c[k]).min(1.0)))
-                .collect();
-            enc.write_image::<colortype::RGB32Float>(w, h, &out)?;
+            px.flat_map(|p| {
+                let over = |k: usize| (p[k] + (1.0 - p[3]) * c[k]).min(1.0);
+                [over(0), over(1), over(2), p[3]]
+            })
+            .collect()
         }
-        Background::Transparent => {
-            let out: Vec<f32> = px
-                .flat_map(|p| {
-                    let a = p[3];
-                    let straight = move |x: f32| if a > 0.0 { (x / a).min(1.0) } else { 0.0 };
-                    [straight(p[0]), straight(p[1]), straight(p[2]), a]
-                })
-                .collect();
-            enc.write_image::<colortype::RGBA32Float>(w, h, &out)?;
-        }
+        Background::Transparent => px
+            .flat_map(|p| {
+                let a = p[3];
+                let straight = move |x: f32| if a > 0.0 { (x / a).min(1.0) } else { 0.0 };
+                [straight(p[0]), straight(p[1]), straight(p[2]), a]
+            })
+            .collect(),
     }
-    Ok(buf.into_inner())
 }
 
 /// Pixels `(rgb, alpha)` (colour premultiplied by the coverage, both in

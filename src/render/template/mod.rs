@@ -161,6 +161,8 @@ use crate::render::traverse::{CodeSource, Flow, StepCounts};
 
 mod image;
 
+// Some are used only by the tests and tools (feature `internals`).
+#[cfg_attr(not(feature = "internals"), allow(unused_imports))]
 pub use image::{render_template, render_template_with, TemplateOptions, Warp};
 
 /// A 26-connected ray template in the mirrored frame.

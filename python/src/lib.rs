@@ -1,0 +1,624 @@
+//! `cdvol._cdvol`: the Python package's extension module, on the library
+//! API ([`cdvol::Volume`], [`cdvol::Renderer`], [`cdvol::prep::prep`]).
+//!
+//! This layer only converts: numpy arrays to [`ArraySource`]s and frames
+//! to numpy arrays, keyword arguments to a [`Look`] and a [`View`], and
+//! the library's errors to the exception classes of `cdvol/errors.py`.
+//! The Python-facing signatures, their defaults and their documentation
+//! are in `cdvol/__init__.py`; everything long runs with the GIL released,
+//! on cdvol's own threads.
+
+use std::path::PathBuf;
+
+use numpy::ndarray::Dimension;
+use numpy::{
+    Element as NpElement, PyArray1, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray3,
+    PyUntypedArray, PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyType};
+
+use cdvol::export::ExportWhat;
+use cdvol::grid::{Axis, Grid};
+use cdvol::input::array::{ArraySource, Element};
+use cdvol::input::{Rescale, SliceSource};
+use cdvol::look::ModeKind;
+use cdvol::orient::NamedView;
+use cdvol::prep::{PrepOptions, PrepReport};
+use cdvol::progress::Progress;
+use cdvol::render::Background;
+use cdvol::{Aim, Look, Renderer, View, Volume};
+
+/// An exception of `cdvol.errors` named `kind`, with the message of
+/// `err` and of its causes (each once, as `cdvol` prints them). An error
+/// caused by a missing file is `cdvol.errors.FileNotFound` whatever its
+/// kind.
+fn raise(py: Python<'_>, kind: &str, err: &(dyn std::error::Error + 'static)) -> PyErr {
+    let mut msg = err.to_string();
+    let mut cause = err.source();
+    let mut missing = false;
+    let mut e: Option<&(dyn std::error::Error + 'static)> = Some(err);
+    while let Some(x) = e {
+        if let Some(io) = x.downcast_ref::<std::io::Error>() {
+            missing |= io.kind() == std::io::ErrorKind::NotFound;
+        }
+        e = x.source();
+    }
+    while let Some(c) = cause {
+        let t = c.to_string();
+        if !msg.contains(&t) {
+            msg = format!("{msg}: {t}");
+        }
+        cause = c.source();
+    }
+    let kind = if missing { "FileNotFound" } else { kind };
+    raise_msg(py, kind, msg)
+}
+
+/// An exception of `cdvol.errors` named `kind` with `msg`.
+fn raise_msg(py: Python<'_>, kind: &str, msg: String) -> PyErr {
+    let class = py
+        .import("cdvol.errors")
+        .and_then(|m| m.getattr(kind))
+        .and_then(|c| c.cast_into::<PyType>().map_err(PyErr::from));
+    match class {
+        Ok(c) => PyErr::from_type(c, msg),
+        Err(e) => e,
+    }
+}
+
+/// The library's error as the exception of its step.
+fn api_error(py: Python<'_>, e: cdvol::Error) -> PyErr {
+    let kind = match &e {
+        cdvol::Error::Format(_) => "FormatError",
+        cdvol::Error::Look(_) => "LookError",
+        cdvol::Error::View(_) => "ViewError",
+        // A look the file was not prepared for, or an option out of
+        // range: the caller's to change.
+        cdvol::Error::Render(
+            cdvol::render::RenderError::Incompatible { .. }
+            | cdvol::render::RenderError::Option { .. },
+        ) => "LookError",
+        cdvol::Error::Render(_) => "RenderError",
+        cdvol::Error::Save(_) => "RenderError",
+        cdvol::Error::Export(_) => "FormatError",
+    };
+    raise(py, kind, &e)
+}
+
+/// Progress reported to a Python callable `callback(event, stage, n)`:
+/// `("begin", stage, total)`, `("advance", "", n)`, `("end", "", 0)`. The
+/// package's callable draws a tqdm bar (a terminal's or a notebook's).
+struct PyProgress(Option<Py<PyAny>>);
+
+impl PyProgress {
+    fn call(&self, event: &str, stage: &str, n: u64) {
+        if let Some(f) = &self.0 {
+            Python::attach(|py| {
+                // A failing bar must not stop the work: its error is
+                // printed, as Python prints errors in callbacks it cannot
+                // raise.
+                if let Err(e) = f.call1(py, (event, stage, n)) {
+                    e.print(py);
+                }
+            });
+        }
+    }
+}
+
+impl Progress for PyProgress {
+    fn begin(&self, stage: &str, total: u64) {
+        self.call("begin", stage, total);
+    }
+    fn advance(&self, n: u64) {
+        self.call("advance", "", n);
+    }
+    fn end(&self) {
+        self.call("end", "", 0);
+    }
+    fn println(&self, line: &str) {
+        self.call("print", line, 0);
+    }
+}
+
+/// The grid of an `[nz, ny, nx]` array: uniform x and y from `spacing`
+/// (x first, mm) and `origin`, z from `positions` when given.
+fn array_grid(
+    shape: [usize; 3],
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    positions: Option<Vec<f64>>,
+) -> Result<Grid, String> {
+    let [nz, ny, nx] = shape;
+    let axis = |k: usize, n: usize| {
+        Axis::uniform(origin[k], spacing[k], n).map_err(|e| {
+            let name = ["x", "y", "z"][k];
+            format!("spacing {name} = {} mm over {n} samples: {e}", spacing[k])
+        })
+    };
+    let z = match positions {
+        Some(p) => {
+            if p.len() != nz {
+                return Err(format!(
+                    "positions: {} given, expected one per slice ({nz}, the array's first axis)",
+                    p.len()
+                ));
+            }
+            Axis::from_coords(p).map_err(|e| format!("positions: {e}"))?
+        }
+        None => axis(2, nz)?,
+    };
+    Ok(Grid {
+        axes: [axis(0, nx)?, axis(1, ny)?, z],
+    })
+}
+
+/// `cdvol.prep`'s classification and packing keywords (a dict).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct PrepKw {
+    iso: Option<f64>,
+    preset: Option<String>,
+    envelope: Option<Vec<String>>,
+    modality: Option<String>,
+    brick: usize,
+    zstd_level: i32,
+    aniso: bool,
+    allow_empty: bool,
+}
+
+/// `cdvol.prep`'s grid keywords for an array (a dict): spacing x first
+/// and origin in mm, z positions, `(slope, intercept)`.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct GridKw {
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    positions: Option<Vec<f64>>,
+    rescale: Option<(f64, f64)>,
+}
+
+impl PrepKw {
+    /// The prep options, with the checks of `cdvol prep`'s flags (no
+    /// classification given: `envelope=["auto"]`); errors are `(exception
+    /// class, message)`.
+    fn options(self) -> Result<PrepOptions, String> {
+        use cdvol::classify::Classification;
+        let given = [
+            self.iso.is_some(),
+            self.preset.is_some(),
+            self.envelope.is_some(),
+        ];
+        if given.iter().filter(|&&g| g).count() > 1 {
+            return Err("iso, preset and envelope each choose the classification: give one".into());
+        }
+        let classification = match self.iso {
+            Some(iso) if !iso.is_finite() => {
+                return Err(format!("iso: {iso}, expected a finite number"))
+            }
+            Some(iso) => Classification::Iso { iso },
+            // Replaced by prep once it has seen the input.
+            None => Classification::Iso { iso: 0.0 },
+        };
+        let mut opts = PrepOptions::new(classification);
+        opts.brick_size = self.brick;
+        opts.zstd_level = self.zstd_level;
+        opts.aniso = self.aniso;
+        opts.allow_empty = self.allow_empty;
+        if let Some(p) = self.preset {
+            cdvol::presets::get(&p).map_err(|e| format!("preset: {e}"))?;
+            opts.preset = Some(p);
+        } else if self.iso.is_none() {
+            let items = self.envelope.unwrap_or_else(|| vec!["auto".into()]);
+            let auto = items.len() == 1 && items[0].eq_ignore_ascii_case("auto");
+            if !auto {
+                cdvol::presets::envelope(&items, cdvol::presets::all())
+                    .map_err(|e| format!("envelope: {e}"))?;
+            }
+            opts.envelope = items;
+        }
+        opts.modality = match self
+            .modality
+            .as_deref()
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            None => None,
+            Some("ct") => Some(cdvol::presets::Modality::Ct),
+            Some("mr") => Some(cdvol::presets::Modality::Mr),
+            Some(other) => return Err(format!("modality: {other:?}, expected \"CT\" or \"MR\"")),
+        };
+        opts.check().map_err(|e| e.to_string())?;
+        Ok(opts)
+    }
+}
+
+/// What prep did, as a dict.
+fn report_dict<'py>(py: Python<'py>, r: &PrepReport) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("seconds", r.seconds)?;
+    d.set_item("one_cells", r.header.summary.one_cells)?;
+    d.set_item("cells", r.header.summary.cells)?;
+    d.set_item("bytes", r.file_bytes)?;
+    d.set_item(
+        "classification",
+        cdvol::prep::describe_classification(&r.header.classification),
+    )?;
+    d.set_item("warning", r.selection.as_ref().map(|w| w.to_string()))?;
+    Ok(d)
+}
+
+/// Runs prep of `src` into `out` with the GIL released.
+fn run_prep<'py>(
+    py: Python<'py>,
+    src: &dyn SliceSource,
+    out: PathBuf,
+    opts: PrepOptions,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let progress = PyProgress(progress);
+    let report = py
+        .detach(|| cdvol::prep::prep(src, &out, &opts, &progress))
+        .map_err(|e| {
+            let e = raise(py, "PrepError", &e);
+            // The library names the command line's flag; say the keyword.
+            let msg = e
+                .value(py)
+                .to_string()
+                .replace("--allow-empty", "allow_empty=True");
+            PyErr::from_type(e.get_type(py), msg)
+        })?;
+    report_dict(py, &report)
+}
+
+/// Prepares the volume file or DICOM directory `source` into `out`.
+#[pyfunction]
+fn prep_path<'py>(
+    py: Python<'py>,
+    source: PathBuf,
+    out: PathBuf,
+    kw: PrepKw,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let opts = kw.options().map_err(|m| raise_msg(py, "PrepError", m))?;
+    let src = py
+        .detach(|| cdvol::input::open(&source))
+        .map_err(|e| raise(py, "InputError", &e))?;
+    run_prep(py, src.as_ref(), out, opts, progress)
+}
+
+/// Prepares a 3-D numpy array `[z, y, x]` into `out`; `files` are those a
+/// memmap maps (not to be written over).
+#[pyfunction]
+fn prep_array<'py>(
+    py: Python<'py>,
+    array: &Bound<'py, PyUntypedArray>,
+    out: PathBuf,
+    grid: GridKw,
+    kw: PrepKw,
+    files: Vec<PathBuf>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let modality = kw.modality.clone();
+    let opts = kw.options().map_err(|m| raise_msg(py, "PrepError", m))?;
+    let dtype = array.dtype().str()?.to_string();
+    let name = match files.first() {
+        Some(f) => format!("numpy.memmap of {}", f.display()),
+        None => format!("numpy array {:?} {dtype}", array.shape()),
+    };
+    let job = ArrayJob {
+        name,
+        grid,
+        files,
+        modality,
+        opts,
+        out,
+    };
+    macro_rules! with_view {
+        ($($t:ty => $e:expr),* $(,)?) => {{
+            let kind = array.dtype();
+            $(
+                if kind.is_equiv_to(&<$t as NpElement>::get_dtype(py)) {
+                    let typed: PyReadonlyArray3<'py, $t> = array
+                        .cast::<numpy::PyArray3<$t>>()
+                        .map_err(PyErr::from)?
+                        .readonly();
+                    return job.run(py, &typed.as_array(), $e, progress);
+                }
+            )*
+            Err(raise_msg(py, "DtypeError", format!(
+                "array dtype {dtype}: expected one of {}", Element::NAMES)))
+        }};
+    }
+    with_view!(
+        bool => Element::U8,
+        u8 => Element::U8,
+        i8 => Element::I8,
+        u16 => Element::U16,
+        i16 => Element::I16,
+        u32 => Element::U32,
+        i32 => Element::I32,
+        u64 => Element::U64,
+        i64 => Element::I64,
+        f32 => Element::F32,
+        f64 => Element::F64,
+    )
+}
+
+/// A prep of an array, but for the array.
+struct ArrayJob {
+    name: String,
+    grid: GridKw,
+    files: Vec<PathBuf>,
+    modality: Option<String>,
+    opts: PrepOptions,
+    out: PathBuf,
+}
+
+impl ArrayJob {
+    /// Prepares a typed view: its memory as bytes with byte strides, read
+    /// by [`ArraySource`] without a copy.
+    fn run<'py, T: Sync>(
+        self,
+        py: Python<'py>,
+        view: &numpy::ndarray::ArrayView3<'_, T>,
+        element: Element,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let name = &self.name;
+        let shape: [usize; 3] = view.raw_dim().into_pattern().into();
+        let size = std::mem::size_of::<T>();
+        let strides = view.strides();
+        if strides.iter().any(|&s| s < 0) || shape.contains(&0) {
+            return Err(raise_msg(
+                py,
+                "ShapeError",
+                format!(
+                    "array {name}: shape {shape:?} strides {strides:?}: expected no empty axis \
+                     and no negative stride (numpy.ascontiguousarray makes one)"
+                ),
+            ));
+        }
+        let byte_strides = [0, 1, 2].map(|k| strides[k] as usize * size);
+        let extent = (0..3)
+            .map(|k| (shape[k] - 1) * byte_strides[k])
+            .sum::<usize>()
+            + size;
+        // SAFETY: the view's elements all lie in `extent` bytes from its
+        // first element (non-negative strides, checked above), which numpy
+        // keeps alive and (through the caller's read-only borrow) unchanged
+        // by other borrowers while the view lives; this returns before it.
+        let bytes = unsafe { std::slice::from_raw_parts(view.as_ptr() as *const u8, extent) };
+        let g = self.grid;
+        let grid = array_grid(shape, g.spacing, g.origin, g.positions)
+            .map_err(|m| raise_msg(py, "InputError", format!("array {name}: {m}")))?;
+        let mut src = ArraySource::new(bytes, element, shape, byte_strides, grid, name)
+            .map_err(|e| raise(py, "InputError", &e))?
+            .with_files(self.files)
+            .with_modality(self.modality.map(|m| m.to_ascii_uppercase()));
+        if let Some((slope, intercept)) = g.rescale {
+            src = src.with_rescale(Rescale { slope, intercept });
+        }
+        run_prep(py, &src, self.out, self.opts, progress)
+    }
+}
+
+/// An open packed file and a renderer of it (`cdvol.Volume` wraps it).
+#[pyclass(frozen, module = "cdvol._cdvol")]
+struct RVolume {
+    vol: Volume,
+}
+
+#[pymethods]
+impl RVolume {
+    #[new]
+    fn open(py: Python<'_>, path: PathBuf) -> PyResult<RVolume> {
+        let vol = py
+            .detach(|| Volume::open(&path))
+            .map_err(|e| api_error(py, e))?;
+        Ok(RVolume { vol })
+    }
+
+    /// `cdvol info --json`'s text.
+    fn info_json(&self) -> PyResult<String> {
+        serde_json::to_string(&self.vol.info())
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))
+    }
+
+    /// `(counts, lo, bin_width)` of the value histogram, or None.
+    fn histogram(&self) -> Option<(Vec<u64>, f64, f64)> {
+        self.vol
+            .histogram()
+            .map(|h| (h.counts.clone(), h.lo, h.bin_width))
+    }
+
+    /// The offered presets' `(name, modality, description)`.
+    fn presets(&self) -> Vec<(String, String, String)> {
+        self.vol
+            .presets()
+            .into_iter()
+            .map(|p| {
+                (
+                    p.name,
+                    format!("{:?}", p.modality).to_uppercase(),
+                    p.description,
+                )
+            })
+            .collect()
+    }
+
+    /// `(dtype name, [nx, ny, nz] samples, [ncx, ncy, ncz] cells)`.
+    fn layout(&self) -> (String, [u64; 3], [u64; 3]) {
+        let h = self.vol.header();
+        (h.dtype.name().to_string(), h.dims, h.cells())
+    }
+
+    /// `what` of the volume as little-endian bytes (a numpy uint8 array).
+    #[pyo3(signature = (what, progress))]
+    fn export<'py>(
+        &self,
+        py: Python<'py>,
+        what: &str,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray1<u8>>> {
+        let what = match what {
+            "values" => ExportWhat::Values,
+            "codes" => ExportWhat::Codes,
+            "classes" => ExportWhat::Classes,
+            other => {
+                return Err(raise_msg(
+                    py,
+                    "Error",
+                    format!("export {other:?}: expected \"values\", \"codes\" or \"classes\""),
+                ))
+            }
+        };
+        let progress = PyProgress(progress);
+        let bytes = py
+            .detach(|| self.vol.export(what, &progress))
+            .map_err(|e| api_error(py, e))?;
+        Ok(PyArray1::from_vec(py, bytes))
+    }
+
+    /// A renderer with a cache of `cache_mb` MiB.
+    fn renderer(&self, cache_mb: usize) -> RRenderer {
+        RRenderer {
+            r: self.vol.renderer().with_cache_bytes(cache_mb << 20),
+        }
+    }
+}
+
+/// A renderer that keeps its brick cache across calls.
+#[pyclass(frozen, module = "cdvol._cdvol")]
+struct RRenderer {
+    r: Renderer,
+}
+
+/// `Renderer.render`'s keywords (a dict).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct RenderKw<'py> {
+    view: Bound<'py, PyAny>,
+    mode: Option<String>,
+    preset: Option<String>,
+    iso: Option<f64>,
+    width: u32,
+    height: u32,
+    background: String,
+    shadows: bool,
+    shade: bool,
+    step: Option<f64>,
+    perspective: Option<f64>,
+    frame: Option<f64>,
+    float: bool,
+}
+
+impl RenderKw<'_> {
+    /// The view: a name or `(az, el)`.
+    fn view(&self) -> Result<View, String> {
+        let v = &self.view;
+        let expected = || {
+            format!(
+                "view {v}: expected one of {} or (azimuth, elevation) in degrees",
+                NamedView::NAMES
+            )
+        };
+        let aim = if v.is_none() {
+            Aim::Orbit {
+                az_deg: 0.0,
+                el_deg: 0.0,
+            }
+        } else if let Ok(name) = v.extract::<String>() {
+            Aim::Named(NamedView::parse(&name).ok_or_else(expected)?)
+        } else if let Ok((az_deg, el_deg)) = v.extract::<(f64, f64)>() {
+            Aim::Orbit { az_deg, el_deg }
+        } else {
+            return Err(expected());
+        };
+        Ok(View {
+            aim,
+            persp_fov_deg: self.perspective,
+            frame_mm: self.frame,
+            width: self.width,
+            height: self.height,
+        })
+    }
+
+    /// The look, with the checks `cdvol render` makes of its flags.
+    fn look(&self) -> Result<Look, String> {
+        let mut look = Look::default();
+        look.ask.mode = match self.mode.as_deref() {
+            None => None,
+            Some("surface") => Some(ModeKind::Surface),
+            Some("composite") => Some(ModeKind::Composite),
+            Some("mip") => Some(ModeKind::Mip),
+            Some("depth") => Some(ModeKind::Depth),
+            Some("cost") => Some(ModeKind::Cost),
+            Some(other) => {
+                return Err(format!(
+                    "mode {other:?}: expected \"surface\", \"composite\", \"mip\", \"depth\" \
+                     or \"cost\""
+                ))
+            }
+        };
+        look.ask.preset = self.preset.clone();
+        if let Some(iso) = self.iso.filter(|i| !i.is_finite()) {
+            return Err(format!("iso {iso}: expected a finite number"));
+        }
+        look.ask.iso = self.iso;
+        look.ask.shadows = self.shadows;
+        look.ask.shade = self.shade;
+        if let Some(s) = self.step {
+            if !(s.is_finite() && s >= cdvol::render::MIN_STEP_MM) {
+                return Err(format!(
+                    "step {s} mm: expected at least {} mm",
+                    cdvol::render::MIN_STEP_MM
+                ));
+            }
+            look.ask.step_mm = s;
+        }
+        look.unrounded = self.float;
+        Ok(look)
+    }
+}
+
+/// What a render returns: the image (flat, uint8 or float32), the depth
+/// mode's depths (flat float32) and the statistics as JSON.
+type Rendered<'py> = (Bound<'py, PyAny>, Option<Bound<'py, PyArray1<f32>>>, String);
+
+#[pymethods]
+impl RRenderer {
+    /// Renders one view: `(rgba, depth, stats)` where `rgba` is a flat
+    /// uint8 array (float32 with `float`), `depth` the depth mode's flat
+    /// float32 array or None, and `stats` the render's statistics as
+    /// JSON (`render --stats-json`).
+    fn render<'py>(&self, py: Python<'py>, kw: RenderKw<'py>) -> PyResult<Rendered<'py>> {
+        let view = kw.view().map_err(|m| raise_msg(py, "ViewError", m))?;
+        let look = kw.look().map_err(|m| raise_msg(py, "LookError", m))?;
+        let bg = Background::parse(&kw.background).map_err(|e| raise(py, "LookError", &e))?;
+        let image = py
+            .detach(|| self.r.render(&view, &look))
+            .map_err(|e| api_error(py, e))?;
+        let rgba = if kw.float {
+            let px = py.detach(|| image.rgba_f32(bg));
+            PyArray1::from_vec(py, px).into_any()
+        } else {
+            let px = py.detach(|| image.rgba8(bg));
+            PyArray1::from_vec(py, px).into_any()
+        };
+        let depth = image.frame.depth.clone().map(|d| PyArray1::from_vec(py, d));
+        let stats = serde_json::to_string(&image.stats)
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        Ok((rgba, depth, stats))
+    }
+}
+
+#[pymodule]
+fn _cdvol(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(prep_path, m)?)?;
+    m.add_function(wrap_pyfunction!(prep_array, m)?)?;
+    m.add_class::<RVolume>()?;
+    m.add_class::<RRenderer>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,596 @@
+//! A volume in the caller's memory: a numpy array in the Python package,
+//! or any buffer of samples indexed `[z, y, x]` with byte strides.
+//!
+//! Slices are read straight from the buffer (no copy of the volume), in
+//! any layout: C order reads a slice as one run, Fortran order and other
+//! strides element by element. When the buffer is a shared mapping of a
+//! file (a `numpy.memmap` opened `r` or `r+`), each slice's pages are
+//! given back after it is read, as the raw reader does, so resident memory
+//! stays a few slices whatever the volume's size.
+//!
+//! 64-bit integers (numpy's default integer type) are stored as the
+//! smallest of u8, i8, u16, i16, u32 and i32 that holds their range; the
+//! range is read once when the source is made. A range no 32-bit type
+//! holds is refused.
+
+use std::path::PathBuf;
+
+use crate::grid::Grid;
+use crate::input::raw::decode_samples;
+use crate::input::{Dtype, Endian, InputError, Rescale, SliceSource, VolumeMeta};
+
+/// The type of one element in memory (native byte order).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Element {
+    U8,
+    I8,
+    U16,
+    I16,
+    U32,
+    I32,
+    U64,
+    I64,
+    F32,
+    F64,
+}
+
+impl Element {
+    /// Parses a numpy dtype name: `uint8`, `int16`, `float32`, ...;
+    /// `bool` is read as `uint8`.
+    pub fn parse(name: &str) -> Option<Element> {
+        Some(match name {
+            "uint8" | "bool" => Element::U8,
+            "int8" => Element::I8,
+            "uint16" => Element::U16,
+            "int16" => Element::I16,
+            "uint32" => Element::U32,
+            "int32" => Element::I32,
+            "uint64" => Element::U64,
+            "int64" => Element::I64,
+            "float32" => Element::F32,
+            "float64" => Element::F64,
+            _ => return None,
+        })
+    }
+
+    /// The element types [`Element::parse`] takes, for messages.
+    pub const NAMES: &'static str =
+        "bool, uint8, int8, uint16, int16, uint32, int32, uint64, int64, float32, float64";
+
+    /// Bytes per element.
+    pub fn size(self) -> usize {
+        match self {
+            Element::U8 | Element::I8 => 1,
+            Element::U16 | Element::I16 => 2,
+            Element::U32 | Element::I32 | Element::F32 => 4,
+            Element::U64 | Element::I64 | Element::F64 => 8,
+        }
+    }
+
+    /// The stored type of the same name; `None` for the 64-bit integers,
+    /// which are narrowed by their range.
+    fn dtype(self) -> Option<Dtype> {
+        Some(match self {
+            Element::U8 => Dtype::U8,
+            Element::I8 => Dtype::I8,
+            Element::U16 => Dtype::U16,
+            Element::I16 => Dtype::I16,
+            Element::U32 => Dtype::U32,
+            Element::I32 => Dtype::I32,
+            Element::F32 => Dtype::F32,
+            Element::F64 => Dtype::F64,
+            Element::U64 | Element::I64 => return None,
+        })
+    }
+
+    /// Element `i` of `b` (native order) as f64; exact for every type but
+    /// 64-bit integers beyond 2^53, which [`narrowest`] refuses first.
+    #[inline]
+    fn read(self, b: &[u8]) -> f64 {
+        macro_rules! get {
+            ($t:ty) => {{
+                let mut a = [0u8; std::mem::size_of::<$t>()];
+                a.copy_from_slice(&b[..std::mem::size_of::<$t>()]);
+                <$t>::from_ne_bytes(a) as f64
+            }};
+        }
+        match self {
+            Element::U8 => b[0] as f64,
+            Element::I8 => b[0] as i8 as f64,
+            Element::U16 => get!(u16),
+            Element::I16 => get!(i16),
+            Element::U32 => get!(u32),
+            Element::I32 => get!(i32),
+            Element::U64 => get!(u64),
+            Element::I64 => get!(i64),
+            Element::F32 => get!(f32),
+            Element::F64 => get!(f64),
+        }
+    }
+}
+
+/// The smallest integer type of u8, i8, u16, i16, u32, i32 that holds
+/// `[lo, hi]`.
+pub fn narrowest(lo: f64, hi: f64) -> Option<Dtype> {
+    [
+        Dtype::U8,
+        Dtype::I8,
+        Dtype::U16,
+        Dtype::I16,
+        Dtype::U32,
+        Dtype::I32,
+    ]
+    .into_iter()
+    .find(|d| {
+        let (a, b) = d.int_range();
+        lo >= a as f64 && hi <= b as f64
+    })
+}
+
+/// A `[z, y, x]` buffer of samples with byte strides, read as a
+/// [`SliceSource`].
+pub struct ArraySource<'a> {
+    data: &'a [u8],
+    element: Element,
+    /// `[nz, ny, nx]`.
+    shape: [usize; 3],
+    /// Bytes between neighbours along z, y and x.
+    strides: [usize; 3],
+    meta: VolumeMeta,
+    files: Vec<PathBuf>,
+    modality: Option<String>,
+    /// Give each slice's pages back after reading it (a shared file
+    /// mapping, [`shared_file_mapping`]).
+    release: bool,
+}
+
+impl<'a> ArraySource<'a> {
+    /// A source over `data`, whose element `[z, y, x]` starts at byte
+    /// `z * strides[0] + y * strides[1] + x * strides[2]`. `grid` gives the
+    /// sample positions (x fastest, so its dims are `[nx, ny, nz]`);
+    /// `name` names the array in messages and in the packed file's
+    /// header. Refused: a grid whose dims are not the shape's, strides
+    /// that reach past the buffer, and 64-bit integers whose range no
+    /// 32-bit type holds.
+    pub fn new(
+        data: &'a [u8],
+        element: Element,
+        shape: [usize; 3],
+        strides: [usize; 3],
+        grid: Grid,
+        name: &str,
+    ) -> Result<ArraySource<'a>, InputError> {
+        let bad = |field: &str, msg: String| InputError::Array {
+            name: name.to_string(),
+            field: field.to_string(),
+            msg,
+        };
+        let [nz, ny, nx] = shape;
+        if grid.dims() != [nx, ny, nz] {
+            let [gx, gy, gz] = grid.dims();
+            return Err(bad(
+                "shape",
+                format!(
+                    "(z, y, x) = ({nz}, {ny}, {nx}), but the spacing and positions give \
+                     ({gz}, {gy}, {gx}) samples"
+                ),
+            ));
+        }
+        // The last byte any element reaches, without overflow.
+        let last = shape
+            .iter()
+            .zip(strides)
+            .try_fold(element.size(), |acc, (&n, s)| {
+                (n.max(1) - 1).checked_mul(s)?.checked_add(acc)
+            });
+        match last {
+            Some(end) if end <= data.len() => {}
+            _ => {
+                return Err(bad(
+                    "strides",
+                    format!(
+                        "strides {strides:?} bytes over shape {shape:?} reach past the {} \
+                         bytes of the buffer",
+                        data.len()
+                    ),
+                ))
+            }
+        }
+        let mut src = ArraySource {
+            data,
+            element,
+            shape,
+            strides,
+            meta: VolumeMeta {
+                grid,
+                dtype: Dtype::U8,
+                rescale: Rescale::IDENTITY,
+                origin_desc: name.to_string(),
+                orientation: None,
+            },
+            files: Vec::new(),
+            modality: None,
+            release: false,
+        };
+        src.meta.dtype = match element.dtype() {
+            Some(d) => d,
+            None => {
+                let (lo, hi) = src.range();
+                narrowest(lo, hi).ok_or_else(|| {
+                    bad(
+                        "dtype",
+                        format!(
+                            "{element:?} values from {lo} to {hi}: no integer type of 32 bits \
+                             or fewer holds them; expected values within int32 or uint32"
+                        ),
+                    )
+                })?
+            }
+        };
+        src.release = shared_file_mapping(data);
+        Ok(src)
+    }
+
+    /// The files behind the buffer (a memmap's file): prep refuses to
+    /// write over them.
+    pub fn with_files(mut self, files: Vec<PathBuf>) -> ArraySource<'a> {
+        self.files = files;
+        self
+    }
+
+    /// The modality the caller states (`CT`, `MR`); by default it is
+    /// guessed from the values, as for raw stacks.
+    pub fn with_modality(mut self, modality: Option<String>) -> ArraySource<'a> {
+        self.modality = modality;
+        self
+    }
+
+    /// `value = raw * slope + intercept`.
+    pub fn with_rescale(mut self, rescale: Rescale) -> ArraySource<'a> {
+        self.meta.rescale = rescale;
+        self
+    }
+
+    /// Whether slices' pages are given back after reading (the buffer is
+    /// a shared mapping of a file).
+    pub fn releases_pages(&self) -> bool {
+        self.release
+    }
+
+    /// Smallest and largest element (NaNs left out).
+    fn range(&self) -> (f64, f64) {
+        let mut row = vec![0.0; self.shape[2]];
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for z in 0..self.shape[0] {
+            for y in 0..self.shape[1] {
+                self.read_row(z, y, &mut row);
+                for &v in &row {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+            self.release_slice(z);
+        }
+        (lo, hi)
+    }
+
+    /// Row `y` of slice `z` into `out` (`nx` values).
+    fn read_row(&self, z: usize, y: usize, out: &mut [f64]) {
+        let base = z * self.strides[0] + y * self.strides[1];
+        let size = self.element.size();
+        if self.strides[2] == size {
+            let bytes = &self.data[base..base + out.len() * size];
+            match self.element.dtype() {
+                Some(d) => decode_samples(bytes, d, NATIVE, out),
+                None => {
+                    for (o, b) in out.iter_mut().zip(bytes.chunks_exact(size)) {
+                        *o = self.element.read(b);
+                    }
+                }
+            }
+        } else {
+            for (x, o) in out.iter_mut().enumerate() {
+                *o = self.element.read(&self.data[base + x * self.strides[2]..]);
+            }
+        }
+    }
+
+    /// Gives back the pages wholly inside slice `z`'s bytes when the
+    /// buffer is a shared file mapping and z is its slowest axis.
+    fn release_slice(&self, z: usize) {
+        if !self.release || self.strides[0] < self.strides[1].max(self.strides[2]) {
+            return;
+        }
+        let start = z * self.strides[0];
+        let len = self.strides[0].min(self.data.len() - start);
+        release_pages(&self.data[start..start + len]);
+    }
+}
+
+#[cfg(target_endian = "little")]
+const NATIVE: Endian = Endian::Little;
+#[cfg(target_endian = "big")]
+const NATIVE: Endian = Endian::Big;
+
+impl SliceSource for ArraySource<'_> {
+    fn meta(&self) -> &VolumeMeta {
+        &self.meta
+    }
+
+    fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {
+        let [_, ny, nx] = self.shape;
+        let c_order =
+            self.strides[2] == self.element.size() && self.strides[1] == nx * self.strides[2];
+        match self.element.dtype() {
+            Some(d) if c_order => {
+                let base = z * self.strides[0];
+                let bytes = &self.data[base..base + nx * ny * self.element.size()];
+                decode_samples(bytes, d, NATIVE, out);
+            }
+            _ => {
+                for (y, row) in out.chunks_exact_mut(nx).enumerate() {
+                    self.read_row(z, y, row);
+                }
+            }
+        }
+        self.release_slice(z);
+        Ok(())
+    }
+
+    fn modality(&self) -> Option<(String, String)> {
+        let m = self.modality.clone()?;
+        Some((m, "the caller".into()))
+    }
+
+    fn files(&self) -> Vec<PathBuf> {
+        self.files.clone()
+    }
+}
+
+/// Whether every byte of `data` lies in a shared, file-backed mapping
+/// (`/proc/self/maps`: an `s` permission and an inode), where giving pages
+/// back loses nothing: they stay in the page cache and fault back in. On
+/// private or anonymous memory it would zero them, so anything else, or
+/// a system without `/proc`, says no.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn shared_file_mapping(data: &[u8]) -> bool {
+    let Ok(maps) = std::fs::read_to_string("/proc/self/maps") else {
+        return false;
+    };
+    let (mut at, end) = (data.as_ptr() as usize, data.as_ptr() as usize + data.len());
+    // Mappings are listed in address order; walk the ones covering data.
+    for line in maps.lines() {
+        let mut f = line.split_whitespace();
+        let (Some(range), Some(perms), _, _, Some(inode)) =
+            (f.next(), f.next(), f.next(), f.next(), f.next())
+        else {
+            return false;
+        };
+        let Some((a, b)) = range.split_once('-') else {
+            return false;
+        };
+        let (Ok(a), Ok(b)) = (usize::from_str_radix(a, 16), usize::from_str_radix(b, 16)) else {
+            return false;
+        };
+        if b <= at || a > at {
+            continue;
+        }
+        if !perms.ends_with('s') || inode == "0" {
+            return false;
+        }
+        at = b;
+        if at >= end {
+            return true;
+        }
+    }
+    false
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn shared_file_mapping(_data: &[u8]) -> bool {
+    false
+}
+
+/// Drops the whole pages of `bytes` from this process (a shared file
+/// mapping, checked by [`shared_file_mapping`]).
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn release_pages(bytes: &[u8]) {
+    // SAFETY: sysconf has no preconditions.
+    let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) }.max(1) as usize;
+    let start = (bytes.as_ptr() as usize).div_ceil(page) * page;
+    let end = (bytes.as_ptr() as usize + bytes.len()) / page * page;
+    if end > start {
+        // SAFETY: the range lies inside a shared file mapping
+        // (shared_file_mapping), where MADV_DONTNEED only unmaps pages that
+        // stay in the page cache; no reference into them is held here, and
+        // a later read faults them back in with the same contents.
+        unsafe {
+            libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_DONTNEED);
+        }
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn release_pages(_bytes: &[u8]) {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::Axis;
+
+    fn grid(nx: usize, ny: usize, nz: usize) -> Grid {
+        Grid {
+            axes: [nx, ny, nz].map(|n| Axis::uniform(0.0, 1.0, n).unwrap()),
+        }
+    }
+
+    #[test]
+    fn reads_c_and_fortran_order_alike() {
+        let (nx, ny, nz) = (5, 4, 3);
+        let v = |x: usize, y: usize, z: usize| (x + 10 * y + 100 * z) as i16 - 50;
+        let mut c = Vec::new();
+        let mut f = Vec::new();
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    c.extend_from_slice(&v(x, y, z).to_ne_bytes());
+                }
+            }
+        }
+        for x in 0..nx {
+            for y in 0..ny {
+                for z in 0..nz {
+                    f.extend_from_slice(&v(x, y, z).to_ne_bytes());
+                }
+            }
+        }
+        let sc = ArraySource::new(
+            &c,
+            Element::I16,
+            [nz, ny, nx],
+            [2 * nx * ny, 2 * nx, 2],
+            grid(nx, ny, nz),
+            "c",
+        )
+        .unwrap();
+        let sf = ArraySource::new(
+            &f,
+            Element::I16,
+            [nz, ny, nx],
+            [2, 2 * nz, 2 * nz * ny],
+            grid(nx, ny, nz),
+            "f",
+        )
+        .unwrap();
+        assert!(!sc.releases_pages(), "a Vec is not a file mapping");
+        let (mut a, mut b) = (vec![0.0; nx * ny], vec![0.0; nx * ny]);
+        for z in 0..nz {
+            sc.read_slice(z, &mut a).unwrap();
+            sf.read_slice(z, &mut b).unwrap();
+            let want: Vec<f64> = (0..ny)
+                .flat_map(|y| (0..nx).map(move |x| v(x, y, z) as f64))
+                .collect();
+            assert_eq!(a, want);
+            assert_eq!(b, want);
+        }
+    }
+
+    #[test]
+    fn narrows_64_bit_integers_by_range_and_refuses_wider() {
+        let values = [-1024i64, 3071, 0, 5, 1, 2, 3, 4];
+        let data: Vec<u8> = values.iter().flat_map(|v| v.to_ne_bytes()).collect();
+        let s = ArraySource::new(
+            &data,
+            Element::I64,
+            [2, 2, 2],
+            [32, 16, 8],
+            grid(2, 2, 2),
+            "a",
+        )
+        .unwrap();
+        assert_eq!(s.meta().dtype, Dtype::I16);
+        let mut out = vec![0.0; 4];
+        s.read_slice(0, &mut out).unwrap();
+        assert_eq!(out, [-1024.0, 3071.0, 0.0, 5.0]);
+        let wide: Vec<u8> = [0u64, 1 << 40, 0, 0, 0, 0, 0, 0]
+            .iter()
+            .flat_map(|v| v.to_ne_bytes())
+            .collect();
+        let e = ArraySource::new(
+            &wide,
+            Element::U64,
+            [2, 2, 2],
+            [32, 16, 8],
+            grid(2, 2, 2),
+            "w",
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(e.contains("dtype") && e.contains("1099511627776"), "{e}");
+        assert_eq!(narrowest(0.0, 255.0), Some(Dtype::U8));
+        assert_eq!(narrowest(-1.0, 200.0), Some(Dtype::I16));
+        assert_eq!(narrowest(0.0, 70000.0), Some(Dtype::U32));
+    }
+
+    #[test]
+    fn refuses_strides_past_the_buffer_and_a_grid_of_another_shape() {
+        let data = vec![0u8; 24];
+        let e = ArraySource::new(
+            &data,
+            Element::U8,
+            [2, 3, 4],
+            [13, 4, 1],
+            grid(4, 3, 2),
+            "s",
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(e.contains("strides") && e.contains("24 bytes"), "{e}");
+        let e = ArraySource::new(
+            &data,
+            Element::U8,
+            [2, 3, 4],
+            [12, 4, 1],
+            grid(4, 3, 3),
+            "g",
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(e.contains("shape") && e.contains("(3, 3, 4)"), "{e}");
+        let e = ArraySource::new(
+            &data,
+            Element::U8,
+            [2, 3, 4],
+            [usize::MAX, 4, 1],
+            grid(4, 3, 2),
+            "o",
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(e.contains("strides"), "{e}");
+    }
+
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    #[test]
+    fn gives_pages_back_only_on_a_shared_file_mapping() {
+        use std::io::Write;
+        let mut f = tempfile::tempfile().unwrap();
+        let bytes: Vec<u8> = (0..3 * 4096u32).map(|i| (i % 251) as u8).collect();
+        f.write_all(&bytes).unwrap();
+        // SAFETY: a private temporary file nobody else writes.
+        let map = unsafe { memmap2::Mmap::map(&f) }.unwrap();
+        let s = ArraySource::new(
+            &map,
+            Element::U8,
+            [3, 64, 64],
+            [4096, 64, 1],
+            grid(64, 64, 3),
+            "m",
+        )
+        .unwrap();
+        assert!(s.releases_pages());
+        let mut out = vec![0.0; 4096];
+        for z in [0, 2, 0] {
+            s.read_slice(z, &mut out).unwrap();
+            assert!(out
+                .iter()
+                .zip(&bytes[z * 4096..])
+                .all(|(&o, &b)| o == b as f64));
+        }
+        let private = unsafe { memmap2::MmapOptions::new().map_copy_read_only(&f) }.unwrap();
+        let p = ArraySource::new(
+            &private,
+            Element::U8,
+            [3, 64, 64],
+            [4096, 64, 1],
+            grid(64, 64, 3),
+            "p",
+        )
+        .unwrap();
+        assert!(!p.releases_pages(), "a private mapping loses written pages");
+    }
+}
