@@ -49,9 +49,13 @@ with tempfile.TemporaryDirectory() as tmp:
     print(f"air peak {air:.0f} HU, soft-tissue peak {tissue:.0f} HU: skin iso {iso:.0f} HU")
 
     # 4. A turntable into one (12, H, W, 4) stack, on one warm renderer.
+    # Every frame is as wide as the diagonal of the volume's footprint, so
+    # nothing leaves it as the volume turns and the head keeps its size.
+    (x0, x1), (y0, y1), _ = (a["extent_mm"] for a in vol.info["axes"])
+    frame = float(np.hypot(x1 - x0, y1 - y0))
     renderer = vol.renderer()
     frames = np.stack([
-        renderer.render((az, 10), iso=iso, mode="surface", width=256, height=256)
+        renderer.render((az, 10), iso=iso, mode="surface", width=256, height=256, frame=frame)
         for az in range(0, 360, 30)
     ])
     print(f"turntable {frames.shape} {frames.dtype}")

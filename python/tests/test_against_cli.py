@@ -79,8 +79,12 @@ def test_real_ct_from_an_array_renders_as_the_cli(tmp_path, cdvol_bin, real_ct):
     a, side, spacing = real_ct
     run(cdvol_bin, "prep", side, "--iso", 300, "-o", tmp_path / "cli.cdv")
     cdvol.prep(a, tmp_path / "py.cdv", iso=300, spacing=spacing, progress=False)
+    # A path works where an array does.
+    cdvol.prep(side, tmp_path / "path.cdv", iso=300, progress=False)
     for view in [(0, 0), (120, 15)]:
         mine = cdvol.open(tmp_path / "py.cdv").render(view, width=128, height=128)
+        assert np.array_equal(mine, cdvol.open(tmp_path / "path.cdv").render(view, width=128,
+                                                                              height=128))
         run(cdvol_bin, "render", tmp_path / "cli.cdv", "-o", tmp_path / "ct.png",
             "--view", f"{view[0]},{view[1]}", "--width", 128, "--height", 128)
         assert np.array_equal(mine[..., :3], png(tmp_path / "ct.png")), view
