@@ -97,22 +97,11 @@ def _progress(enabled: bool) -> Optional[Callable[[str, str, int], None]]:
     return callback
 
 
-def _volume_array(a: np.ndarray) -> np.ndarray:
-    """``a`` as cdvol reads it: 3-D, a supported dtype in native byte order,
-    no negative stride. Copies only what must change."""
-    if a.ndim != 3:
-        hint = (
-            " (one slice: stack at least two into a (z, y, x) array)"
-            if a.ndim == 2
-            else ""
-        )
-        raise ShapeError(
-            f"array of shape {a.shape}: expected 3 axes indexed [z, y, x]{hint}"
-        )
+def _readable(a: np.ndarray, what: str) -> np.ndarray:
+    """``a`` with a dtype cdvol reads, in native byte order, with no
+    negative stride; copied only when one of these must change."""
     if a.dtype.kind not in "biuf":
-        raise DtypeError(
-            f"array dtype {a.dtype}: expected an integer, float or bool dtype"
-        )
+        raise DtypeError(f"{what} dtype {a.dtype}: expected an integer, float or bool dtype")
     if a.dtype == np.float16:
         a = a.astype(np.float32)
     if not a.dtype.isnative:
@@ -122,6 +111,40 @@ def _volume_array(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def _volume_array(a: np.ndarray) -> np.ndarray:
+    """``a`` as cdvol reads it: 3-D, see :func:`_readable`."""
+    if a.ndim != 3:
+        hint = (
+            " (a 2-D array is one slice: pass a 3-D array or a sequence of 2-D "
+            "slices in z order)"
+            if a.ndim == 2
+            else ""
+        )
+        raise ShapeError(f"array of shape {a.shape}: expected 3 axes indexed [z, y, x]{hint}")
+    return _readable(a, "array")
+
+
+def _slices(seq: Sequence[np.ndarray]) -> list:
+    """A sequence of 2-D slices as cdvol reads them: one shape, one dtype,
+    one layout (C order for all when theirs differ)."""
+    out = []
+    for z, s in enumerate(seq):
+        s = np.asarray(s)
+        if s.ndim != 2:
+            raise ShapeError(f"slice {z} of shape {s.shape}: expected 2 axes indexed [y, x]")
+        s = _readable(s, f"slice {z}")
+        if out and (s.shape, s.dtype) != (out[0].shape, out[0].dtype):
+            cls = ShapeError if s.shape != out[0].shape else DtypeError
+            raise cls(
+                f"slice {z}: {s.shape} {s.dtype}, expected slice 0's "
+                f"{out[0].shape} {out[0].dtype}"
+            )
+        out.append(s)
+    if len({s.strides for s in out}) > 1:
+        out = [np.ascontiguousarray(s) for s in out]
+    return out
+
+
 def _mapped_file(a: np.ndarray) -> list:
     """The file a numpy.memmap maps: prep refuses to write over it."""
     name = getattr(a, "filename", None)
@@ -129,7 +152,7 @@ def _mapped_file(a: np.ndarray) -> list:
 
 
 def prep(
-    source: Union[PathLike, np.ndarray],
+    source: Union[PathLike, np.ndarray, Sequence[np.ndarray]],
     out: PathLike,
     *,
     iso: Optional[float] = None,
@@ -149,9 +172,11 @@ def prep(
     """Prepares a volume into the packed file ``out`` (``cdvol prep``).
 
     ``source`` is a path (a DICOM directory, NIfTI, NRRD or a raw-stack
-    sidecar) or a numpy array indexed ``[z, y, x]`` of any integer, bool or
-    float dtype, in C or Fortran order. An array is read where it lies,
-    without a copy; a ``numpy.memmap`` opened ``"r"`` or ``"r+"`` is read
+    sidecar), a numpy array indexed ``[z, y, x]`` of any integer, bool or
+    float dtype, in C or Fortran order, or a sequence of 2-D arrays
+    ``[y, x]``, one a slice in z order (slices read one by one, never
+    stacked). Arrays are read where they lie, without a copy; a
+    ``numpy.memmap`` opened ``"r"`` or ``"r+"`` is read
     slice by slice with each slice's pages given back, so a volume larger
     than memory preps in a few hundred MiB. 64-bit integers are stored in
     the smallest integer type that holds their range.
@@ -195,8 +220,10 @@ def prep(
     )
     cb = _progress(progress)
     out = pathlib.Path(os.fspath(out))
-    if isinstance(source, np.ndarray):
-        a = _volume_array(source)
+    stack = isinstance(source, (list, tuple)) and len(source) > 0 and all(
+        isinstance(s, np.ndarray) for s in source
+    )
+    if isinstance(source, np.ndarray) or stack:
         sp = (1.0, 1.0, 1.0) if spacing is None else tuple(float(s) for s in spacing)
         if len(sp) != 3:
             raise InputError(f"spacing {spacing!r}: expected (sx, sy, sz) in mm, x first")
@@ -206,6 +233,9 @@ def prep(
         pos = None if positions is None else [float(p) for p in positions]
         rs = None if rescale is None else (float(rescale[0]), float(rescale[1]))
         grid = dict(spacing=sp, origin=org, positions=pos, rescale=rs)
+        if stack:
+            return _cdvol.prep_slices(_slices(source), out, grid, kw, cb)
+        a = _volume_array(source)
         return _cdvol.prep_array(a, out, grid, kw, _mapped_file(source), cb)
     for name, given in (("spacing", spacing), ("positions", positions),
                         ("origin", origin), ("rescale", rescale)):

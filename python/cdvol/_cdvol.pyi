@@ -29,6 +29,13 @@ def prep_array(
     files: Sequence[os.PathLike[str]],
     progress: _Progress,
 ) -> dict: ...
+def prep_slices(
+    slices: Sequence[np.ndarray],
+    out: os.PathLike[str],
+    grid: GridKw,
+    kw: PrepKw,
+    progress: _Progress,
+) -> dict: ...
 
 class RRenderer:
     def render(self, kw: RenderKw) -> Tuple[np.ndarray, Optional[np.ndarray], str]: ...

@@ -12,8 +12,8 @@ use std::path::PathBuf;
 
 use numpy::ndarray::Dimension;
 use numpy::{
-    Element as NpElement, PyArray1, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray3,
-    PyUntypedArray, PyUntypedArrayMethods,
+    Element as NpElement, PyArray1, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
+    PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyType};
@@ -287,6 +287,87 @@ fn prep_path<'py>(
     run_prep(py, src.as_ref(), out, opts, progress)
 }
 
+/// The element type of a numpy dtype and whether it is `bool` (read as
+/// `uint8`); `None` for a dtype cdvol does not read.
+fn element_of(py: Python<'_>, dtype: &Bound<'_, numpy::PyArrayDescr>) -> Option<(Element, bool)> {
+    macro_rules! find {
+        ($($t:ty => $e:expr),* $(,)?) => {
+            $(
+                if dtype.is_equiv_to(&<$t as NpElement>::get_dtype(py)) {
+                    return Some(($e, std::any::TypeId::of::<$t>() == std::any::TypeId::of::<bool>()));
+                }
+            )*
+        };
+    }
+    find!(
+        bool => Element::U8,
+        u8 => Element::U8,
+        i8 => Element::I8,
+        u16 => Element::U16,
+        i16 => Element::I16,
+        u32 => Element::U32,
+        i32 => Element::I32,
+        u64 => Element::U64,
+        i64 => Element::I64,
+        f32 => Element::F32,
+        f64 => Element::F64,
+    );
+    None
+}
+
+/// Runs `$body` with `$T` the Rust type of the element `$el` (from
+/// [`element_of`]).
+macro_rules! typed {
+    ($el:expr, $T:ident => $body:expr) => {
+        match $el {
+            (Element::U8, true) => {
+                type $T = bool;
+                $body
+            }
+            (Element::U8, false) => {
+                type $T = u8;
+                $body
+            }
+            (Element::I8, _) => {
+                type $T = i8;
+                $body
+            }
+            (Element::U16, _) => {
+                type $T = u16;
+                $body
+            }
+            (Element::I16, _) => {
+                type $T = i16;
+                $body
+            }
+            (Element::U32, _) => {
+                type $T = u32;
+                $body
+            }
+            (Element::I32, _) => {
+                type $T = i32;
+                $body
+            }
+            (Element::U64, _) => {
+                type $T = u64;
+                $body
+            }
+            (Element::I64, _) => {
+                type $T = i64;
+                $body
+            }
+            (Element::F32, _) => {
+                type $T = f32;
+                $body
+            }
+            (Element::F64, _) => {
+                type $T = f64;
+                $body
+            }
+        }
+    };
+}
+
 /// Prepares a 3-D numpy array `[z, y, x]` into `out`; `files` are those a
 /// memmap maps (not to be written over).
 #[pyfunction]
@@ -299,49 +380,64 @@ fn prep_array<'py>(
     files: Vec<PathBuf>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let modality = kw.modality.clone();
-    let opts = kw.options().map_err(|m| raise_msg(py, "PrepError", m))?;
-    let dtype = array.dtype().str()?.to_string();
     let name = match files.first() {
         Some(f) => format!("numpy.memmap of {}", f.display()),
-        None => format!("numpy array {:?} {dtype}", array.shape()),
+        None => format!("numpy array {:?} {}", array.shape(), array.dtype().str()?),
     };
-    let job = ArrayJob {
-        name,
-        grid,
-        files,
-        modality,
-        opts,
-        out,
+    let el = element_of(py, &array.dtype()).ok_or_else(|| dtype_error(py, array))?;
+    let job = ArrayJob::new(py, name, grid, kw, files, out)?;
+    typed!(el, T => {
+        let ro = array.cast::<numpy::PyArray3<T>>().map_err(PyErr::from)?.readonly();
+        job.run(py, &ro.as_array(), el.0, progress)
+    })
+}
+
+/// Prepares a sequence of 2-D numpy arrays `[y, x]`, one a slice in z
+/// order, into `out`: stacked without a copy.
+#[pyfunction]
+fn prep_slices<'py>(
+    py: Python<'py>,
+    slices: Vec<Bound<'py, PyUntypedArray>>,
+    out: PathBuf,
+    grid: GridKw,
+    kw: PrepKw,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let Some(first) = slices.first() else {
+        return Err(raise_msg(
+            py,
+            "ShapeError",
+            "no slices: expected at least two".into(),
+        ));
     };
-    macro_rules! with_view {
-        ($($t:ty => $e:expr),* $(,)?) => {{
-            let kind = array.dtype();
-            $(
-                if kind.is_equiv_to(&<$t as NpElement>::get_dtype(py)) {
-                    let typed: PyReadonlyArray3<'py, $t> = array
-                        .cast::<numpy::PyArray3<$t>>()
-                        .map_err(PyErr::from)?
-                        .readonly();
-                    return job.run(py, &typed.as_array(), $e, progress);
-                }
-            )*
-            Err(raise_msg(py, "DtypeError", format!(
-                "array dtype {dtype}: expected one of {}", Element::NAMES)))
-        }};
-    }
-    with_view!(
-        bool => Element::U8,
-        u8 => Element::U8,
-        i8 => Element::I8,
-        u16 => Element::U16,
-        i16 => Element::I16,
-        u32 => Element::U32,
-        i32 => Element::I32,
-        u64 => Element::U64,
-        i64 => Element::I64,
-        f32 => Element::F32,
-        f64 => Element::F64,
+    let name = format!(
+        "{} numpy slices {:?} {}",
+        slices.len(),
+        first.shape(),
+        first.dtype().str()?
+    );
+    let el = element_of(py, &first.dtype()).ok_or_else(|| dtype_error(py, first))?;
+    let job = ArrayJob::new(py, name, grid, kw, Vec::new(), out)?;
+    typed!(el, T => {
+        let ro = slices
+            .iter()
+            .map(|a| Ok(a.cast::<numpy::PyArray2<T>>().map_err(PyErr::from)?.readonly()))
+            .collect::<PyResult<Vec<_>>>()?;
+        let views: Vec<_> = ro.iter().map(|r| r.as_array()).collect();
+        job.run_planes(py, &views, el.0, progress)
+    })
+}
+
+fn dtype_error(py: Python<'_>, array: &Bound<'_, PyUntypedArray>) -> PyErr {
+    let dtype = array
+        .dtype()
+        .str()
+        .map(|s| s.to_string())
+        .unwrap_or_default();
+    raise_msg(
+        py,
+        "DtypeError",
+        format!("array dtype {dtype}: expected one of {}", Element::NAMES),
     )
 }
 
@@ -355,48 +451,144 @@ struct ArrayJob {
     out: PathBuf,
 }
 
+/// The bytes of a view with non-negative strides, from its first element
+/// to its last, and its strides in bytes; `None` for a negative stride.
+fn view_bytes<'a, T, D: numpy::ndarray::Dimension>(
+    view: &numpy::ndarray::ArrayView<'a, T, D>,
+) -> Option<(&'a [u8], Vec<usize>)> {
+    let size = std::mem::size_of::<T>();
+    let strides = view
+        .strides()
+        .iter()
+        .map(|&s| usize::try_from(s).ok().map(|s| s * size))
+        .collect::<Option<Vec<usize>>>()?;
+    let extent = view
+        .shape()
+        .iter()
+        .zip(&strides)
+        .map(|(&n, &s)| n.saturating_sub(1) * s)
+        .sum::<usize>()
+        + size;
+    // SAFETY: the view's elements all lie in `extent` bytes from its first
+    // element (non-negative strides), which numpy keeps alive and (through
+    // the caller's read-only borrow) unchanged by other borrowers while
+    // the view lives, for 'a.
+    let bytes = unsafe { std::slice::from_raw_parts(view.as_ptr() as *const u8, extent) };
+    Some((bytes, strides))
+}
+
 impl ArrayJob {
-    /// Prepares a typed view: its memory as bytes with byte strides, read
-    /// by [`ArraySource`] without a copy.
-    fn run<'py, T: Sync>(
+    fn new(
+        py: Python<'_>,
+        name: String,
+        grid: GridKw,
+        kw: PrepKw,
+        files: Vec<PathBuf>,
+        out: PathBuf,
+    ) -> PyResult<ArrayJob> {
+        let modality = kw.modality.clone();
+        let opts = kw.options().map_err(|m| raise_msg(py, "PrepError", m))?;
+        Ok(ArrayJob {
+            name,
+            grid,
+            files,
+            modality,
+            opts,
+            out,
+        })
+    }
+
+    fn shape_error(&self, py: Python<'_>, what: String) -> PyErr {
+        raise_msg(
+            py,
+            "ShapeError",
+            format!(
+                "array {}: {what}: expected no empty axis and no negative stride \
+                 (numpy.ascontiguousarray makes one)",
+                self.name
+            ),
+        )
+    }
+
+    /// Prepares a 3-D view, read in place by [`ArraySource::new`].
+    fn run<'py, T>(
         self,
         py: Python<'py>,
         view: &numpy::ndarray::ArrayView3<'_, T>,
         element: Element,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let name = &self.name;
         let shape: [usize; 3] = view.raw_dim().into_pattern().into();
-        let size = std::mem::size_of::<T>();
-        let strides = view.strides();
-        if strides.iter().any(|&s| s < 0) || shape.contains(&0) {
-            return Err(raise_msg(
-                py,
-                "ShapeError",
-                format!(
-                    "array {name}: shape {shape:?} strides {strides:?}: expected no empty axis \
-                     and no negative stride (numpy.ascontiguousarray makes one)"
-                ),
-            ));
+        let what = || format!("shape {shape:?} strides {:?}", view.strides());
+        let Some((bytes, strides)) = view_bytes(view).filter(|_| !shape.contains(&0)) else {
+            return Err(self.shape_error(py, what()));
+        };
+        let grid = self.grid(py, shape)?;
+        let src = ArraySource::new(
+            bytes,
+            element,
+            shape,
+            [strides[0], strides[1], strides[2]],
+            grid,
+            &self.name,
+        )
+        .map_err(|e| raise(py, "InputError", &e))?;
+        self.finish(py, src, progress)
+    }
+
+    /// Prepares 2-D views, one a slice, read in place by
+    /// [`ArraySource::from_planes`].
+    fn run_planes<'py, T>(
+        self,
+        py: Python<'py>,
+        views: &[numpy::ndarray::ArrayView2<'_, T>],
+        element: Element,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let shape: [usize; 2] = views[0].raw_dim().into_pattern().into();
+        let mut planes = Vec::with_capacity(views.len());
+        let mut strides = None;
+        for (z, v) in views.iter().enumerate() {
+            let s: [usize; 2] = v.raw_dim().into_pattern().into();
+            let what = || format!("slice {z}: shape {s:?} strides {:?}", v.strides());
+            let Some((bytes, st)) = view_bytes(v).filter(|_| s == shape && !s.contains(&0)) else {
+                return Err(self.shape_error(py, what()));
+            };
+            if *strides.get_or_insert(st.clone()) != st {
+                return Err(self.shape_error(py, format!("{} (slice 0's strides differ)", what())));
+            }
+            planes.push(bytes);
         }
-        let byte_strides = [0, 1, 2].map(|k| strides[k] as usize * size);
-        let extent = (0..3)
-            .map(|k| (shape[k] - 1) * byte_strides[k])
-            .sum::<usize>()
-            + size;
-        // SAFETY: the view's elements all lie in `extent` bytes from its
-        // first element (non-negative strides, checked above), which numpy
-        // keeps alive and (through the caller's read-only borrow) unchanged
-        // by other borrowers while the view lives; this returns before it.
-        let bytes = unsafe { std::slice::from_raw_parts(view.as_ptr() as *const u8, extent) };
-        let g = self.grid;
-        let grid = array_grid(shape, g.spacing, g.origin, g.positions)
-            .map_err(|m| raise_msg(py, "InputError", format!("array {name}: {m}")))?;
-        let mut src = ArraySource::new(bytes, element, shape, byte_strides, grid, name)
-            .map_err(|e| raise(py, "InputError", &e))?
+        let strides = strides.unwrap_or_default();
+        let grid = self.grid(py, [views.len(), shape[0], shape[1]])?;
+        let src = ArraySource::from_planes(
+            planes,
+            element,
+            shape,
+            [strides[0], strides[1]],
+            grid,
+            &self.name,
+        )
+        .map_err(|e| raise(py, "InputError", &e))?;
+        self.finish(py, src, progress)
+    }
+
+    fn grid(&self, py: Python<'_>, shape: [usize; 3]) -> PyResult<Grid> {
+        let g = &self.grid;
+        array_grid(shape, g.spacing, g.origin, g.positions.clone())
+            .map_err(|m| raise_msg(py, "InputError", format!("array {}: {m}", self.name)))
+    }
+
+    fn finish<'py>(
+        self,
+        py: Python<'py>,
+        src: ArraySource<'_>,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let mut src = src
             .with_files(self.files)
             .with_modality(self.modality.map(|m| m.to_ascii_uppercase()));
-        if let Some((slope, intercept)) = g.rescale {
+        if let Some((slope, intercept)) = self.grid.rescale {
             src = src.with_rescale(Rescale { slope, intercept });
         }
         run_prep(py, &src, self.out, self.opts, progress)
@@ -617,6 +809,7 @@ impl RRenderer {
 fn _cdvol(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(prep_path, m)?)?;
     m.add_function(wrap_pyfunction!(prep_array, m)?)?;
+    m.add_function(wrap_pyfunction!(prep_slices, m)?)?;
     m.add_class::<RVolume>()?;
     m.add_class::<RRenderer>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -198,3 +198,26 @@ def test_progress_draws_bars_where_asked(tmp_path, phantom, capfd, monkeypatch):
     cdvol.prep(a, tmp_path / "q.cdv", iso=300, spacing=spacing, progress=True)
     err = capfd.readouterr().err
     assert "classify + forward DT" in err, err
+
+
+def test_a_sequence_of_slices_preps_as_the_stacked_array(tmp_path, phantom):
+    a, spacing, positions = phantom
+    cdvol.prep(a, tmp_path / "a.cdv", iso=300, spacing=spacing, positions=positions,
+               progress=False)
+    # Slices as separate arrays, every other one in Fortran order.
+    slices = [np.asfortranarray(s) if z % 2 else s.copy() for z, s in enumerate(a)]
+    cdvol.prep(slices, tmp_path / "s.cdv", iso=300, spacing=spacing, positions=positions,
+               progress=False)
+    va, vs = cdvol.open(tmp_path / "a.cdv"), cdvol.open(tmp_path / "s.cdv")
+    for what in ("values", "codes"):
+        assert np.array_equal(va.export(what, progress=False), vs.export(what, progress=False))
+    assert np.array_equal(va.render((20, 30), width=64, height=64),
+                          vs.render((20, 30), width=64, height=64))
+    with pytest.raises(cdvol.ShapeError, match=r"slice 3: \(45, 51\) int16, expected"):
+        cdvol.prep([s if z != 3 else s[:, :-1] for z, s in enumerate(a)], tmp_path / "x.cdv",
+                   iso=300)
+    with pytest.raises(cdvol.DtypeError, match="slice 2"):
+        cdvol.prep([s if z != 2 else s.astype(np.float32) for z, s in enumerate(a)],
+                   tmp_path / "x.cdv", iso=300)
+    with pytest.raises(cdvol.ShapeError, match="slice 0 of shape"):
+        cdvol.prep([a, a], tmp_path / "x.cdv", iso=300)

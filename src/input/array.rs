@@ -127,20 +127,22 @@ pub fn narrowest(lo: f64, hi: f64) -> Option<Dtype> {
     })
 }
 
-/// A `[z, y, x]` buffer of samples with byte strides, read as a
-/// [`SliceSource`].
+/// A `[z, y, x]` volume in memory, read as a [`SliceSource`]: one buffer
+/// with byte strides ([`ArraySource::new`]) or one buffer a slice
+/// ([`ArraySource::from_planes`]).
 pub struct ArraySource<'a> {
-    data: &'a [u8],
+    /// Slice `z`'s bytes, from its element `[y, x] = [0, 0]` to its last.
+    planes: Vec<&'a [u8]>,
     element: Element,
     /// `[nz, ny, nx]`.
     shape: [usize; 3],
-    /// Bytes between neighbours along z, y and x.
-    strides: [usize; 3],
+    /// Bytes between neighbours along y and x within a slice.
+    strides: [usize; 2],
     meta: VolumeMeta,
     files: Vec<PathBuf>,
     modality: Option<String>,
-    /// Give each slice's pages back after reading it (a shared file
-    /// mapping, [`shared_file_mapping`]).
+    /// Give each slice's pages back after reading it: every slice lies in
+    /// a shared file mapping ([`shared_file_mapping`]) and no two overlap.
     release: bool,
 }
 
@@ -160,12 +162,49 @@ impl<'a> ArraySource<'a> {
         grid: Grid,
         name: &str,
     ) -> Result<ArraySource<'a>, InputError> {
+        let [nz, ny, nx] = shape;
+        let plane = plane_extent(element, [ny, nx], [strides[1], strides[2]]);
+        let last = plane.and_then(|p| (nz.max(1) - 1).checked_mul(strides[0])?.checked_add(p));
+        let (Some(plane), Some(end)) = (plane, last) else {
+            return Err(strides_error(name, &strides, &shape, data.len()));
+        };
+        if end > data.len() {
+            return Err(strides_error(name, &strides, &shape, data.len()));
+        }
+        let planes = (0..nz)
+            .map(|z| &data[z * strides[0]..z * strides[0] + plane])
+            .collect();
+        ArraySource::from_planes(
+            planes,
+            element,
+            [ny, nx],
+            [strides[1], strides[2]],
+            grid,
+            name,
+        )
+    }
+
+    /// A source over one buffer a slice (z ascending), each holding
+    /// element `[y, x]` at byte `y * strides[0] + x * strides[1]`: slices
+    /// read one by one, stacked without a copy. Refused as [`new`]
+    /// refuses, and a slice too short for `shape` and `strides`.
+    ///
+    /// [`new`]: ArraySource::new
+    pub fn from_planes(
+        planes: Vec<&'a [u8]>,
+        element: Element,
+        shape: [usize; 2],
+        strides: [usize; 2],
+        grid: Grid,
+        name: &str,
+    ) -> Result<ArraySource<'a>, InputError> {
         let bad = |field: &str, msg: String| InputError::Array {
             name: name.to_string(),
             field: field.to_string(),
             msg,
         };
-        let [nz, ny, nx] = shape;
+        let [ny, nx] = shape;
+        let nz = planes.len();
         if grid.dims() != [nx, ny, nz] {
             let [gx, gy, gz] = grid.dims();
             return Err(bad(
@@ -176,30 +215,24 @@ impl<'a> ArraySource<'a> {
                 ),
             ));
         }
-        // The last byte any element reaches, without overflow.
-        let last = shape
+        let extent = plane_extent(element, shape, strides);
+        if let Some(z) = planes
             .iter()
-            .zip(strides)
-            .try_fold(element.size(), |acc, (&n, s)| {
-                (n.max(1) - 1).checked_mul(s)?.checked_add(acc)
-            });
-        match last {
-            Some(end) if end <= data.len() => {}
-            _ => {
-                return Err(bad(
-                    "strides",
-                    format!(
-                        "strides {strides:?} bytes over shape {shape:?} reach past the {} \
-                         bytes of the buffer",
-                        data.len()
-                    ),
-                ))
-            }
+            .position(|p| extent.is_none_or(|e| p.len() < e))
+        {
+            return Err(bad(
+                "strides",
+                format!(
+                    "slice {z}: strides {strides:?} bytes over shape {shape:?} reach past its {} \
+                     bytes",
+                    planes[z].len()
+                ),
+            ));
         }
         let mut src = ArraySource {
-            data,
+            planes,
             element,
-            shape,
+            shape: [nz, ny, nx],
             strides,
             meta: VolumeMeta {
                 grid,
@@ -212,6 +245,8 @@ impl<'a> ArraySource<'a> {
             modality: None,
             release: false,
         };
+        // Before the range scan below, which gives pages back too.
+        src.release = disjoint(&src.planes) && src.planes.iter().all(|p| shared_file_mapping(p));
         src.meta.dtype = match element.dtype() {
             Some(d) => d,
             None => {
@@ -227,7 +262,6 @@ impl<'a> ArraySource<'a> {
                 })?
             }
         };
-        src.release = shared_file_mapping(data);
         Ok(src)
     }
 
@@ -276,10 +310,11 @@ impl<'a> ArraySource<'a> {
 
     /// Row `y` of slice `z` into `out` (`nx` values).
     fn read_row(&self, z: usize, y: usize, out: &mut [f64]) {
-        let base = z * self.strides[0] + y * self.strides[1];
+        let plane = self.planes[z];
+        let base = y * self.strides[0];
         let size = self.element.size();
-        if self.strides[2] == size {
-            let bytes = &self.data[base..base + out.len() * size];
+        if self.strides[1] == size {
+            let bytes = &plane[base..base + out.len() * size];
             match self.element.dtype() {
                 Some(d) => decode_samples(bytes, d, NATIVE, out),
                 None => {
@@ -290,21 +325,50 @@ impl<'a> ArraySource<'a> {
             }
         } else {
             for (x, o) in out.iter_mut().enumerate() {
-                *o = self.element.read(&self.data[base + x * self.strides[2]..]);
+                *o = self.element.read(&plane[base + x * self.strides[1]..]);
             }
         }
     }
 
-    /// Gives back the pages wholly inside slice `z`'s bytes when the
-    /// buffer is a shared file mapping and z is its slowest axis.
+    /// Gives back the pages wholly inside slice `z` when the slices lie
+    /// apart in shared file mappings.
     fn release_slice(&self, z: usize) {
-        if !self.release || self.strides[0] < self.strides[1].max(self.strides[2]) {
-            return;
+        if self.release {
+            release_pages(self.planes[z]);
         }
-        let start = z * self.strides[0];
-        let len = self.strides[0].min(self.data.len() - start);
-        release_pages(&self.data[start..start + len]);
     }
+}
+
+/// Bytes from a slice's first element to the end of its last, `None` on
+/// overflow.
+fn plane_extent(element: Element, shape: [usize; 2], strides: [usize; 2]) -> Option<usize> {
+    shape
+        .iter()
+        .zip(strides)
+        .try_fold(element.size(), |acc, (&n, s)| {
+            (n.max(1) - 1).checked_mul(s)?.checked_add(acc)
+        })
+}
+
+fn strides_error(name: &str, strides: &[usize; 3], shape: &[usize; 3], len: usize) -> InputError {
+    InputError::Array {
+        name: name.to_string(),
+        field: "strides".into(),
+        msg: format!(
+            "strides {strides:?} bytes over shape {shape:?} reach past the {len} bytes of the buffer"
+        ),
+    }
+}
+
+/// Whether no two of `planes` share a byte (then giving one's pages back
+/// never costs another its pages).
+fn disjoint(planes: &[&[u8]]) -> bool {
+    let mut spans: Vec<(usize, usize)> = planes
+        .iter()
+        .map(|p| (p.as_ptr() as usize, p.as_ptr() as usize + p.len()))
+        .collect();
+    spans.sort_unstable();
+    spans.windows(2).all(|w| w[0].1 <= w[1].0)
 }
 
 #[cfg(target_endian = "little")]
@@ -319,13 +383,11 @@ impl SliceSource for ArraySource<'_> {
 
     fn read_slice(&self, z: usize, out: &mut [f64]) -> Result<(), InputError> {
         let [_, ny, nx] = self.shape;
-        let c_order =
-            self.strides[2] == self.element.size() && self.strides[1] == nx * self.strides[2];
+        let size = self.element.size();
         match self.element.dtype() {
-            Some(d) if c_order => {
-                let base = z * self.strides[0];
-                let bytes = &self.data[base..base + nx * ny * self.element.size()];
-                decode_samples(bytes, d, NATIVE, out);
+            // A C-order slice: one run.
+            Some(d) if self.strides == [nx * size, size] => {
+                decode_samples(&self.planes[z][..nx * ny * size], d, NATIVE, out);
             }
             _ => {
                 for (y, row) in out.chunks_exact_mut(nx).enumerate() {
@@ -476,6 +538,46 @@ mod tests {
     }
 
     #[test]
+    fn slices_apart_read_as_one_buffer() {
+        let (nx, ny, nz) = (4, 3, 5);
+        let one: Vec<u8> = (0..nx * ny * nz).map(|i| (i * 7 % 256) as u8).collect();
+        let slices: Vec<Vec<u8>> = one.chunks(nx * ny).map(<[u8]>::to_vec).collect();
+        let a = ArraySource::new(
+            &one,
+            Element::U8,
+            [nz, ny, nx],
+            [nx * ny, nx, 1],
+            grid(nx, ny, nz),
+            "a",
+        )
+        .unwrap();
+        let planes = slices.iter().map(Vec::as_slice).collect();
+        let b = ArraySource::from_planes(
+            planes,
+            Element::U8,
+            [ny, nx],
+            [nx, 1],
+            grid(nx, ny, nz),
+            "b",
+        )
+        .unwrap();
+        let (mut x, mut y) = (vec![0.0; nx * ny], vec![0.0; nx * ny]);
+        for z in 0..nz {
+            a.read_slice(z, &mut x).unwrap();
+            b.read_slice(z, &mut y).unwrap();
+            assert_eq!(x, y);
+        }
+        let short = vec![one.as_slice(), &one[..5]];
+        let e =
+            ArraySource::from_planes(short, Element::U8, [ny, nx], [nx, 1], grid(nx, ny, 2), "s")
+                .err()
+                .unwrap()
+                .to_string();
+        assert!(e.contains("slice 1") && e.contains("5 bytes"), "{e}");
+        assert!(disjoint(&[&one[..4], &one[4..8]]) && !disjoint(&[&one[..5], &one[4..8]]));
+    }
+
+    #[test]
     fn narrows_64_bit_integers_by_range_and_refuses_wider() {
         let values = [-1024i64, 3071, 0, 5, 1, 2, 3, 4];
         let data: Vec<u8> = values.iter().flat_map(|v| v.to_ne_bytes()).collect();
@@ -581,6 +683,18 @@ mod tests {
                 .zip(&bytes[z * 4096..])
                 .all(|(&o, &b)| o == b as f64));
         }
+        // Fortran order: every slice spans the whole file, so giving one
+        // slice's pages back would take the others' too.
+        let f_order = ArraySource::new(
+            &map,
+            Element::U8,
+            [64, 64, 3],
+            [1, 64, 4096],
+            grid(3, 64, 64),
+            "f",
+        )
+        .unwrap();
+        assert!(!f_order.releases_pages());
         let private = unsafe { memmap2::MmapOptions::new().map_copy_read_only(&f) }.unwrap();
         let p = ArraySource::new(
             &private,
