@@ -30,7 +30,7 @@ from typing import Any, Callable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from . import _cdvol
+from . import _cdvol, errors
 from .errors import (
     DtypeError,
     Error,
@@ -46,22 +46,7 @@ from .errors import (
 
 __version__ = _cdvol.__version__
 
-__all__ = [
-    "prep",
-    "open",
-    "Volume",
-    "Renderer",
-    "Error",
-    "InputError",
-    "DtypeError",
-    "ShapeError",
-    "PrepError",
-    "FormatError",
-    "LookError",
-    "ViewError",
-    "RenderError",
-    "FileNotFound",
-]
+__all__ = ["prep", "open", "Volume", "Renderer", *errors.__all__]
 
 PathLike = Union[str, "os.PathLike[str]"]
 ViewSpec = Union[None, str, Tuple[float, float]]

@@ -1,12 +1,13 @@
 //! A volume in the caller's memory: a numpy array in the Python package,
 //! or any buffer of samples indexed `[z, y, x]` with byte strides.
 //!
-//! Slices are read straight from the buffer (no copy of the volume), in
-//! any layout: C order reads a slice as one run, Fortran order and other
-//! strides element by element. When the buffer is a shared mapping of a
-//! file (a `numpy.memmap` opened `r` or `r+`), each slice's pages are
-//! given back after it is read, as the raw reader does, so resident memory
-//! stays a few slices whatever the volume's size.
+//! Slices are read straight from the buffer, or from one buffer a slice
+//! (no copy of the volume), in any layout: C order reads a slice as one
+//! run, Fortran order and other strides element by element. When the
+//! slices lie apart in shared mappings of a file (a C-order
+//! `numpy.memmap` opened `r` or `r+`), each slice's pages are given back
+//! after it is read, as the raw reader does, so resident memory stays a
+//! few slices whatever the volume's size.
 //!
 //! 64-bit integers (numpy's default integer type) are stored as the
 //! smallest of u8, i8, u16, i16, u32 and i32 that holds their range; the
@@ -246,7 +247,7 @@ impl<'a> ArraySource<'a> {
             release: false,
         };
         // Before the range scan below, which gives pages back too.
-        src.release = disjoint(&src.planes) && src.planes.iter().all(|p| shared_file_mapping(p));
+        src.release = disjoint(&src.planes) && shared_file_mapping(&src.planes);
         src.meta.dtype = match element.dtype() {
             Some(d) => d,
             None => {
@@ -409,18 +410,18 @@ impl SliceSource for ArraySource<'_> {
     }
 }
 
-/// Whether every byte of `data` lies in a shared, file-backed mapping
-/// (`/proc/self/maps`: an `s` permission and an inode), where giving pages
-/// back loses nothing: they stay in the page cache and fault back in. On
-/// private or anonymous memory it would zero them, so anything else, or
-/// a system without `/proc`, says no.
+/// Whether every byte of every one of `spans` lies in a shared,
+/// file-backed mapping (`/proc/self/maps`: an `s` permission and an
+/// inode), where giving pages back loses nothing: they stay in the page
+/// cache and fault back in. On private or anonymous memory it would zero
+/// them, so anything else, or a system without `/proc`, says no.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
-fn shared_file_mapping(data: &[u8]) -> bool {
+fn shared_file_mapping(spans: &[&[u8]]) -> bool {
     let Ok(maps) = std::fs::read_to_string("/proc/self/maps") else {
         return false;
     };
-    let (mut at, end) = (data.as_ptr() as usize, data.as_ptr() as usize + data.len());
-    // Mappings are listed in address order; walk the ones covering data.
+    // (start, end, shared and file-backed), in address order.
+    let mut regions = Vec::new();
     for line in maps.lines() {
         let mut f = line.split_whitespace();
         let (Some(range), Some(perms), _, _, Some(inode)) =
@@ -434,22 +435,28 @@ fn shared_file_mapping(data: &[u8]) -> bool {
         let (Ok(a), Ok(b)) = (usize::from_str_radix(a, 16), usize::from_str_radix(b, 16)) else {
             return false;
         };
-        if b <= at || a > at {
-            continue;
-        }
-        if !perms.ends_with('s') || inode == "0" {
-            return false;
-        }
-        at = b;
-        if at >= end {
-            return true;
-        }
+        regions.push((a, b, perms.ends_with('s') && inode != "0"));
     }
-    false
+    spans.iter().all(|data| {
+        let (mut at, end) = (data.as_ptr() as usize, data.as_ptr() as usize + data.len());
+        for &(a, b, shared) in &regions {
+            if b <= at || a > at {
+                continue;
+            }
+            if !shared {
+                return false;
+            }
+            at = b;
+            if at >= end {
+                return true;
+            }
+        }
+        false
+    })
 }
 
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-fn shared_file_mapping(_data: &[u8]) -> bool {
+fn shared_file_mapping(_spans: &[&[u8]]) -> bool {
     false
 }
 
