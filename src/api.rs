@@ -143,11 +143,20 @@ pub struct Look {
 }
 
 impl Look {
-    /// Preset `name` in its own mode (a composite, a MIP for `-mip`
-    /// presets).
+    /// Preset `name`, as `cdvol render --preset NAME`: a surface at the
+    /// preset's iso value; set `ask.mode` for its composite or MIP look
+    /// ([`Look::preset_in`]).
     pub fn preset(name: &str) -> Look {
         let mut l = Look::default();
         l.ask.preset = Some(name.into());
+        l
+    }
+
+    /// Preset `name` in `mode` (`cdvol render --mode MODE --preset NAME`):
+    /// its transfer function for a composite, its window for a MIP.
+    pub fn preset_in(name: &str, mode: crate::look::ModeKind) -> Look {
+        let mut l = Look::preset(name);
+        l.ask.mode = Some(mode);
         l
     }
 

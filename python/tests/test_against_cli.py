@@ -8,7 +8,7 @@ from PIL import Image
 import cdvol
 from conftest import run, write_sidecar
 
-VIEWS = [(30, 20), (0, 0), (200, -35), (90, 89)]
+VIEWS = [(30, 20), (0, 0), (200, -35), (90, 89), (300, 5)]
 
 
 def png(path):
@@ -28,18 +28,18 @@ def test_array_prep_renders_as_the_cli_prep_of_its_sidecar(tmp_path, cdvol_bin, 
     # The same samples and the same distance codes.
     for what in ("values", "codes", "classes"):
         assert np.array_equal(py.export(what, progress=False), cli.export(what, progress=False)), what
-    looks = [dict(mode="surface", iso=300.0), dict(preset="ct-bone"), dict(preset="ct-mip"),
-             dict(mode="surface", iso=0.0, shadows=True)]
+    looks = [dict(mode="surface", iso=300.0), dict(mode="composite", preset="ct-bone"),
+             dict(mode="mip", preset="ct-mip"), dict(mode="surface", iso=0.0, shadows=True),
+             dict(preset="ct-skin")]
     for k, (view, look) in enumerate(zip(VIEWS, looks)):
         mine = py.render(view, width=96, height=80, **look)
         assert mine.shape == (80, 96, 4) and mine.dtype == np.uint8
         assert np.array_equal(mine, cli.render(view, width=96, height=80, **look))
         # ... and RGB equals the PNG `cdvol render` writes.
         args = ["--view", f"{view[0]},{view[1]}", "--width", 96, "--height", 80]
-        if "preset" in look:
-            args += ["--preset", look["preset"]]
-        else:
-            args += ["--mode", "surface", "--iso", look["iso"]]
+        for key in ("mode", "preset", "iso"):
+            if key in look:
+                args += [f"--{key}", look[key]]
         if look.get("shadows"):
             args += ["--shadows"]
         out = tmp_path / f"cli{k}.png"

@@ -40,8 +40,7 @@ fn the_library_draws_what_the_cli_draws() {
         size.iter().chain(extra).copied().collect()
     };
     let view = |az, el| View::orbit(az, el, 96, 80);
-    let mut mip = Look::preset("ct-bone");
-    mip.ask.mode = Some(ModeKind::Mip);
+    let mip = Look::preset_in("ct-bone", ModeKind::Mip);
     let mut shadows = Look::surface(400.0);
     shadows.ask.shadows = true;
     let cases: Vec<(&str, &Path, Vec<&str>, View, Look)> = vec![
@@ -82,6 +81,20 @@ fn the_library_draws_what_the_cli_draws() {
             with(&["--preset", "ct-skin"]),
             view(0.0, 0.0),
             Look::preset("ct-skin"),
+        ),
+        (
+            "composite",
+            &plain,
+            with(&[
+                "--preset",
+                "ct-skin",
+                "--mode",
+                "composite",
+                "--view",
+                "30,10",
+            ]),
+            view(30.0, 10.0),
+            Look::preset_in("ct-skin", ModeKind::Composite),
         ),
     ];
     let vols = [
