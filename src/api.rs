@@ -34,6 +34,7 @@ use crate::look::{resolve, Ask, ResolveError};
 use crate::presets::Preset;
 use crate::progress::{NoProgress, Progress};
 use crate::render::cache::BrickCache;
+use crate::render::clip::Clip;
 use crate::render::job::{Aim, View};
 use crate::render::traverse::Method;
 use crate::render::view::camera::CameraError;
@@ -140,6 +141,12 @@ pub struct Look {
     /// Keep the colour before rounding ([`Image::rgba_f32`], `render
     /// --bit-depth 16` and `32`).
     pub unrounded: bool,
+    /// The crop box and clipping planes (`render --crop`, `--clip`); the
+    /// default keeps everything.
+    pub clip: Clip,
+    /// Leave surfaces cut by the clip open (`render --no-cap`) instead of
+    /// showing their cut faces.
+    pub uncapped: bool,
 }
 
 impl Look {
@@ -250,6 +257,8 @@ impl Renderer {
         opts.window = r.window;
         opts.look = r.look;
         opts.unrounded = look.unrounded;
+        opts.clip = look.clip.clone();
+        opts.cap = !look.uncapped;
         opts.cache_bytes = self.cache_bytes;
         Ok(opts)
     }

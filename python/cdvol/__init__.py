@@ -241,7 +241,8 @@ class Renderer:
         self._r = volume._v.renderer(int(cache_mb))
 
     def _render(self, view, mode, preset, iso, width, height, background,
-                shadows, shade, step, perspective, frame, bit_depth):
+                shadows, shade, step, perspective, frame, bit_depth,
+                crop=None, clip=(), cap=True):
         if bit_depth not in (8, 32):
             raise LookError(f"bit_depth {bit_depth}: expected 8 (uint8) or 32 (float32)")
         if isinstance(view, list):
@@ -260,6 +261,9 @@ class Renderer:
             perspective=None if perspective is None else float(perspective),
             frame=None if frame is None else float(frame),
             float=bit_depth == 32,
+            crop=None if crop is None else [[float(a), float(b)] for a, b in crop],
+            clip=[[float(x) for x in p] for p in clip],
+            cap=bool(cap),
         ))
 
     def render(
@@ -278,6 +282,9 @@ class Renderer:
         perspective: Optional[float] = None,
         frame: Optional[float] = None,
         bit_depth: int = 8,
+        crop: Optional[Sequence[Tuple[float, float]]] = None,
+        clip: Sequence[Tuple[float, float, float, float]] = (),
+        cap: bool = True,
         return_stats: bool = False,
     ) -> Any:
         """Renders one view as an ``(height, width, 4)`` array, row 0 at the
@@ -301,13 +308,17 @@ class Renderer:
         - ``perspective``: field of view in degrees (default orthographic);
           ``frame``: the orthographic frame's height in mm (default: the
           object fits).
+        - ``crop``: keep only ``((x0, x1), (y0, y1), (z0, z1))`` in mm, the
+          file's coordinates; ``clip``: up to six planes ``(nx, ny, nz, d)``,
+          each keeping ``nx*x + ny*y + nz*z >= d``; ``cap``: surfaces cut by
+          them show their cut faces (else they are left open).
 
         With ``return_stats=True`` returns ``(image, stats)``, ``stats`` the
         dict ``cdvol render --stats-json`` prints.
         """
         rgba, _, stats = self._render(view, mode, preset, iso, width, height,
                                       background, shadows, shade, step,
-                                      perspective, frame, bit_depth)
+                                      perspective, frame, bit_depth, crop, clip, cap)
         image = rgba.reshape(int(height), int(width), 4)
         return (image, json.loads(stats)) if return_stats else image
 
@@ -321,13 +332,17 @@ class Renderer:
         height: int = 512,
         perspective: Optional[float] = None,
         frame: Optional[float] = None,
+        crop: Optional[Sequence[Tuple[float, float]]] = None,
+        clip: Sequence[Tuple[float, float, float, float]] = (),
+        cap: bool = True,
     ) -> np.ndarray:
         """The distance in mm from the eye (orthographic: from the image
         plane) to the surface at ``iso`` along each pixel's ray, as an
-        ``(height, width)`` float32 array, NaN where the ray misses."""
+        ``(height, width)`` float32 array, NaN where the ray misses; with
+        ``crop`` and ``clip`` as in :meth:`render`, a cut face is a hit."""
         _, depth, _ = self._render(view, "depth", preset, iso, width, height,
                                    "black", False, False, None, perspective,
-                                   frame, 8)
+                                   frame, 8, crop, clip, cap)
         return depth.reshape(int(height), int(width))
 
 

@@ -15,7 +15,8 @@ PrepKw = Dict[str, Any]
 # An array's grid: spacing, origin, positions, rescale.
 GridKw = Dict[str, Any]
 # The keywords of Renderer.render, as a dict: view, mode, preset, iso,
-# width, height, background, shadows, shade, step, perspective, frame, float.
+# width, height, background, shadows, shade, step, perspective, frame, float,
+# crop, clip, cap.
 RenderKw = Dict[str, Any]
 
 def prep_path(

@@ -77,7 +77,8 @@ fn api_error(py: Python<'_>, e: cdvol::Error) -> PyErr {
         // range: the caller's to change.
         cdvol::Error::Render(
             cdvol::render::RenderError::Incompatible { .. }
-            | cdvol::render::RenderError::Option { .. },
+            | cdvol::render::RenderError::Option { .. }
+            | cdvol::render::RenderError::Clip(_),
         ) => "LookError",
         cdvol::Error::Render(_) => "RenderError",
         cdvol::Error::Save(_) => "RenderError",
@@ -703,6 +704,9 @@ struct RenderKw<'py> {
     perspective: Option<f64>,
     frame: Option<f64>,
     float: bool,
+    crop: Option<[[f64; 2]; 3]>,
+    clip: Vec<[f64; 4]>,
+    cap: bool,
 }
 
 impl RenderKw<'_> {
@@ -770,6 +774,18 @@ impl RenderKw<'_> {
             look.ask.step_mm = s;
         }
         look.unrounded = self.float;
+        look.clip = cdvol::render::clip::Clip {
+            crop: self.crop,
+            planes: self
+                .clip
+                .iter()
+                .map(|p| cdvol::render::clip::Plane {
+                    normal: [p[0], p[1], p[2]],
+                    d: p[3],
+                })
+                .collect(),
+        };
+        look.uncapped = !self.cap;
         Ok(look)
     }
 }

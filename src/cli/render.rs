@@ -134,6 +134,29 @@ pub struct RenderArgs {
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true,
           help_heading = heading::VIEW)]
     pub up: Option<[f64; 3]>,
+    /// Keep only this box: X0:X1,Y0:Y1,Z0:Z1 in mm.
+    ///
+    /// In the file's coordinates (those of --eye and --target; `cdvol
+    /// info` gives the volume's extents). Rays start and stop at its faces;
+    /// bricks wholly outside are never read.
+    #[arg(long, value_name = "X0:X1,Y0:Y1,Z0:Z1", value_parser = parse_crop,
+          allow_hyphen_values = true, help_heading = heading::VIEW)]
+    pub crop: Option<[[f64; 2]; 3]>,
+    /// Keep the half-space NX*x + NY*y + NZ*z >= D (up to 6 planes).
+    ///
+    /// In the file's coordinates, mm: the side the normal points into is
+    /// kept. A surface cut open shows its cut face (see --no-cap).
+    #[arg(long, value_name = "NX,NY,NZ,D", value_parser = parse_plane,
+          allow_hyphen_values = true, help_heading = heading::VIEW)]
+    pub clip: Vec<[f64; 4]>,
+    /// Keep one half of the volume: left, right, anterior, posterior,
+    /// superior or inferior (files that record their orientation).
+    #[arg(long, value_name = "SIDE", help_heading = heading::VIEW)]
+    pub clip_half: Vec<String>,
+    /// Surfaces cut by --crop or --clip are left open instead of showing
+    /// their cut face.
+    #[arg(long, help_heading = heading::VIEW)]
+    pub no_cap: bool,
     /// A turntable of this many frames around the volume.
     ///
     /// Numbered PNGs OUT.0000.png ..., starting at --view.
@@ -518,4 +541,32 @@ fn parse_view(s: &str) -> Result<ViewArg, String> {
 
 fn parse_triple(s: &str) -> Result<[f64; 3], String> {
     parse_floats::<3>(s)
+}
+
+/// `--crop X0:X1,Y0:Y1,Z0:Z1`.
+fn parse_crop(s: &str) -> Result<[[f64; 2]; 3], String> {
+    let expected = || format!("{s:?}: expected X0:X1,Y0:Y1,Z0:Z1 in mm");
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(expected());
+    }
+    let mut out = [[0.0; 2]; 3];
+    for (k, p) in parts.iter().enumerate() {
+        let (a, b) = p.split_once(':').ok_or_else(expected)?;
+        out[k] = [
+            a.trim().parse().map_err(|_| expected())?,
+            b.trim().parse().map_err(|_| expected())?,
+        ];
+    }
+    Ok(out)
+}
+
+/// `--clip NX,NY,NZ,D`.
+fn parse_plane(s: &str) -> Result<[f64; 4], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{s:?}: expected NX,NY,NZ,D"))?;
+    <[f64; 4]>::try_from(v).map_err(|_| format!("{s:?}: expected NX,NY,NZ,D"))
 }

@@ -104,6 +104,37 @@ impl RenderArgs {
         }
     }
 
+    /// The crop box and planes of `--crop`, `--clip` and `--clip-half`.
+    fn clip(&self, vol: &PackedVolume) -> anyhow::Result<cdvol::render::clip::Clip> {
+        use cdvol::render::clip::{half, Clip, Plane, HALVES};
+        let h = vol.header();
+        let lo = h.axes.each_ref().map(|a| a.coords()[0]);
+        let hi = h.axes.each_ref().map(|a| a.coords()[a.coords().len() - 1]);
+        let mut planes: Vec<Plane> = self
+            .clip
+            .iter()
+            .map(|p| Plane {
+                normal: [p[0], p[1], p[2]],
+                d: p[3],
+            })
+            .collect();
+        for side in &self.clip_half {
+            let Some(o) = h.orientation.as_ref() else {
+                anyhow::bail!(
+                    "option --clip-half {side}: the file does not record which way its axes \
+                     point in the patient (`cdvol info`); use --clip NX,NY,NZ,D"
+                );
+            };
+            planes.push(half(side, lo, hi, o).ok_or_else(|| {
+                anyhow::anyhow!("option --clip-half {side:?}: expected one of {HALVES}")
+            })?);
+        }
+        Ok(Clip {
+            crop: self.crop,
+            planes,
+        })
+    }
+
     /// The library's render job for these arguments on `vol`.
     pub fn job(&self, vol: &PackedVolume) -> anyhow::Result<RenderJob> {
         if let Some(t) = self.traversal.filter(|t| !t.exact() && !self.experiment) {
@@ -172,6 +203,8 @@ impl RenderArgs {
                 iso: look.iso,
                 unrounded: self.bit_depth != cdvol::render::Bits::Eight,
                 cull: !self.no_cull,
+                clip: self.clip(vol)?,
+                cap: !self.no_cap,
             },
             template: self.traversal == Some(TraversalArg::Template),
             output: self.output.clone(),
@@ -205,6 +238,7 @@ fn render_flag(field: &str) -> Option<&'static str> {
         "newton_iters" => "--newton-iters",
         "width x height" => "--width/--height",
         "shard" => "--shard",
+        "clip" => "--crop/--clip",
         _ => return None,
     })
 }

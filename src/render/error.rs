@@ -25,6 +25,9 @@ pub enum RenderError {
         value: String,
         expected: String,
     },
+    /// A crop box or clipping plane that is no region.
+    #[error(transparent)]
+    Clip(#[from] crate::render::clip::ClipError),
     /// Inputs the template traversal (render/template/) cannot render.
     #[error("template traversal: {0}")]
     Template(String),

@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! options.rs   Mode, RenderOptions; the checks before any ray
+//! clip.rs      crop box and clipping planes: each ray's kept interval
 //! stats.rs     counters of a render (`--stats`); clock.rs where its time goes
 //! error.rs     RenderError
 //!
@@ -50,6 +51,7 @@ macro_rules! internal_mods {
 // or `render`. The tests, benchmarks and tools that check them from
 // outside reach them with the feature `internals` (on with `tools`).
 internal_mods!(brick, cache, sample, template);
+pub mod clip;
 mod clock;
 mod error;
 mod integrate;

@@ -7,6 +7,7 @@ use crate::classify::{Classification, TransferFunction};
 use crate::format::reader::PackedVolume;
 
 use crate::render::brick;
+use crate::render::clip::Clip;
 use crate::render::error::RenderError;
 use crate::render::sample::hit::{HitMethod, HitParams};
 use crate::render::sample::normals::Normals;
@@ -103,6 +104,13 @@ pub struct RenderOptions {
     /// from the brick index (render/view/cull.rs): the same image, fewer rays
     /// and bricks. On by default; the cost map always traces every ray.
     pub cull: bool,
+    /// The crop box and clipping planes (render/view/clip.rs); the
+    /// default keeps the whole volume. The cost map ignores them.
+    pub clip: Clip,
+    /// Surface and depth: a solid cut by the clip shows its cut face,
+    /// shaded flat (on by default); off, rays that start inside the
+    /// object go on to the next surface they enter.
+    pub cap: bool,
 }
 
 /// Default of [`RenderOptions::early_stop`].
@@ -267,6 +275,8 @@ impl RenderOptions {
             iso: None,
             unrounded: false,
             cull: true,
+            clip: Clip::default(),
+            cap: true,
         }
     }
 }
@@ -355,6 +365,10 @@ pub(crate) fn check_render(
 ) -> Result<(), RenderError> {
     check_mode(vol, &opts.mode, opts.iso)?;
     check_scene_iso(vol, opts)?;
+    let h = vol.header();
+    let lo = h.axes.each_ref().map(|a| a.coords()[0]);
+    let hi = h.axes.each_ref().map(|a| a.coords()[a.coords().len() - 1]);
+    opts.clip.check(lo, hi)?;
     if opts.tile == 0 {
         return Err(bad("tile", "0".into(), "at least 1".into()));
     }

@@ -134,7 +134,7 @@ const RENDER_STAGES: &[&[&str]] = &[
     &["brick"],
     &["cache"],
     &["sample"],
-    &["options", "stats", "clock", "error"],
+    &["options", "clip", "stats", "clock", "error"],
     &["view"],
     &["integrate"],
     &["output"],

@@ -28,6 +28,7 @@ use super::sample::{Look, Trilinear32};
 use super::{Ctx, Px};
 use crate::render::brick::RBrick;
 use crate::render::cache::Accessor;
+use crate::render::clip::Span;
 use crate::render::clock;
 use crate::render::sample::lut::TfLut;
 use crate::render::sample::normals::{outer_cell_gradients, vertex_gradients, VertexGradients};
@@ -39,7 +40,7 @@ use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, OBJECT};
 pub(super) fn composite<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
-    t_start: f64,
+    span: &Span,
     acc: &mut Accessor,
     lut: &TfLut,
     step: f64,
@@ -59,7 +60,13 @@ pub(super) fn composite<T: Real>(
         alpha: 0.0,
         last: ([0.0; 4], 1.0),
     };
-    let counts = march(ctx, &Course { ray, lut, step }, t_start, acc, &mut s);
+    let course = Course {
+        ray,
+        lut,
+        step,
+        end: span.end,
+    };
+    let counts = march(ctx, &course, span.start, acc, &mut s);
     px.hit = s.alpha > 0.0;
     px.alpha = s.alpha as f32;
     px.rgb = s.col.map(|x| x as f32);
@@ -76,7 +83,7 @@ pub(super) fn composite<T: Real>(
 pub(super) fn composite32<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
-    t_start: f64,
+    span: &Span,
     acc: &mut Accessor,
     lut: &TfLut,
     step: f64,
@@ -85,10 +92,16 @@ pub(super) fn composite32<T: Real>(
     let look = Look::new(&ctx.opts.look, ctx.opts.normals, ray);
     // One marcher per look: without shading or gradient opacity, its
     // sample loop holds no gradient code at all.
+    let course = Course {
+        ray,
+        lut,
+        step,
+        end: span.end,
+    };
     if look.on {
-        march32::<T, true>(ctx, &Course { ray, lut, step }, t_start, acc, look, px)
+        march32::<T, true>(ctx, &course, span.start, acc, look, px)
     } else {
-        march32::<T, false>(ctx, &Course { ray, lut, step }, t_start, acc, look, px)
+        march32::<T, false>(ctx, &course, span.start, acc, look, px)
     }
 }
 
@@ -102,7 +115,7 @@ fn march32<T: Real, const LOOK: bool>(
     look: Look,
     px: &mut Px,
 ) -> StepCounts {
-    let Course { ray, lut, step } = *course;
+    let Course { ray, lut, step, .. } = *course;
     debug_assert_eq!(look.on, LOOK);
     // With a look, the batches weight and light their samples by smooth
     // normals (the brick's gradient plane); the cell interpolant's
@@ -226,7 +239,9 @@ fn march<T: Real, P: Sampler>(
         }
     };
     let mut counts = StepCounts::default();
-    let batches = s.batches();
+    // Batches take samples while they stay in a brick; a ray the clip cuts
+    // short takes them one at a time, each checked against its end.
+    let batches = s.batches() && course.end == f64::INFINITY;
     let mut t_min = t_start;
     // The first sample not yet handled: runs never go back.
     let mut k_next = 0.0f64;
@@ -257,6 +272,9 @@ fn march<T: Real, P: Sampler>(
             let mut batched = true;
             loop {
                 let (t, ks) = (k * step, k);
+                if t > course.end {
+                    break 'run None;
+                }
                 for a in 0..3 {
                     while tn[a] <= t {
                         if ray.dir[a] > 0.0 {

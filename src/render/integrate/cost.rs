@@ -2,6 +2,7 @@
 //! surface, or to leave the volume on a miss; on files classified by a
 //! transfer function, the steps to the first 1-cell.
 
+use crate::render::clip::Span;
 use super::surface::first_hit;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
@@ -18,7 +19,7 @@ pub(super) fn cost<T: Real>(
     if ctx.iso.is_nan() {
         trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |_, _| Flow::Stop)
     } else {
-        let (found, counts) = first_hit(ctx, ray, 0.0, HitMethod::Int, acc);
+        let (found, counts) = first_hit(ctx, ray, &Span::from(0.0), HitMethod::Int, acc);
         px.hit = found.is_some();
         counts
     }

@@ -4,20 +4,21 @@
 use super::surface::first_hit;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::clip::Span;
 use crate::render::sample::hit::HitMethod;
 use crate::render::traverse::{Ray, Real, StepCounts};
 
-/// Writes the distance of `ray`'s first hit after `t_start` into `px`
-/// (NaN stays on a miss).
+/// Writes the distance of `ray`'s first hit in `span` into `px` (NaN
+/// stays on a miss); a cut face is a hit.
 pub(super) fn depth<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
-    t_start: f64,
+    span: &Span,
     acc: &mut Accessor,
     hit: HitMethod,
     px: &mut Px,
 ) -> StepCounts {
-    let (found, counts) = first_hit(ctx, ray, t_start, hit, acc);
+    let (found, counts) = first_hit(ctx, ray, span, hit, acc);
     if let Some((t, _)) = found {
         px.hit = true;
         px.depth = t as f32;

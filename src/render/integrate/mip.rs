@@ -18,23 +18,35 @@
 use super::{Ctx, Px};
 use crate::render::brick::BLOCK;
 use crate::render::cache::Accessor;
+use crate::render::clip::Span;
 use crate::render::clock;
 use crate::render::sample::shade::{at, CellEval};
 use crate::render::traverse::{trace, Flow, Method, Ray, Real, StepCounts, Visit};
 
-/// Writes the largest value along `ray` after `t_start` into `px.rgb`
-/// (uncoloured).
+/// Writes the largest value along `ray` in `span` into `px.rgb`
+/// (uncoloured): the visits cut to the span, their samples at its ends.
 pub(super) fn mip<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
-    t_start: f64,
+    span: &Span,
     acc: &mut Accessor,
     px: &mut Px,
 ) -> StepCounts {
     let coords = ctx.coords;
     let mut m = Max::default();
     let leaps = block_leaps(ctx.opts.method, acc.brick_size());
-    let counts = trace(ctx.grid, ray, t_start, ctx.opts.method, acc, |v, acc| {
+    let counts = trace(ctx.grid, ray, span.start, ctx.opts.method, acc, |v, acc| {
+        if span.past(v.t_enter) {
+            return Flow::Stop;
+        }
+        let v = &Visit {
+            cell: v.cell,
+            t_enter: v.t_enter.max(span.start),
+            t_exit: v.t_exit.min(span.end),
+        };
+        if v.t_enter > v.t_exit {
+            return Flow::Continue;
+        }
         clock::enter(acc);
         let flow = m.raise(coords, ray, v, acc, leaps);
         clock::leave(acc);

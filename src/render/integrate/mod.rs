@@ -24,6 +24,7 @@ mod surface;
 pub(crate) use mip::leaps_with as mip_leaps_with;
 
 use crate::render::cache::{Accessor, LAZY_MIN_CODE_CD};
+use crate::render::clip::{Clip, Span};
 use crate::render::options::{Mode, Precision, RenderOptions};
 use crate::render::sample::lut::TfLut;
 use crate::render::traverse::{Ray, Real, StepCounts, TGrid};
@@ -103,6 +104,9 @@ pub(crate) struct Ctx<'a, T> {
     /// ([`RenderOptions::sample_batches`]): the grid's map from positions
     /// to cells (batch.rs).
     pub(crate) index_map: Option<index_map::IndexMap>,
+    /// The options' crop box and planes on this volume
+    /// ([`Clip::within`]: faces that cut nothing dropped).
+    pub(crate) clip: Clip,
 }
 
 /// Whether neighbouring rays of `camera` meet the same cells often enough
@@ -215,14 +219,20 @@ impl<'a, T: Real> Ctx<'a, T> {
             } else {
                 None
             },
+            clip: opts.clip.within(
+                coords.map(|c| c[0]),
+                coords.map(|c| c[c.len() - 1]),
+            ),
         }
     }
 }
 
 /// The pixel of `ray`: the mode's integrator, then its step count. The
 /// ray is traced from `t_start` (at least 0), before which it meets no
-/// 1-cell ([`Cover::start`](crate::render::view::cull::Cover::start)); the cost map
-/// traces from 0, as it shows what the whole traversal costs.
+/// 1-cell ([`Cover::start`](crate::render::view::cull::Cover::start)),
+/// over the interval the clip keeps ([`Clip::span`]): a ray it keeps none
+/// of is a miss without a walk. The cost map traces from 0 and ignores the
+/// clip, as it shows what the whole traversal costs.
 pub(crate) fn pixel<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
@@ -233,21 +243,30 @@ pub(crate) fn pixel<T: Real>(
         depth: f32::NAN,
         ..Px::default()
     };
+    let span = match &ctx.opts.mode {
+        Mode::Cost => Span::from(0.0),
+        _ if ctx.clip.is_none() => Span::from(t_start),
+        _ => match ctx.clip.span(ray, t_start) {
+            Some(s) => s,
+            None => return (Px::MISS, StepCounts::default()),
+        },
+    };
+    let span = &span;
     let counts = match &ctx.opts.mode {
         Mode::Surface { hit, shadows } => {
-            surface::surface(ctx, ray, t_start, acc, *hit, *shadows, &mut px)
+            surface::surface(ctx, ray, span, acc, *hit, *shadows, &mut px)
         }
-        Mode::Depth { hit } => depth::depth(ctx, ray, t_start, acc, *hit, &mut px),
-        Mode::Mip => mip::mip(ctx, ray, t_start, acc, &mut px),
+        Mode::Depth { hit } => depth::depth(ctx, ray, span, acc, *hit, &mut px),
+        Mode::Mip => mip::mip(ctx, ray, span, acc, &mut px),
         Mode::Cost => cost::cost(ctx, ray, acc, &mut px),
         Mode::Composite { step_mm, .. } => {
             let lut = ctx.lut.as_ref().expect("composite renders carry a table");
             match ctx.opts.sampling {
                 Precision::F32 => {
-                    composite::composite32(ctx, ray, t_start, acc, lut, *step_mm, &mut px)
+                    composite::composite32(ctx, ray, span, acc, lut, *step_mm, &mut px)
                 }
                 Precision::F64 => {
-                    composite::composite(ctx, ray, t_start, acc, lut, *step_mm, &mut px)
+                    composite::composite(ctx, ray, span, acc, lut, *step_mm, &mut px)
                 }
             }
         }

@@ -373,6 +373,8 @@ pub(super) struct Course<'a> {
     pub ray: &'a Ray,
     pub lut: &'a TfLut,
     pub step: f64,
+    /// The last `t` the clip keeps (infinite without one).
+    pub end: f64,
 }
 
 /// Where [`rephase`] restarts the lattice.
@@ -409,7 +411,7 @@ pub(super) fn rephase<T: Real>(
     cell: [u32; 3],
     t: f64,
 ) -> Option<Restart> {
-    let Course { ray, lut, step } = *course;
+    let Course { ray, lut, step, .. } = *course;
     let mut p = Probe {
         coords: ctx.coords,
         ray,

@@ -14,48 +14,108 @@ use crate::render::clock;
 use crate::render::sample::hit::{find_hit_with, HitMethod};
 use crate::render::sample::normals::{smooth_gradient_in, Normals};
 use crate::render::sample::shade::{at, shade, CellEval};
-use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
+use crate::render::clip::Span;
+use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, Visit};
 
-/// The first iso-surface hit along `ray` after `t_min`: `(t, cell values)`.
+/// The first iso-surface hit along `ray` in `span`: `(t, cell values)`.
 pub(super) fn first_hit<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
-    t_min: f64,
+    span: &Span,
     hit: HitMethod,
     acc: &mut Accessor,
 ) -> (Option<(f64, CellEval)>, StepCounts) {
-    let (found, s) = first_hit_cell(ctx, ray, t_min, hit, acc);
-    (found.map(|(t, c, _)| (t, c)), s)
+    let (found, s) = first_hit_cell(ctx, ray, span, hit, acc);
+    (found.map(|h| (h.t, h.c)), s)
 }
 
-/// [`first_hit`] with the hit cell's index.
+/// A surface hit: where, the cell's interpolant and index, and whether it
+/// is a cut face (the ray starts inside the object on a cut of the clip).
+struct Hit {
+    t: f64,
+    c: CellEval,
+    cell: [u32; 3],
+    capped: bool,
+}
+
+/// `v` cut to `span`; `None` when nothing of it is left.
+#[inline]
+fn within(v: &Visit, span: &Span) -> Option<Visit> {
+    let (t_enter, t_exit) = (v.t_enter.max(span.start), v.t_exit.min(span.end));
+    (t_enter <= t_exit).then_some(Visit {
+        cell: v.cell,
+        t_enter,
+        t_exit,
+    })
+}
+
+/// Whether the first visit `v` starts on `span`'s cut: its entry is the
+/// span's start (within the walk's rounding of it).
+#[inline]
+fn on_cut(v: &Visit, span: &Span) -> bool {
+    span.cut.is_some() && v.t_enter - span.start <= 1e-9 * span.start.abs().max(1.0)
+}
+
+/// [`first_hit`] with the hit cell's index. A ray that starts inside the
+/// object on a cut hits the cut face there when the options cap; else it
+/// goes on to the next surface it enters (as a shadow ray gets out first,
+/// [`shadow_hit`]).
 fn first_hit_cell<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
-    t_min: f64,
+    span: &Span,
     hit: HitMethod,
     acc: &mut Accessor,
-) -> (Option<(f64, CellEval, [u32; 3])>, StepCounts) {
+) -> (Option<Hit>, StepCounts) {
     let g = ctx.grid;
     let coords = ctx.coords;
     // The hit's vertex values, not its `CellEval`: a small copy out of the
     // walk (the cell is evaluated again from them, to the same bits).
     let mut found = None;
-    let s = trace(g, ray, t_min, ctx.opts.method, acc, |v, acc| {
+    let mut first = true;
+    // Inside the object from a cut, without capping: not out yet.
+    let mut inside = false;
+    let s = trace(g, ray, span.start, ctx.opts.method, acc, |v, acc| {
+        if span.past(v.t_enter) {
+            return Flow::Stop;
+        }
+        let starts_on_cut = std::mem::take(&mut first) && on_cut(v, span);
+        let Some(v) = within(v, span) else {
+            return Flow::Continue;
+        };
         clock::enter(acc);
         let f = acc.vertices(v.cell);
         let c = CellEval::new(coords, v.cell, f);
-        let t_hit = find_hit_with(ray, v, &c, ctx.iso, hit, &ctx.opts.hit_params);
+        if starts_on_cut && c.value(at(ray, v.t_enter)) >= ctx.iso {
+            if ctx.opts.cap {
+                clock::leave(acc);
+                found = Some((v.t_enter, v.cell, f, true));
+                return Flow::Stop;
+            }
+            inside = true;
+        }
+        if inside {
+            // Out once the interpolant is below iso at the exit.
+            inside = c.value(at(ray, v.t_exit)) >= ctx.iso;
+            clock::leave(acc);
+            return Flow::Continue;
+        }
+        let t_hit = find_hit_with(ray, &v, &c, ctx.iso, hit, &ctx.opts.hit_params);
         clock::leave(acc);
         match t_hit {
             Some(t) => {
-                found = Some((t, v.cell, f));
+                found = Some((t, v.cell, f, false));
                 Flow::Stop
             }
             None => Flow::Continue,
         }
     });
-    let found = found.map(|(t, cell, f)| (t, CellEval::new(coords, cell, f), cell));
+    let found = found.map(|(t, cell, f, capped)| Hit {
+        t,
+        c: CellEval::new(coords, cell, f),
+        cell,
+        capped,
+    });
     (found, s)
 }
 
@@ -76,11 +136,23 @@ fn first_hit_cell<T: Real>(
 /// the ambient level, lit or not ([`shade`]), so a ray that goes through
 /// the object changes nothing. Test: `shadow_acne` (an analytic sphere
 /// over a plane, every hit method).
+///
+/// Only what the clip keeps casts shadows: the ray is walked in its own
+/// kept interval.
 fn shadow_hit<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (bool, StepCounts) {
     let coords = ctx.coords;
+    let Some(span) = ctx.clip.span(ray, 0.0) else {
+        return (false, StepCounts::default());
+    };
     let mut out = false;
     let mut hit = false;
-    let s = trace(ctx.grid, ray, 0.0, ctx.opts.method, acc, |v, acc| {
+    let s = trace(ctx.grid, ray, span.start, ctx.opts.method, acc, |v, acc| {
+        if span.past(v.t_enter) {
+            return Flow::Stop;
+        }
+        let Some(v) = &within(v, &span) else {
+            return Flow::Continue;
+        };
         clock::enter(acc);
         let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
         let below = |t: f64| !(c.value(at(ray, t)) >= ctx.iso);
@@ -107,26 +179,39 @@ fn shadow_hit<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (bool, St
     (hit, s)
 }
 
-/// Shades the first hit of `ray` after `t_start` into `px`; with
-/// `shadows`, a shadow ray towards a key light decides whether it is lit.
+/// Shades the first hit of `ray` in `span` into `px`; with `shadows`, a
+/// shadow ray towards a key light decides whether it is lit. A cut face is
+/// shaded flat, by the cut's normal.
 pub(super) fn surface<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
-    t_start: f64,
+    span: &Span,
     acc: &mut Accessor,
     hit: HitMethod,
     shadows: bool,
     px: &mut Px,
 ) -> StepCounts {
-    let (found, mut counts) = first_hit_cell(ctx, ray, t_start, hit, acc);
-    let Some((t, c, cell)) = found else {
+    let (found, mut counts) = first_hit_cell(ctx, ray, span, hit, acc);
+    let Some(Hit {
+        t,
+        c,
+        cell,
+        capped,
+    }) = found
+    else {
         return counts;
     };
     px.hit = true;
     clock::enter(acc);
     let p = at(ray, t);
-    let grad = c.gradient(p);
+    let grad = match span.cut.filter(|_| capped) {
+        // The shading takes a gradient, whose opposite is the outward
+        // normal.
+        Some(cut) => -cut,
+        None => c.gradient(p),
+    };
     let normal = match ctx.opts.normals {
+        _ if capped => grad,
         Normals::Cell => grad,
         Normals::Smooth => {
             let s = smooth_gradient_in(acc, ctx.coords, cell, p, ctx.narrow);

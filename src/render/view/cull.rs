@@ -106,9 +106,14 @@ impl Cover {
             }
             let b = h.brick_coords(id as u64);
             let range: [(u64, u64); 3] = std::array::from_fn(|k| h.brick_cells(k, b[k]));
+            let lo = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].0 as usize]));
+            let hi = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].1 as usize]));
+            // A brick the clip keeps nothing of is never read: no ray
+            // starts for it.
+            if !opts.clip.keeps_box(lo, hi) {
+                continue;
+            }
             let Some(mask) = cache.occupied(id as u64) else {
-                let lo = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].0 as usize]));
-                let hi = DVec3::from_array(std::array::from_fn(|k| coords[k][range[k].1 as usize]));
                 cover.fill(proj.rect(lo, hi)?);
                 continue;
             };
