@@ -9,7 +9,7 @@ numpy in, numpy out::
     cdvol.prep(ct, "head.cdv", spacing=(0.49, 0.49, 1.25))
     vol = cdvol.open("head.cdv")
     counts, edges = vol.histogram()
-    front = vol.render(view="anterior", preset="ct-bone")   # (512, 512, 4) uint8
+    front = vol.render(view=(0, 10), preset="ct-bone")      # (512, 512, 4) uint8
     depth = vol.depth(view=(30, 10), iso=300.0)             # (512, 512) float32, mm
 
 A path works wherever an array does: a DICOM directory, NIfTI, NRRD or a
@@ -85,13 +85,17 @@ def _progress(enabled: bool) -> Optional[Callable[[str, str, int], None]]:
 def _readable(a: np.ndarray, what: str) -> np.ndarray:
     """``a`` with a dtype cdvol reads, in native byte order, with no
     negative stride; copied only when one of these must change."""
+    if isinstance(a, np.ma.MaskedArray):
+        raise DtypeError(f"{what}: a masked array; fill it first (a.filled(value))")
     if a.dtype.kind not in "biuf":
         raise DtypeError(f"{what} dtype {a.dtype}: expected an integer, float or bool dtype")
     if a.dtype == np.float16:
         a = a.astype(np.float32)
     if not a.dtype.isnative:
         a = a.astype(a.dtype.newbyteorder("="))
-    if any(s < 0 for s in a.strides):
+    # Negative strides, strides that are no whole number of elements (a
+    # field of a structured array) and unaligned data: a C-order copy.
+    if (any(s < 0 or s % a.itemsize for s in a.strides) or not a.flags.aligned):
         a = np.ascontiguousarray(a)
     return a
 
@@ -130,6 +134,13 @@ def _slices(seq: Sequence[np.ndarray]) -> list:
     return out
 
 
+def _in_range(name: str, value: Any, lo: int, hi: int, cls: type) -> int:
+    """``value`` as an int in ``lo..=hi``, else ``cls`` naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise cls(f"{name} {value!r}: expected an integer from {lo} to {hi}")
+    return int(value)
+
+
 def _mapped_file(a: np.ndarray) -> list:
     """The file a numpy.memmap maps: prep refuses to write over it."""
     name = getattr(a, "filename", None)
@@ -160,7 +171,9 @@ def prep(
     sidecar), a numpy array indexed ``[z, y, x]`` of any integer, bool or
     float dtype, in C or Fortran order, or a sequence of 2-D arrays
     ``[y, x]``, one a slice in z order (slices read one by one, never
-    stacked). Arrays are read where they lie, without a copy; a
+    stacked). Arrays are read where they lie, without a copy (but for a
+    non-native byte order, float16, negative or partial strides and
+    unaligned data, which are copied first); a C-order
     ``numpy.memmap`` opened ``"r"`` or ``"r+"`` is read
     slice by slice with each slice's pages given back, so a volume larger
     than memory preps in a few hundred MiB. 64-bit integers are stored in
@@ -193,6 +206,12 @@ def prep(
     ``classification`` and a ``warning`` (or None) when the classification
     selects nearly all cells.
     """
+    if isinstance(envelope, (str, int, float)):
+        envelope = [envelope]
+    if envelope is not None and len(envelope) == 0:
+        raise PrepError("envelope []: expected iso values, presets, \"ct\", \"mr\" or \"auto\"")
+    _in_range("brick", brick, 4, 1024, PrepError)
+    _in_range("zstd_level", zstd_level, -7, 22, PrepError)
     kw = dict(
         iso=None if iso is None else float(iso),
         preset=preset,
@@ -205,9 +224,16 @@ def prep(
     )
     cb = _progress(progress)
     out = pathlib.Path(os.fspath(out))
-    stack = isinstance(source, (list, tuple)) and len(source) > 0 and all(
-        isinstance(s, np.ndarray) for s in source
-    )
+    stack = isinstance(source, (list, tuple))
+    if stack and not all(isinstance(s, np.ndarray) for s in source):
+        raise InputError("a list of slices: expected 2-D numpy arrays only")
+    if stack and len(source) < 2:
+        raise ShapeError(f"{len(source)} slices: expected at least 2")
+    if not (stack or isinstance(source, (np.ndarray, str, os.PathLike))):
+        raise InputError(
+            f"source of type {type(source).__name__}: expected a path, a numpy array "
+            "or a list of 2-D numpy arrays"
+        )
     if isinstance(source, np.ndarray) or stack:
         sp = (1.0, 1.0, 1.0) if spacing is None else tuple(float(s) for s in spacing)
         if len(sp) != 3:
@@ -238,13 +264,17 @@ class Renderer:
     between threads; renders release the GIL."""
 
     def __init__(self, volume: "Volume", cache_mb: int = 512):
-        self._r = volume._v.renderer(int(cache_mb))
+        self._r = volume._v.renderer(_in_range("cache_mb", cache_mb, 1, 1 << 30, RenderError))
 
     def _render(self, view, mode, preset, iso, width, height, background,
                 shadows, shade, step, perspective, frame, bit_depth,
                 crop=None, clip=(), cap=True):
         if bit_depth not in (8, 32):
             raise LookError(f"bit_depth {bit_depth}: expected 8 (uint8) or 32 (float32)")
+        width = _in_range("width", width, 1, (1 << 32) - 1, ViewError)
+        height = _in_range("height", height, 1, (1 << 32) - 1, ViewError)
+        if background is None:
+            background = "black"
         if isinstance(view, list):
             view = tuple(view)
         return self._r.render(dict(
@@ -417,7 +447,7 @@ class Volume:
         """The whole volume as an array indexed ``[z, y, x]`` (``cdvol
         export``): ``"values"``, the samples in the file's stored type
         (stored words replaced by codes read as the input's smallest value,
-        NaN for floats; a file prepared with ``gradient_halo`` keeps more);
+        NaN for floats);
         ``"codes"``, one uint8 per cell, the distance code of each empty
         cell and 255 for object cells; ``"classes"``, 1 for object cells
         and 0 for the rest. Cells are one fewer than samples on each

@@ -389,7 +389,7 @@ fn prep_array<'py>(
     let job = ArrayJob::new(py, name, grid, kw, files, out)?;
     typed!(el, T => {
         let ro = array.cast::<numpy::PyArray3<T>>().map_err(PyErr::from)?.readonly();
-        job.run(py, &ro.as_array(), el.0, progress)
+        job.run(py, &ro.as_array(), array.strides(), el.0, progress)
     })
 }
 
@@ -425,7 +425,8 @@ fn prep_slices<'py>(
             .map(|a| Ok(a.cast::<numpy::PyArray2<T>>().map_err(PyErr::from)?.readonly()))
             .collect::<PyResult<Vec<_>>>()?;
         let views: Vec<_> = ro.iter().map(|r| r.as_array()).collect();
-        job.run_planes(py, &views, el.0, progress)
+        let strides: Vec<&[isize]> = slices.iter().map(|a| a.strides()).collect();
+        job.run_planes(py, &views, &strides, el.0, progress)
     })
 }
 
@@ -452,28 +453,41 @@ struct ArrayJob {
     out: PathBuf,
 }
 
-/// The bytes of a view with non-negative strides, from its first element
-/// to its last, and its strides in bytes; `None` for a negative stride.
+/// The bytes of a view, from its first element to its last, and its
+/// strides in bytes; `None` for an empty axis, or numpy's byte strides
+/// (`numpy_strides`) negative or not whole elements (which the view's
+/// element strides would round).
 fn view_bytes<'a, T, D: numpy::ndarray::Dimension>(
     view: &numpy::ndarray::ArrayView<'a, T, D>,
+    numpy_strides: &[isize],
 ) -> Option<(&'a [u8], Vec<usize>)> {
     let size = std::mem::size_of::<T>();
-    let strides = view
-        .strides()
+    if view.shape().contains(&0) || numpy_strides.len() != view.ndim() {
+        return None;
+    }
+    let strides = numpy_strides
         .iter()
-        .map(|&s| usize::try_from(s).ok().map(|s| s * size))
+        .zip(view.strides())
+        .map(|(&b, &e)| {
+            let b = usize::try_from(b).ok()?;
+            (b % size == 0 && isize::try_from(b / size).ok()? == e).then_some(b)
+        })
         .collect::<Option<Vec<usize>>>()?;
     let extent = view
         .shape()
         .iter()
         .zip(&strides)
-        .map(|(&n, &s)| n.saturating_sub(1) * s)
+        .map(|(&n, &s)| (n - 1) * s)
         .sum::<usize>()
         + size;
-    // SAFETY: the view's elements all lie in `extent` bytes from its first
-    // element (non-negative strides), which numpy keeps alive and (through
-    // the caller's read-only borrow) unchanged by other borrowers while
-    // the view lives, for 'a.
+    // SAFETY: the view is not empty and its elements all lie in `extent`
+    // bytes from its first one (non-negative strides, checked above); numpy
+    // keeps them alive while the view lives, for 'a. The read-only borrow
+    // keeps other rust-numpy borrowers from writing; Python code writing
+    // the array during a prep (another thread) is not kept out, and races
+    // with these reads as another process writing an input file races with
+    // the raw reader: the values read are then unspecified, every read stays
+    // in bounds.
     let bytes = unsafe { std::slice::from_raw_parts(view.as_ptr() as *const u8, extent) };
     Some((bytes, strides))
 }
@@ -504,8 +518,8 @@ impl ArrayJob {
             py,
             "ShapeError",
             format!(
-                "array {}: {what}: expected no empty axis and no negative stride \
-                 (numpy.ascontiguousarray makes one)",
+                "array {}: {what}: expected no empty axis and strides of whole, \
+                 non-negative elements (numpy.ascontiguousarray makes them)",
                 self.name
             ),
         )
@@ -516,12 +530,13 @@ impl ArrayJob {
         self,
         py: Python<'py>,
         view: &numpy::ndarray::ArrayView3<'_, T>,
+        numpy_strides: &[isize],
         element: Element,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let shape: [usize; 3] = view.raw_dim().into_pattern().into();
-        let what = || format!("shape {shape:?} strides {:?}", view.strides());
-        let Some((bytes, strides)) = view_bytes(view).filter(|_| !shape.contains(&0)) else {
+        let what = || format!("shape {shape:?} strides {numpy_strides:?} bytes");
+        let Some((bytes, strides)) = view_bytes(view, numpy_strides) else {
             return Err(self.shape_error(py, what()));
         };
         let grid = self.grid(py, shape)?;
@@ -543,6 +558,7 @@ impl ArrayJob {
         self,
         py: Python<'py>,
         views: &[numpy::ndarray::ArrayView2<'_, T>],
+        numpy_strides: &[&[isize]],
         element: Element,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
@@ -551,8 +567,13 @@ impl ArrayJob {
         let mut strides = None;
         for (z, v) in views.iter().enumerate() {
             let s: [usize; 2] = v.raw_dim().into_pattern().into();
-            let what = || format!("slice {z}: shape {s:?} strides {:?}", v.strides());
-            let Some((bytes, st)) = view_bytes(v).filter(|_| s == shape && !s.contains(&0)) else {
+            let what = || {
+                format!(
+                    "slice {z}: shape {s:?} strides {:?} bytes",
+                    numpy_strides[z]
+                )
+            };
+            let Some((bytes, st)) = view_bytes(v, numpy_strides[z]).filter(|_| s == shape) else {
                 return Err(self.shape_error(py, what()));
             };
             if *strides.get_or_insert(st.clone()) != st {
@@ -676,7 +697,10 @@ impl RVolume {
     /// A renderer with a cache of `cache_mb` MiB.
     fn renderer(&self, cache_mb: usize) -> RRenderer {
         RRenderer {
-            r: self.vol.renderer().with_cache_bytes(cache_mb << 20),
+            r: self
+                .vol
+                .renderer()
+                .with_cache_bytes(cache_mb.saturating_mul(1 << 20)),
         }
     }
 }

@@ -157,7 +157,7 @@ def test_an_iso_outside_the_files_range_is_a_look_error(prepped):
     # Prepared at 300: a surface below it would need cells prep did not keep.
     with pytest.raises(cdvol.LookError, match="300"):
         vol.render(mode="surface", iso=-700.0, width=32, height=32)
-    with pytest.raises(ValueError):
+    with pytest.raises(cdvol.LookError, match="no-such-preset"):
         vol.render(preset="no-such-preset", width=32, height=32)
     with pytest.raises(cdvol.LookError, match="expected 8"):
         vol.render(bit_depth=16)
@@ -221,3 +221,68 @@ def test_a_sequence_of_slices_preps_as_the_stacked_array(tmp_path, phantom):
                    tmp_path / "x.cdv", iso=300)
     with pytest.raises(cdvol.ShapeError, match="slice 0 of shape"):
         cdvol.prep([a, a], tmp_path / "x.cdv", iso=300)
+
+
+def test_partial_strides_read_the_field_not_its_neighbours(tmp_path):
+    rec = np.zeros((8, 9, 10), dtype=[("flag", "u1"), ("hu", "<i2")])
+    rec["hu"] = np.indices((8, 9, 10)).sum(0) * 10
+    rec["flag"] = 255
+    cdvol.prep(rec["hu"], tmp_path / "r.cdv", iso=50, progress=False)
+    cdvol.prep(np.ascontiguousarray(rec["hu"]), tmp_path / "c.cdv", iso=50, progress=False)
+    r, c = cdvol.open(tmp_path / "r.cdv"), cdvol.open(tmp_path / "c.cdv")
+    for what in ("values", "classes"):
+        assert np.array_equal(r.export(what, progress=False), c.export(what, progress=False))
+
+
+def test_keyword_values_are_checked_by_name(tmp_path, prepped):
+    vol, a = prepped
+    for kw in (dict(width=-1), dict(width=2 ** 33), dict(height=0)):
+        with pytest.raises(cdvol.ViewError, match=next(iter(kw))):
+            vol.render(**kw)
+    with pytest.raises(cdvol.RenderError, match="cache_mb"):
+        vol.renderer(cache_mb=0)
+    for kw in (dict(brick=-1), dict(zstd_level=2 ** 40)):
+        with pytest.raises(cdvol.PrepError, match=next(iter(kw))):
+            cdvol.prep(a, tmp_path / "k.cdv", **kw)
+    with pytest.raises(cdvol.ShapeError, match="0 slices"):
+        cdvol.prep([], tmp_path / "k.cdv")
+    with pytest.raises(cdvol.DtypeError, match="masked"):
+        cdvol.prep(np.ma.masked_array(a), tmp_path / "k.cdv", iso=300)
+    assert np.array_equal(vol.render(background=None, width=32, height=32),
+                          vol.render(width=32, height=32))
+
+
+def test_an_envelope_may_be_one_name(tmp_path, phantom):
+    a, spacing, positions = phantom
+    cdvol.prep(a, tmp_path / "e.cdv", envelope="ct", spacing=spacing, progress=False)
+    assert "ct-bone" in cdvol.open(tmp_path / "e.cdv").presets
+
+
+def test_a_crop_of_the_whole_volume_changes_nothing_and_a_cut_face_is_flat(tmp_path):
+    # A ball of radius 20 mm; the plane x = 31.5 (its centre) keeps x <= 31.5.
+    n, R = 64, 20.0
+    z, y, x = np.indices((n, n, n), dtype=np.float64)
+    c = (n - 1) / 2
+    a = (100.0 * (R - np.sqrt((x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2))).astype(np.float32)
+    cdvol.prep(a, tmp_path / "s.cdv", iso=0.0, progress=False)
+    vol = cdvol.open(tmp_path / "s.cdv")
+    box = ((0, n - 1), (0, n - 1), (0, n - 1))
+    for mode in ("surface", "mip"):
+        assert np.array_equal(vol.render((90, 0), mode=mode, iso=0.0, width=96, height=96),
+                              vol.render((90, 0), mode=mode, iso=0.0, width=96, height=96, crop=box))
+    size, frame = 129, 64.0
+    # Azimuth 90: the eye on the +x side, looking towards -x.
+    whole = vol.depth((90, 0), iso=0.0, width=size, height=size, frame=frame)
+    cut = vol.depth((90, 0), iso=0.0, width=size, height=size, frame=frame,
+                    clip=[(-1.0, 0.0, 0.0, -c)])
+    px = frame / size
+    jj, ii = np.meshgrid(np.arange(size), np.arange(size))
+    r = np.hypot((jj - size // 2) * px, (ii - size // 2) * px)
+    disk = r < R - 2 * px
+    # The cut face lies on the plane: R deeper than the ball's near pole.
+    assert np.abs(cut[disk] - (whole[size // 2, size // 2] + R)).max() < 0.05
+    assert np.isnan(cut[r > R + 2 * px]).all()
+    with pytest.raises(cdvol.LookError, match="non-zero normal"):
+        vol.render(clip=[(0, 0, 0, 1)])
+    with pytest.raises(cdvol.LookError, match="outside the volume"):
+        vol.render(crop=((100, 120), (0, 10), (0, 10)))

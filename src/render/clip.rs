@@ -206,7 +206,8 @@ impl Clip {
                 ]
             })
         });
-        let crop = crop.filter(|c: &[[f64; 2]; 3]| c.iter().any(|[a, b]| a.is_finite() || b.is_finite()));
+        let crop =
+            crop.filter(|c: &[[f64; 2]; 3]| c.iter().any(|[a, b]| a.is_finite() || b.is_finite()));
         Clip {
             crop,
             planes: self.planes.clone(),
@@ -299,9 +300,13 @@ mod tests {
             crop: Some(c),
             planes: Vec::new(),
         };
-        let e = crop([[5.0, 5.0], [0.0, 1.0], [0.0, 1.0]]).check(lo, hi).unwrap_err();
+        let e = crop([[5.0, 5.0], [0.0, 1.0], [0.0, 1.0]])
+            .check(lo, hi)
+            .unwrap_err();
         assert!(e.to_string().contains("crop x 5:5"), "{e}");
-        let e = crop([[11.0, 12.0], [0.0, 1.0], [0.0, 1.0]]).check(lo, hi).unwrap_err();
+        let e = crop([[11.0, 12.0], [0.0, 1.0], [0.0, 1.0]])
+            .check(lo, hi)
+            .unwrap_err();
         assert!(e.to_string().contains("outside the volume, 0:10"), "{e}");
         let plane = Clip {
             crop: None,
@@ -310,6 +315,10 @@ mod tests {
                 d: 1.0,
             }],
         };
-        assert!(plane.check(lo, hi).unwrap_err().to_string().contains("non-zero normal"));
+        assert!(plane
+            .check(lo, hi)
+            .unwrap_err()
+            .to_string()
+            .contains("non-zero normal"));
     }
 }

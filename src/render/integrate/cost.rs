@@ -2,10 +2,10 @@
 //! surface, or to leave the volume on a miss; on files classified by a
 //! transfer function, the steps to the first 1-cell.
 
-use crate::render::clip::Span;
 use super::surface::first_hit;
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::clip::Span;
 use crate::render::sample::hit::HitMethod;
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts};
 

@@ -219,10 +219,9 @@ impl<'a, T: Real> Ctx<'a, T> {
             } else {
                 None
             },
-            clip: opts.clip.within(
-                coords.map(|c| c[0]),
-                coords.map(|c| c[c.len() - 1]),
-            ),
+            clip: opts
+                .clip
+                .within(coords.map(|c| c[0]), coords.map(|c| c[c.len() - 1])),
         }
     }
 }
@@ -265,9 +264,7 @@ pub(crate) fn pixel<T: Real>(
                 Precision::F32 => {
                     composite::composite32(ctx, ray, span, acc, lut, *step_mm, &mut px)
                 }
-                Precision::F64 => {
-                    composite::composite(ctx, ray, span, acc, lut, *step_mm, &mut px)
-                }
+                Precision::F64 => composite::composite(ctx, ray, span, acc, lut, *step_mm, &mut px),
             }
         }
     };

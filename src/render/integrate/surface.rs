@@ -10,11 +10,11 @@ use glam::DVec3;
 
 use super::{Ctx, Px};
 use crate::render::cache::Accessor;
+use crate::render::clip::Span;
 use crate::render::clock;
 use crate::render::sample::hit::{find_hit_with, HitMethod};
 use crate::render::sample::normals::{smooth_gradient_in, Normals};
 use crate::render::sample::shade::{at, shade, CellEval};
-use crate::render::clip::Span;
 use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, Visit};
 
 /// The first iso-surface hit along `ray` in `span`: `(t, cell values)`.
@@ -192,13 +192,7 @@ pub(super) fn surface<T: Real>(
     px: &mut Px,
 ) -> StepCounts {
     let (found, mut counts) = first_hit_cell(ctx, ray, span, hit, acc);
-    let Some(Hit {
-        t,
-        c,
-        cell,
-        capped,
-    }) = found
-    else {
+    let Some(Hit { t, c, cell, capped }) = found else {
         return counts;
     };
     px.hit = true;
