@@ -25,6 +25,7 @@ mod batch;
 mod byte_planes;
 mod cli_help;
 mod cli_numbers;
+mod clip;
 mod composite;
 mod cull;
 mod data_extremes;

@@ -33,7 +33,7 @@ use crate::render::clock;
 use crate::render::sample::lut::TfLut;
 use crate::render::sample::normals::{outer_cell_gradients, vertex_gradients, VertexGradients};
 use crate::render::sample::shade::{at, AlongRay, CellEval};
-use crate::render::traverse::{trace, Flow, Ray, Real, StepCounts, OBJECT};
+use crate::render::traverse::{trace_until, Flow, Ray, Real, StepCounts, OBJECT};
 
 /// Composites `ray` into `px.rgb` with f64 samples (the reference
 /// sampler, `--sample-precision f64`); `px.hit` when anything is opaque.
@@ -254,10 +254,18 @@ fn march<T: Real, P: Sampler>(
     let mut part_of: Option<(f64, f64)> = None;
     loop {
         let mut first = None;
-        let c = trace(ctx.grid, ray, t_min, ctx.opts.method, acc, |v, _| {
-            first = Some(*v);
-            Flow::Stop
-        });
+        let c = trace_until(
+            ctx.grid,
+            ray,
+            t_min,
+            course.end,
+            ctx.opts.method,
+            acc,
+            |v, _| {
+                first = Some(*v);
+                Flow::Stop
+            },
+        );
         counts.add(&c);
         let Some(v) = first else {
             return counts;

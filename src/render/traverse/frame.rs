@@ -103,17 +103,23 @@ impl<'g, T: Real> Frame<'g, T> {
     }
 
     /// Where the ray enters the volume at or after `t_min` (finite): the
-    /// slab test, then the starting cell by the `t` rule. `None` when it
-    /// misses the volume (or, in f32, its origin is beyond the range).
+    /// slab test, then the starting cell by the `t` rule; it leaves at the
+    /// volume's far face or at `t_max`, whichever comes first. `None` when
+    /// it misses the volume between them (or, in f32, its origin is beyond
+    /// the range).
     #[inline(always)]
-    pub(super) fn entry(&self, ray: &Ray, t_min: f64) -> Option<Entry<T>> {
+    pub(super) fn entry(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Entry<T>> {
         let f = self;
         if !f.o.iter().all(|x| x.is_finite()) {
             // Only in f32: an origin beyond its range.
             return None;
         }
         let mut t_in = T::of(t_min * f.p);
-        let mut t_out = T::infinity();
+        let mut t_out = if t_max == f64::INFINITY {
+            T::infinity()
+        } else {
+            T::of(t_max * f.p)
+        };
         for k in 0..3 {
             let s = f.s[k];
             if f.d[k] == T::zero() {
@@ -379,6 +385,10 @@ impl<T: Real> Cursor<T> {
         let Some((m, t)) = leap_exit(f, far) else {
             return false;
         };
+        // Past the walk's end (a clip's far face): out.
+        if t >= self.t_out {
+            return false;
+        }
         for k in 0..3 {
             let mut after = None;
             if k == m {

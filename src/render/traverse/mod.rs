@@ -352,11 +352,31 @@ where
     S: CodeSource,
     F: FnMut(&Visit, &mut S) -> Flow,
 {
-    if ray.check().is_err() || !t_min.is_finite() {
+    trace_until(grid, ray, t_min, f64::INFINITY, method, src, visit)
+}
+
+/// [`trace`] that also stops where the ray reaches `t_max` (a clip's far
+/// face, render/clip.rs): no cell beyond it is entered, so no code beyond
+/// it is read; a visit there ends at `t_max` (within the walk's rounding).
+pub fn trace_until<T, S, F>(
+    grid: &TGrid<T>,
+    ray: &Ray,
+    t_min: f64,
+    t_max: f64,
+    method: Method,
+    src: &mut S,
+    visit: F,
+) -> StepCounts
+where
+    T: Real,
+    S: CodeSource,
+    F: FnMut(&Visit, &mut S) -> Flow,
+{
+    if ray.check().is_err() || !t_min.is_finite() || t_max.is_nan() {
         return StepCounts::default();
     }
     let f = frame::Frame::new(grid, ray);
-    let Some(e) = f.entry(ray, t_min) else {
+    let Some(e) = f.entry(ray, t_min, t_max) else {
         return StepCounts::default();
     };
     match method {
@@ -426,7 +446,7 @@ mod tests {
         src: &mut Table,
     ) -> (Vec<Visit>, Vec<StepCounts>) {
         let f = Frame::new(g, ray);
-        let Some(e) = f.entry(ray, 0.0) else {
+        let Some(e) = f.entry(ray, 0.0, f64::INFINITY) else {
             return (Vec::new(), vec![StepCounts::default()]);
         };
         let mut w: Pull<'_> = match method {
