@@ -252,9 +252,11 @@ impl Renderer {
     pub fn options(&self, look: &Look) -> Result<RenderOptions, Error> {
         let h = self.vol.header();
         let r = resolve(h, &look.ask)?;
+        let cap_colours = r.cap_colours();
         let mut opts = RenderOptions::new(r.mode, look.method.unwrap_or_else(|| default_method(h)));
         opts.iso = r.iso;
         opts.window = r.window;
+        opts.cap_colours = cap_colours;
         opts.look = r.look;
         opts.unrounded = look.unrounded;
         opts.clip = look.clip.clone();

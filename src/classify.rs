@@ -171,6 +171,23 @@ impl TransferFunction {
         a.opacity + f * (b.opacity - a.opacity)
     }
 
+    /// Colour at `v` (linear between points, constant beyond the ends;
+    /// the first point's for NaN).
+    pub fn colour(&self, v: f64) -> [f64; 3] {
+        let p = &self.points;
+        if !(v > p[0].value) {
+            return p[0].color;
+        }
+        let last = p[p.len() - 1];
+        if v >= last.value {
+            return last.color;
+        }
+        let i = p.partition_point(|q| q.value <= v);
+        let (a, b) = (p[i - 1], p[i]);
+        let f = (v - a.value) / (b.value - a.value);
+        std::array::from_fn(|k| a.color[k] + f * (b.color[k] - a.color[k]))
+    }
+
     /// The hull of the values where the opacity is non-zero: from the
     /// point before the first point with opacity > 0 to the point after
     /// the last one, infinite at an end whose point has opacity > 0 (the

@@ -235,6 +235,17 @@ pub struct Resolved {
     pub preset: Option<Preset>,
 }
 
+impl Resolved {
+    /// The colours of a surface's cut faces (render/clip.rs): its
+    /// preset's transfer function, when a surface has one.
+    pub fn cap_colours(&self) -> Option<TransferFunction> {
+        match self.mode {
+            Mode::Surface { .. } => self.preset.as_ref().map(|p| p.tf.clone()),
+            _ => None,
+        }
+    }
+}
+
 /// Why [`resolve`] cannot make a render of an [`Ask`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ResolveError {

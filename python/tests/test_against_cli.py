@@ -89,3 +89,19 @@ def test_real_ct_from_an_array_renders_as_the_cli(tmp_path, cdvol_bin, real_ct):
             "--view", f"{view[0]},{view[1]}", "--width", 128, "--height", 128)
         assert np.array_equal(mine[..., :3], png(tmp_path / "ct.png")), view
         assert (mine[..., 3] == 255).sum() > 128 * 128 // 10, "the skull fills the frame"
+
+
+def test_float_render_is_the_cli_float_tiff(tmp_path, cdvol_bin, phantom):
+    import tifffile
+
+    a, spacing, positions = phantom
+    cdvol.prep(a, tmp_path / "py.cdv", envelope=["ct"], spacing=spacing, positions=positions,
+               progress=False)
+    mine = cdvol.open(tmp_path / "py.cdv").render((10, 10), mode="composite", preset="ct-bone",
+                                                  width=64, height=48, bit_depth=32)
+    run(cdvol_bin, "render", tmp_path / "py.cdv", "-o", tmp_path / "f.tif", "--view", "10,10",
+        "--width", 64, "--height", 48, "--mode", "composite", "--preset", "ct-bone",
+        "--bit-depth", 32)
+    tiff = tifffile.imread(tmp_path / "f.tif")
+    assert tiff.dtype == np.float32 and tiff.shape == (48, 64, 3)
+    assert np.array_equal(mine[..., :3], tiff)

@@ -171,6 +171,7 @@ impl RenderArgs {
                  composite"
             ),
         })?;
+        let cap_colours = look.cap_colours();
         Ok(RenderJob {
             camera: View {
                 aim,
@@ -205,6 +206,7 @@ impl RenderArgs {
                 cull: !self.no_cull,
                 clip: self.clip(vol)?,
                 cap: !self.no_cap,
+                cap_colours,
             },
             template: self.traversal == Some(TraversalArg::Template),
             output: self.output.clone(),

@@ -111,6 +111,10 @@ pub struct RenderOptions {
     /// shaded flat (on by default); off, rays that start inside the
     /// object go on to the next surface they enter.
     pub cap: bool,
+    /// The colours of cut faces: the transfer function whose colour at
+    /// the cut's data value tints it (a surface render's preset's); grey
+    /// without one.
+    pub cap_colours: Option<TransferFunction>,
 }
 
 /// Default of [`RenderOptions::early_stop`].
@@ -277,6 +281,7 @@ impl RenderOptions {
             cull: true,
             clip: Clip::default(),
             cap: true,
+            cap_colours: None,
         }
     }
 }

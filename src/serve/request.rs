@@ -255,10 +255,12 @@ impl ViewRequest {
                 bad_preset(format!("a preset with an iso value for mode={}", self.mode))
             }
         })?;
+        let cap_colours = look.cap_colours();
         let mut o = RenderOptions::new(look.mode, crate::render::default_method(h));
         o.cache_bytes = cache_bytes;
         o.iso = look.iso;
         o.window = look.window;
+        o.cap_colours = cap_colours;
         o.look = look.look;
         Ok(o)
     }

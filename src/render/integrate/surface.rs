@@ -261,7 +261,12 @@ pub(super) fn surface<T: Real>(
         lit = !sh;
     }
     let v = shade(normal, to_light, to_eye, lit) as f32;
-    px.rgb = [v, v, v];
+    px.rgb = match ctx.opts.cap_colours.as_ref().filter(|_| capped) {
+        // A cut face in the colour of its data value (the cells hold
+        // rescaled values, the transfer function's units).
+        Some(tf) => tf.colour(c.value(p)).map(|k| v * k as f32),
+        None => [v, v, v],
+    };
     px.depth = t as f32;
     counts
 }

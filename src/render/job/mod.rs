@@ -238,6 +238,8 @@ pub enum JobError {
     TurntableLookAt { frames: u32 },
     #[error("the template traversal renders whole images: it takes no shard")]
     TemplateShard,
+    #[error("the template traversal renders the whole volume: it takes no crop or clip")]
+    TemplateClip,
     /// A part file is a piece of an image; `cdvol assemble` has no camera.
     #[error("--scale-bar: a shard of one image is a part file; draw the bar on a whole image")]
     ScaleBarShard,
@@ -387,6 +389,9 @@ pub fn run(
     let camera = job.camera.place(&framing, 0.0, orientation)?;
     if job.template && job.shard.is_some() {
         return Err(JobError::TemplateShard);
+    }
+    if job.template && !job.options.clip.is_none() {
+        return Err(JobError::TemplateClip);
     }
     if job.frames == 0 {
         return Err(JobError::NoFrames);
