@@ -66,6 +66,15 @@ def spheres(shape=(37, 45, 52), seed=7) -> np.ndarray:
     return np.round(a).astype(np.int16)
 
 
+def ball(n: int = 64, radius: float = 20.0) -> np.ndarray:
+    """A float32 [z, y, x] field, 0 on a sphere of `radius` samples about
+    the centre, rising inwards at 100 a sample (1 mm spacing)."""
+    z, y, x = np.indices((n, n, n), dtype=np.float64)
+    c = (n - 1) / 2
+    r = np.sqrt((x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2)
+    return (100.0 * (radius - r)).astype(np.float32)
+
+
 @pytest.fixture(scope="session")
 def phantom():
     """(array, spacing, positions): slices 1.0 and 1.6 mm apart in turn."""

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import cdvol
+from conftest import ball
 
 
 @pytest.fixture(scope="module")
@@ -53,10 +54,7 @@ def test_depth_of_a_sphere_follows_its_curvature(tmp_path):
     # A sphere of radius R mm: seen orthographically, the depth at distance
     # r from the centre pixel exceeds the centre's by R - sqrt(R^2 - r^2).
     n, R = 64, 20.0
-    z, y, x = np.indices((n, n, n), dtype=np.float64)
-    c = (n - 1) / 2
-    a = (100.0 * (R - np.sqrt((x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2))).astype(np.float32)
-    cdvol.prep(a, tmp_path / "s.cdv", iso=0.0, progress=False)
+    cdvol.prep(ball(n, R), tmp_path / "s.cdv", iso=0.0, progress=False)
     vol = cdvol.open(tmp_path / "s.cdv")
     size, frame = 129, 64.0
     d = vol.depth((0, 0), iso=0.0, width=size, height=size, frame=frame)
@@ -261,10 +259,8 @@ def test_an_envelope_may_be_one_name(tmp_path, phantom):
 def test_a_crop_of_the_whole_volume_changes_nothing_and_a_cut_face_is_flat(tmp_path):
     # A ball of radius 20 mm; the plane x = 31.5 (its centre) keeps x <= 31.5.
     n, R = 64, 20.0
-    z, y, x = np.indices((n, n, n), dtype=np.float64)
     c = (n - 1) / 2
-    a = (100.0 * (R - np.sqrt((x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2))).astype(np.float32)
-    cdvol.prep(a, tmp_path / "s.cdv", iso=0.0, progress=False)
+    cdvol.prep(ball(n, R), tmp_path / "s.cdv", iso=0.0, progress=False)
     vol = cdvol.open(tmp_path / "s.cdv")
     box = ((0, n - 1), (0, n - 1), (0, n - 1))
     for mode in ("surface", "mip"):

@@ -16,7 +16,7 @@
 
 use glam::DVec3;
 
-use crate::render::traverse::Ray;
+use crate::render::traverse::{Ray, Visit};
 
 /// A half-space `normal . p >= d` (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -65,6 +65,21 @@ impl Span {
     #[inline]
     pub fn past(&self, t: f64) -> bool {
         t > self.end
+    }
+
+    /// Visit `v` cut to the span: `Ok(None)` when nothing of it is left,
+    /// `Err(())` when it starts past the span's end (the walk is over).
+    #[inline]
+    pub fn cut(&self, v: &Visit) -> Result<Option<Visit>, ()> {
+        if self.past(v.t_enter) {
+            return Err(());
+        }
+        let (t_enter, t_exit) = (v.t_enter.max(self.start), v.t_exit.min(self.end));
+        Ok((t_enter <= t_exit).then_some(Visit {
+            cell: v.cell,
+            t_enter,
+            t_exit,
+        }))
     }
 }
 

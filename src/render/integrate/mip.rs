@@ -15,13 +15,13 @@
 //! cells skipped could not have changed the maximum, so the image is the
 //! one FVT, which steps through them, draws.
 
-use super::{Ctx, Px};
+use super::{walk_span, Ctx, Px};
 use crate::render::brick::BLOCK;
 use crate::render::cache::Accessor;
 use crate::render::clip::Span;
 use crate::render::clock;
 use crate::render::sample::shade::{at, CellEval};
-use crate::render::traverse::{trace_until, Flow, Method, Ray, Real, StepCounts, Visit};
+use crate::render::traverse::{Flow, Method, Ray, Real, StepCounts, Visit};
 
 /// Writes the largest value along `ray` in `span` into `px.rgb`
 /// (uncoloured): the visits cut to the span, their samples at its ends.
@@ -35,31 +35,12 @@ pub(super) fn mip<T: Real>(
     let coords = ctx.coords;
     let mut m = Max::default();
     let leaps = block_leaps(ctx.opts.method, acc.brick_size());
-    let counts = trace_until(
-        ctx.grid,
-        ray,
-        span.start,
-        span.end,
-        ctx.opts.method,
-        acc,
-        |v, acc| {
-            if span.past(v.t_enter) {
-                return Flow::Stop;
-            }
-            let v = &Visit {
-                cell: v.cell,
-                t_enter: v.t_enter.max(span.start),
-                t_exit: v.t_exit.min(span.end),
-            };
-            if v.t_enter > v.t_exit {
-                return Flow::Continue;
-            }
-            clock::enter(acc);
-            let flow = m.raise(coords, ray, v, acc, leaps);
-            clock::leave(acc);
-            flow
-        },
-    );
+    let counts = walk_span(ctx, ray, span, acc, |v, acc| {
+        clock::enter(acc);
+        let flow = m.raise(coords, ray, v, acc, leaps);
+        clock::leave(acc);
+        flow
+    });
     if m.best > f64::NEG_INFINITY {
         px.hit = true;
         px.rgb = [m.best as f32; 3];

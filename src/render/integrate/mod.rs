@@ -27,7 +27,7 @@ use crate::render::cache::{Accessor, LAZY_MIN_CODE_CD};
 use crate::render::clip::{Clip, Span};
 use crate::render::options::{Mode, Precision, RenderOptions};
 use crate::render::sample::lut::TfLut;
-use crate::render::traverse::{Ray, Real, StepCounts, TGrid};
+use crate::render::traverse::{trace_until, Flow, Ray, Real, StepCounts, TGrid, Visit};
 use crate::render::view::camera::Camera;
 
 /// Per-pixel result before colouring (image.rs colours it; part files
@@ -224,6 +224,32 @@ impl<'a, T: Real> Ctx<'a, T> {
                 .within(coords.map(|c| c[0]), coords.map(|c| c[c.len() - 1])),
         }
     }
+}
+
+/// Walks `ray` over `span` with the options' traversal, handing `visit`
+/// each 1-cell's visit cut to the span ([`Span::cut`]); the walk ends at
+/// the span's end ([`trace_until`]).
+pub(crate) fn walk_span<T: Real>(
+    ctx: &Ctx<T>,
+    ray: &Ray,
+    span: &Span,
+    acc: &mut Accessor,
+    mut visit: impl FnMut(&Visit, &mut Accessor) -> Flow,
+) -> StepCounts {
+    let (start, end) = (span.start, span.end);
+    trace_until(
+        ctx.grid,
+        ray,
+        start,
+        end,
+        ctx.opts.method,
+        acc,
+        |v, acc| match span.cut(v) {
+            Ok(Some(v)) => visit(&v, acc),
+            Ok(None) => Flow::Continue,
+            Err(()) => Flow::Stop,
+        },
+    )
 }
 
 /// The pixel of `ray`: the mode's integrator, then its step count. The

@@ -8,14 +8,14 @@
 
 use glam::DVec3;
 
-use super::{Ctx, Px};
+use super::{walk_span, Ctx, Px};
 use crate::render::cache::Accessor;
 use crate::render::clip::Span;
 use crate::render::clock;
 use crate::render::sample::hit::{find_hit_with, HitMethod};
 use crate::render::sample::normals::{smooth_gradient_in, Normals};
 use crate::render::sample::shade::{at, shade, CellEval};
-use crate::render::traverse::{trace_until, Flow, Ray, Real, StepCounts, Visit};
+use crate::render::traverse::{Flow, Ray, Real, StepCounts, Visit};
 
 /// The first iso-surface hit along `ray` in `span`: `(t, cell values)`.
 pub(super) fn first_hit<T: Real>(
@@ -38,19 +38,8 @@ struct Hit {
     capped: bool,
 }
 
-/// `v` cut to `span`; `None` when nothing of it is left.
-#[inline]
-fn within(v: &Visit, span: &Span) -> Option<Visit> {
-    let (t_enter, t_exit) = (v.t_enter.max(span.start), v.t_exit.min(span.end));
-    (t_enter <= t_exit).then_some(Visit {
-        cell: v.cell,
-        t_enter,
-        t_exit,
-    })
-}
-
-/// Whether the first visit `v` starts on `span`'s cut: its entry is the
-/// span's start (within the walk's rounding of it).
+/// Whether the first visit `v` (cut to `span`) starts on `span`'s cut:
+/// its entry is the span's start (within the walk's rounding of it).
 #[inline]
 fn on_cut(v: &Visit, span: &Span) -> bool {
     span.cut.is_some() && v.t_enter - span.start <= 1e-9 * span.start.abs().max(1.0)
@@ -67,7 +56,6 @@ fn first_hit_cell<T: Real>(
     hit: HitMethod,
     acc: &mut Accessor,
 ) -> (Option<Hit>, StepCounts) {
-    let g = ctx.grid;
     let coords = ctx.coords;
     // The hit's vertex values, not its `CellEval`: a small copy out of the
     // walk (the cell is evaluated again from them, to the same bits).
@@ -75,49 +63,35 @@ fn first_hit_cell<T: Real>(
     let mut first = true;
     // Inside the object from a cut, without capping: not out yet.
     let mut inside = false;
-    let s = trace_until(
-        g,
-        ray,
-        span.start,
-        span.end,
-        ctx.opts.method,
-        acc,
-        |v, acc| {
-            if span.past(v.t_enter) {
+    let s = walk_span(ctx, ray, span, acc, |v, acc| {
+        let starts_on_cut = std::mem::take(&mut first) && on_cut(v, span);
+        clock::enter(acc);
+        let f = acc.vertices(v.cell);
+        let c = CellEval::new(coords, v.cell, f);
+        if starts_on_cut && c.value(at(ray, v.t_enter)) >= ctx.iso {
+            if ctx.opts.cap {
+                clock::leave(acc);
+                found = Some((v.t_enter, v.cell, f, true));
                 return Flow::Stop;
             }
-            let starts_on_cut = std::mem::take(&mut first) && on_cut(v, span);
-            let Some(v) = within(v, span) else {
-                return Flow::Continue;
-            };
-            clock::enter(acc);
-            let f = acc.vertices(v.cell);
-            let c = CellEval::new(coords, v.cell, f);
-            if starts_on_cut && c.value(at(ray, v.t_enter)) >= ctx.iso {
-                if ctx.opts.cap {
-                    clock::leave(acc);
-                    found = Some((v.t_enter, v.cell, f, true));
-                    return Flow::Stop;
-                }
-                inside = true;
-            }
-            if inside {
-                // Out once the interpolant is below iso at the exit.
-                inside = c.value(at(ray, v.t_exit)) >= ctx.iso;
-                clock::leave(acc);
-                return Flow::Continue;
-            }
-            let t_hit = find_hit_with(ray, &v, &c, ctx.iso, hit, &ctx.opts.hit_params);
+            inside = true;
+        }
+        if inside {
+            // Out once the interpolant is below iso at the exit.
+            inside = c.value(at(ray, v.t_exit)) >= ctx.iso;
             clock::leave(acc);
-            match t_hit {
-                Some(t) => {
-                    found = Some((t, v.cell, f, false));
-                    Flow::Stop
-                }
-                None => Flow::Continue,
+            return Flow::Continue;
+        }
+        let t_hit = find_hit_with(ray, &v, &c, ctx.iso, hit, &ctx.opts.hit_params);
+        clock::leave(acc);
+        match t_hit {
+            Some(t) => {
+                found = Some((t, v.cell, f, false));
+                Flow::Stop
             }
-        },
-    );
+            None => Flow::Continue,
+        }
+    });
     let found = found.map(|(t, cell, f, capped)| Hit {
         t,
         c: CellEval::new(coords, cell, f),
@@ -154,44 +128,30 @@ fn shadow_hit<T: Real>(ctx: &Ctx<T>, ray: &Ray, acc: &mut Accessor) -> (bool, St
     };
     let mut out = false;
     let mut hit = false;
-    let s = trace_until(
-        ctx.grid,
-        ray,
-        span.start,
-        span.end,
-        ctx.opts.method,
-        acc,
-        |v, acc| {
-            if span.past(v.t_enter) {
-                return Flow::Stop;
-            }
-            let Some(v) = &within(v, &span) else {
-                return Flow::Continue;
-            };
-            clock::enter(acc);
-            let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
-            let below = |t: f64| !(c.value(at(ray, t)) >= ctx.iso);
-            if !out && below(v.t_enter) {
-                out = true;
-            }
-            let flow = if out {
-                hit = find_hit_with(ray, v, &c, ctx.iso, HitMethod::Int, &ctx.opts.hit_params)
-                    .is_some();
-                if hit {
-                    Flow::Stop
-                } else {
-                    Flow::Continue
-                }
+    let s = walk_span(ctx, ray, &span, acc, |v, acc| {
+        clock::enter(acc);
+        let c = CellEval::new(coords, v.cell, acc.vertices(v.cell));
+        let below = |t: f64| !(c.value(at(ray, t)) >= ctx.iso);
+        if !out && below(v.t_enter) {
+            out = true;
+        }
+        let flow = if out {
+            hit =
+                find_hit_with(ray, v, &c, ctx.iso, HitMethod::Int, &ctx.opts.hit_params).is_some();
+            if hit {
+                Flow::Stop
             } else {
-                // Still inside: out once the interpolant is below iso at the
-                // exit; a re-entry within this same cell is not looked for.
-                out = below(v.t_exit);
                 Flow::Continue
-            };
-            clock::leave(acc);
-            flow
-        },
-    );
+            }
+        } else {
+            // Still inside: out once the interpolant is below iso at the
+            // exit; a re-entry within this same cell is not looked for.
+            out = below(v.t_exit);
+            Flow::Continue
+        };
+        clock::leave(acc);
+        flow
+    });
     (hit, s)
 }
 
