@@ -70,7 +70,7 @@ pub enum RequestError {
 }
 
 const KNOWN: &str = "file, mode, preset, iso, window, level, shadows, hit, view, az, el, \
-                     frame, pan, w, h, step, format, quality, session";
+                     frame, pan, crop, clip, w, h, step, format, quality, session";
 
 /// Image encodings the page may choose.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -105,6 +105,10 @@ pub struct ViewRequest {
     pub frame_mm: Option<f64>,
     /// Pan in mm along the image's right and up.
     pub pan_mm: Option<[f64; 2]>,
+    /// Crop box, mm (`render --crop`).
+    pub crop: Option<[[f64; 2]; 3]>,
+    /// One clipping plane `[nx, ny, nz, d]` (`render --clip`).
+    pub clip: Option<[f64; 4]>,
     pub width: u32,
     pub height: u32,
     pub step_mm: f64,
@@ -133,6 +137,8 @@ impl ViewRequest {
             el_deg: 0.0,
             frame_mm: None,
             pan_mm: None,
+            crop: None,
+            clip: None,
             width: 512,
             height: 512,
             step_mm: 0.5,
@@ -162,6 +168,8 @@ impl ViewRequest {
                 "el" => r.el_deg = num("el", &v, MAX_ANGLE_DEG)?,
                 "frame" => r.frame_mm = Some(positive("frame", &v)?),
                 "pan" => r.pan_mm = Some(pan(&v)?),
+                "crop" => r.crop = Some(crop(&v)?),
+                "clip" => r.clip = Some(plane(&v)?),
                 "w" => r.width = int("w", &v, 1, MAX_SIDE as u64)? as u32,
                 "h" => r.height = int("h", &v, 1, MAX_SIDE as u64)? as u32,
                 "step" => r.step_mm = step(&v)?,
@@ -262,6 +270,33 @@ impl ViewRequest {
         o.window = look.window;
         o.cap_colours = cap_colours;
         o.look = look.look;
+        o.clip = crate::render::clip::Clip {
+            crop: self.crop,
+            planes: self
+                .clip
+                .map(|p| crate::render::clip::Plane {
+                    normal: [p[0], p[1], p[2]],
+                    d: p[3],
+                })
+                .into_iter()
+                .collect(),
+        };
+        let axes = &h.axes;
+        let lo = axes.each_ref().map(|a| a.coords()[0]);
+        let hi = axes.each_ref().map(|a| a.coords()[a.coords().len() - 1]);
+        o.clip.check(lo, hi).map_err(|e| {
+            let (name, value) = match (&e, self.clip) {
+                (crate::render::clip::ClipError::BadPlane { .. }, Some(p)) => {
+                    ("clip", format!("{},{},{},{}", p[0], p[1], p[2], p[3]))
+                }
+                _ => ("crop", String::new()),
+            };
+            RequestError::Bad {
+                name,
+                value,
+                expected: e.to_string(),
+            }
+        })?;
         Ok(o)
     }
 
@@ -411,6 +446,18 @@ impl ViewRequest {
         if let Some(f) = spec.frame_mm {
             flag("--frame", f.to_string());
         }
+        if let Some(c) = self.crop {
+            flag(
+                "--crop",
+                format!(
+                    "{}:{},{}:{},{}:{}",
+                    c[0][0], c[0][1], c[1][0], c[1][1], c[2][0], c[2][1]
+                ),
+            );
+        }
+        if let Some(p) = self.clip {
+            flag("--clip", format!("{},{},{},{}", p[0], p[1], p[2], p[3]));
+        }
         if self.shadows && self.mode == "surface" {
             a.push("--shadows".into());
         }
@@ -514,6 +561,40 @@ fn pan(v: &str) -> Result<[f64; 2], RequestError> {
     }
 }
 
+/// `crop=X0:X1,Y0:Y1,Z0:Z1` (mm; checked against the file in `options`).
+fn crop(v: &str) -> Result<[[f64; 2]; 3], RequestError> {
+    let expected = "X0:X1,Y0:Y1,Z0:Z1 in mm, finite, each low below its high";
+    let mut out = [[0.0; 2]; 3];
+    let parts: Vec<&str> = v.split(',').collect();
+    if parts.len() != 3 {
+        return Err(bad("crop", v, expected));
+    }
+    for (k, p) in parts.iter().enumerate() {
+        let ab: Vec<f64> = p.split(':').filter_map(|x| x.trim().parse().ok()).collect();
+        match ab[..] {
+            [a, b] if a.is_finite() && b.is_finite() && a < b && a.abs() <= 1e9 && b.abs() <= 1e9 => {
+                out[k] = [a, b]
+            }
+            _ => return Err(bad("crop", v, expected)),
+        }
+    }
+    Ok(out)
+}
+
+/// `clip=NX,NY,NZ,D`: one plane, keeping `n . p >= D`.
+fn plane(v: &str) -> Result<[f64; 4], RequestError> {
+    let p: Vec<f64> = v.split(',').filter_map(|x| x.trim().parse().ok()).collect();
+    match p[..] {
+        [x, y, z, d]
+            if [x, y, z, d].iter().all(|c| c.is_finite() && c.abs() <= 1e9)
+                && [x, y, z] != [0.0; 3] =>
+        {
+            Ok([x, y, z, d])
+        }
+        _ => Err(bad("clip", v, "NX,NY,NZ,D: a finite non-zero normal and a finite D")),
+    }
+}
+
 fn one_of(name: &'static str, v: &str, allowed: &[&str]) -> Result<String, RequestError> {
     if allowed.contains(&v) {
         Ok(v.to_string())
@@ -594,6 +675,12 @@ mod tests {
             "path=/etc/passwd",
             "window=3",
             "iso=1&preset=ct-bone",
+            "crop=1:2,3:4",
+            "crop=2:1,0:1,0:1",
+            "crop=0:1,0:1,0:nan",
+            "clip=0,0,0,1",
+            "clip=1,0,0",
+            "clip=1,0,0,inf",
         ] {
             assert!(ViewRequest::parse(bad, 1).is_err(), "{bad} accepted");
         }
@@ -610,6 +697,13 @@ mod tests {
         let r = ViewRequest::parse("pan=1.5%2C-2&format=jpeg&quality=70", 1).unwrap();
         assert_eq!(r.pan_mm, Some([1.5, -2.0]));
         assert_eq!(r.encoding, Encoding::Jpeg(70));
+    }
+
+    #[test]
+    fn takes_a_crop_box_and_a_plane() {
+        let r = ViewRequest::parse("crop=0:10.5,-2:3,1:4&clip=0%2C1%2C0%2C-125", 1).unwrap();
+        assert_eq!(r.crop, Some([[0.0, 10.5], [-2.0, 3.0], [1.0, 4.0]]));
+        assert_eq!(r.clip, Some([0.0, 1.0, 0.0, -125.0]));
     }
 
     #[test]

@@ -37,6 +37,10 @@ trap 'rm -rf "$work"' EXIT
 node view-test.mjs --cdvol "$cdvol" --file "$work/ct.cdv" --size 1024 --out "$work/one"
 node view-test.mjs --cdvol "$cdvol" --file "$work/ct.cdv" --size 512 --clients 4 \
     --drags 2 --cache-mb 64 --out "$work/four"
+# Issue 55: the real CT cut open by a plane and cropped, dragged and
+# checked against `cdvol render --crop --clip` like the views above.
+node view-test.mjs --cdvol "$cdvol" --file "$work/ct.cdv" --size 512 --drags 1 \
+    --query "crop=20:220,30:230,10:150&clip=0,1,0,125" --out "$work/cut"
 # The CT is prepared at iso 300: page-test's refused iso is 200. Its
 # second file is the MR phantom prepared with the MR preset mr-default
 # (the file's look), so switching files switches the preset menu's

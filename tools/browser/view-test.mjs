@@ -158,6 +158,8 @@ function renderArgs(hash, info) {
   for (const [k, flag] of [["frame", "--frame"], ["hit", "--hit"]]) {
     if (q.get(k)) a.push(flag, q.get(k));
   }
+  if (q.get("crop")) a.push("--crop", q.get("crop"));
+  if (q.get("clip")) a.push("--clip", q.get("clip"));
   if (q.get("shadows") === "1") a.push("--shadows");
   if (q.get("pan")) throw new Error("the browser test does not pan");
   return a;
