@@ -572,7 +572,9 @@ fn crop(v: &str) -> Result<[[f64; 2]; 3], RequestError> {
     for (k, p) in parts.iter().enumerate() {
         let ab: Vec<f64> = p.split(':').filter_map(|x| x.trim().parse().ok()).collect();
         match ab[..] {
-            [a, b] if a.is_finite() && b.is_finite() && a < b && a.abs() <= 1e9 && b.abs() <= 1e9 => {
+            [a, b]
+                if a.is_finite() && b.is_finite() && a < b && a.abs() <= 1e9 && b.abs() <= 1e9 =>
+            {
                 out[k] = [a, b]
             }
             _ => return Err(bad("crop", v, expected)),
@@ -591,7 +593,11 @@ fn plane(v: &str) -> Result<[f64; 4], RequestError> {
         {
             Ok([x, y, z, d])
         }
-        _ => Err(bad("clip", v, "NX,NY,NZ,D: a finite non-zero normal and a finite D")),
+        _ => Err(bad(
+            "clip",
+            v,
+            "NX,NY,NZ,D: a finite non-zero normal and a finite D",
+        )),
     }
 }
 
