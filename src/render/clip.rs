@@ -67,20 +67,34 @@ impl Span {
         t > self.end
     }
 
-    /// Visit `v` cut to the span: `Ok(None)` when nothing of it is left,
-    /// `Err(())` when it starts past the span's end (the walk is over).
+    /// Visit `v` cut to the span.
     #[inline]
-    pub fn cut(&self, v: &Visit) -> Result<Option<Visit>, ()> {
+    pub fn cut(&self, v: &Visit) -> Cut {
         if self.past(v.t_enter) {
-            return Err(());
+            return Cut::Past;
         }
         let (t_enter, t_exit) = (v.t_enter.max(self.start), v.t_exit.min(self.end));
-        Ok((t_enter <= t_exit).then_some(Visit {
-            cell: v.cell,
-            t_enter,
-            t_exit,
-        }))
+        if t_enter <= t_exit {
+            Cut::Kept(Visit {
+                cell: v.cell,
+                t_enter,
+                t_exit,
+            })
+        } else {
+            Cut::Empty
+        }
     }
+}
+
+/// A visit cut to a [`Span`] ([`Span::cut`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Cut {
+    /// The part of the visit the span keeps.
+    Kept(Visit),
+    /// Nothing of it is kept (it ends before the span starts).
+    Empty,
+    /// It starts past the span's end: the walk is over.
+    Past,
 }
 
 /// A crop box or plane that is no region.

@@ -24,7 +24,7 @@ mod surface;
 pub(crate) use mip::leaps_with as mip_leaps_with;
 
 use crate::render::cache::{Accessor, LAZY_MIN_CODE_CD};
-use crate::render::clip::{Clip, Span};
+use crate::render::clip::{Clip, Cut, Span};
 use crate::render::options::{Mode, Precision, RenderOptions};
 use crate::render::sample::lut::TfLut;
 use crate::render::traverse::{trace_until, Flow, Ray, Real, StepCounts, TGrid, Visit};
@@ -245,9 +245,9 @@ pub(crate) fn walk_span<T: Real>(
         ctx.opts.method,
         acc,
         |v, acc| match span.cut(v) {
-            Ok(Some(v)) => visit(&v, acc),
-            Ok(None) => Flow::Continue,
-            Err(()) => Flow::Stop,
+            Cut::Kept(v) => visit(&v, acc),
+            Cut::Empty => Flow::Continue,
+            Cut::Past => Flow::Stop,
         },
     )
 }

@@ -82,7 +82,7 @@ fn first_hit_cell<T: Real>(
             clock::leave(acc);
             return Flow::Continue;
         }
-        let t_hit = find_hit_with(ray, &v, &c, ctx.iso, hit, &ctx.opts.hit_params);
+        let t_hit = find_hit_with(ray, v, &c, ctx.iso, hit, &ctx.opts.hit_params);
         clock::leave(acc);
         match t_hit {
             Some(t) => {
