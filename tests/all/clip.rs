@@ -306,3 +306,49 @@ fn bad_crops_and_planes_are_refused_before_any_work() {
         assert!(!out.exists(), "{args:?} wrote an image");
     }
 }
+
+#[test]
+fn a_named_half_is_the_plane_through_the_centre() {
+    let d = tempfile::tempdir().unwrap();
+    prepared_ct_phantom(d.path(), "unused", &["--iso", "300"]);
+    // The phantom's sidecar with an orientation: x points to the
+    // patient's left (LPS).
+    let side = d.path().join("ct.json");
+    let mut j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&side).unwrap()).unwrap();
+    j["orientation"] = "LPS".into();
+    let oriented = d.path().join("oriented.json");
+    std::fs::write(&oriented, j.to_string()).unwrap();
+    let f = d.path().join("oriented.cdv");
+    crate::common::ok(
+        cdvol()
+            .args(["-q", "prep"])
+            .arg(&oriented)
+            .args(["--iso", "300", "-o"])
+            .arg(&f),
+    );
+    let vol = Volume::open(&f).unwrap();
+    let (lo, hi) = bounds(&vol);
+    let cx = 0.5 * (lo[0] + hi[0]);
+    let png = |name: &str, args: &[String]| {
+        let out = d.path().join(name);
+        crate::common::ok(
+            cdvol()
+                .args(["-q", "render"])
+                .arg(&f)
+                .arg("-o")
+                .arg(&out)
+                .args(["--view", "anterior", "--width", "64", "--height", "64"])
+                .args(args),
+        );
+        std::fs::read(out).unwrap()
+    };
+    let named = png("named.png", &["--clip-half".into(), "left".into()]);
+    let plane = png("plane.png", &["--clip".into(), format!("1,0,0,{cx}")]);
+    let whole = png("whole.png", &[]);
+    assert_eq!(
+        named, plane,
+        "--clip-half left is the plane x >= the centre"
+    );
+    assert_ne!(named, whole, "the half cuts something");
+}
