@@ -189,8 +189,11 @@ const MAX_META: u64 = 1 << 20;
 /// Walks the file meta group (explicit VR little endian after the
 /// 128-byte preamble and `DICM`) and refuses an element whose length runs
 /// past the end of the file: dicom-object reserves each meta element's
-/// declared length before reading it. A file that does not start like
-/// DICOM is left to dicom-object.
+/// declared length before reading it. It reads elements, of any group,
+/// until it has read the bytes the group length (0002,0000) declares, so
+/// this walk does too (a fuzzed file whose group length ran past group
+/// 0002 into an element tagged (0002,0013) made it reserve 340 MB). A
+/// file that does not start like DICOM is left to dicom-object.
 fn check_meta(
     path: &Path,
     f: &mut BufReader<std::fs::File>,
@@ -205,8 +208,17 @@ fn check_meta(
     {
         return Ok(());
     }
+    // (0002,0000) UL of length 4: the group length dicom-object reads the
+    // meta elements by; without it dicom-object refuses the file.
     let mut at = 132usize;
-    while at + 8 <= head.len() && head[at..at + 2] == [2, 0] {
+    if head.len() < at + 12 || head[at..at + 8] != [2, 0, 0, 0, b'U', b'L', 4, 0] {
+        return Ok(());
+    }
+    let group_length =
+        u32::from_le_bytes([head[at + 8], head[at + 9], head[at + 10], head[at + 11]]);
+    at += 12;
+    let stop = at as u64 + group_length as u64;
+    while (at as u64) < stop && at + 8 <= head.len() {
         let vr = &head[at + 4..at + 6];
         // The VRs with a 2-byte length; dicom-rs reads any other (an
         // unknown one as UN) with 2 reserved bytes and a 4-byte length.
@@ -253,8 +265,10 @@ fn check_meta(
                 path,
                 "file meta",
                 format!(
-                    "element (0002,{:02X}{:02X}) declares {len} bytes at byte {value_at}, past \
-                     the end of the file ({file_len} bytes) or of a {MAX_META}-byte meta group",
+                    "element ({:02X}{:02X},{:02X}{:02X}) declares {len} bytes at byte {value_at}, \
+                     past the end of the file ({file_len} bytes) or of a {MAX_META}-byte meta group",
+                    head[at + 1],
+                    head[at],
                     head[at + 3],
                     head[at + 2]
                 ),
