@@ -63,6 +63,7 @@ pub mod identity;
 pub mod info;
 pub mod input;
 pub mod json;
+pub mod labels;
 pub mod look;
 pub mod memory;
 pub mod orient;

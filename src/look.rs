@@ -201,6 +201,12 @@ pub struct Ask {
     pub hit: HitMethod,
     pub shadows: bool,
     pub step_mm: f64,
+    /// The labels to draw of a label file ([`crate::labels::LabelStyle::parse`]:
+    /// `all`, `1,5-9`, names); `None`: all of them when the file is a
+    /// label file and nothing else is asked.
+    pub labels: Option<String>,
+    /// A colour table over the label file's own (`--lut`).
+    pub lut: Option<crate::labels::LabelTable>,
 }
 
 impl Default for Ask {
@@ -219,6 +225,8 @@ impl Default for Ask {
             hit: HitMethod::Int,
             shadows: false,
             step_mm: 0.5,
+            labels: None,
+            lut: None,
         }
     }
 }
@@ -259,6 +267,10 @@ pub enum ResolveError {
     /// The preset has no iso value for a surface, depth or cost render.
     #[error("preset {preset} has no iso value for mode {mode}")]
     NoIso { preset: String, mode: &'static str },
+    /// Labels asked of a file that has none, or a choice that names none
+    /// of its labels.
+    #[error("{0}")]
+    Labels(String),
 }
 
 /// The mode, iso value, window and composite look of `ask` on the file of
@@ -271,6 +283,40 @@ pub enum ResolveError {
 /// and its transfer function and shading to composites; what `ask` gives
 /// directly (`iso` without a preset, `window`, `shade`) wins.
 pub fn resolve(h: &Header, ask: &Ask) -> Result<Resolved, ResolveError> {
+    // A label file draws its labels unless something else is asked.
+    let plain = ask.mode.is_none() && ask.preset.is_none() && ask.tf.is_none() && ask.iso.is_none();
+    let labels = match (&ask.labels, &h.labels) {
+        (Some(_), None) => {
+            return Err(ResolveError::Labels(
+                "--labels draws the labels of a label file, and this file holds none: prepare \
+                 the segmentation with `cdvol prep --labels`"
+                    .into(),
+            ))
+        }
+        (Some(spec), Some(info)) => Some((spec.as_str(), info)),
+        (None, Some(info)) if plain => Some(("all", info)),
+        (None, _) => None,
+    };
+    if let Some((spec, info)) = labels {
+        if let Some(m) = ask.mode {
+            return Err(ResolveError::Labels(format!(
+                "--labels draws label surfaces, not mode {}: leave out --mode",
+                format!("{m:?}").to_lowercase()
+            )));
+        }
+        let style = crate::labels::LabelStyle::parse(spec, info, ask.lut.as_ref())
+            .map_err(|e| ResolveError::Labels(e.to_string()))?;
+        return Ok(Resolved {
+            mode: Mode::Labels {
+                hit: ask.hit,
+                style: std::sync::Arc::new(style),
+            },
+            iso: None,
+            window: Window::Auto,
+            look: CompositeLook::default(),
+            preset: None,
+        });
+    }
     let preset = match &ask.preset {
         Some(name) => Some(match ask.preset_range {
             Some(range) => preset_in(h, name, ask.force, range)?,

@@ -80,6 +80,22 @@ pub struct PrepSettings {
     /// Take a preset of another modality than the input's.
     #[arg(long, help_heading = heading::CLASSIFY)]
     pub force: bool,
+    /// The input is a label map (a segmentation): integers, 0 = none.
+    ///
+    /// Writes a label file for `render --labels`: classified by the union
+    /// of its labels, every label kept exactly, the labels and their
+    /// sample counts recorded (`cdvol info`). The input must have an
+    /// integer type, values 0..=65535 and no rescale.
+    #[arg(
+        long,
+        conflicts_with_all = ["iso", "classify_tf", "preset", "envelope"],
+        help_heading = heading::CLASSIFY
+    )]
+    pub labels: bool,
+    /// With --labels: the colour table to record (ITK-SNAP label
+    /// description, FreeSurfer *LUT.txt or JSON).
+    #[arg(long, value_name = "FILE", requires = "labels", help_heading = heading::CLASSIFY)]
+    pub lut: Option<PathBuf>,
     /// The input's modality, when it does not say and the guess is wrong.
     ///
     /// For NIfTI, NRRD and raw inputs, whose modality is guessed from their
@@ -149,6 +165,7 @@ impl PrepSettings {
             cdvol::presets::get(name).map_err(|e| anyhow::anyhow!("option --preset: {e}"))?;
         }
         let classification = match (self.iso, &self.classify_tf) {
+            _ if self.labels => Classification::Iso { iso: 0.5 },
             _ if !self.envelope.is_empty() || self.preset.is_some() => {
                 // Replaced by prep once it has seen the input.
                 Classification::Iso { iso: 0.0 }
@@ -163,8 +180,8 @@ impl PrepSettings {
                 tf: TransferFunction::load(tf)?,
             },
             (None, None) => anyhow::bail!(
-                "prep needs --iso T, --classify-tf FILE, --preset NAME or --envelope ITEMS to \
-                 decide which cells are objects"
+                "prep needs --iso T, --classify-tf FILE, --preset NAME, --envelope ITEMS or \
+                 --labels to decide which cells are objects"
             ),
             _ => anyhow::bail!(
                 "--iso, --classify-tf and --preset each choose the classification: give one"
@@ -175,6 +192,11 @@ impl PrepSettings {
         opts.preset = self.preset.clone();
         opts.modality = self.modality.map(Into::into);
         opts.force = self.force;
+        opts.labels = self.labels;
+        opts.label_table = match &self.lut {
+            Some(p) => Some(cdvol::labels::LabelTable::load(p)?),
+            None => None,
+        };
         Ok(opts)
     }
 

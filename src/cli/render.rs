@@ -215,6 +215,18 @@ pub struct RenderArgs {
     /// Shadow rays, traced with the same traversal.
     #[arg(long, help_heading = heading::LOOK)]
     pub shadows: bool,
+    /// Label files: the labels to draw (`1,5-9`, names, `all`).
+    ///
+    /// A file made by `prep --labels` draws all its labels by default;
+    /// each label's surface is the 0.5 level of its smoothed indicator,
+    /// in the colour table's colour and opacity.
+    #[arg(long, value_name = "LIST", conflicts_with_all = ["mode", "preset", "tf", "iso"],
+          help_heading = heading::LOOK)]
+    pub labels: Option<String>,
+    /// Label files: a colour table over the file's own (ITK-SNAP,
+    /// FreeSurfer *LUT.txt or JSON).
+    #[arg(long, value_name = "FILE", help_heading = heading::LOOK)]
+    pub lut: Option<PathBuf>,
     /// Surface normals: smooth or per cell.
     ///
     /// Central differences interpolated (smooth), or each cell's own

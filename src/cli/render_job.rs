@@ -49,6 +49,11 @@ impl RenderArgs {
             hit: self.hit.into(),
             shadows: self.shadows,
             step_mm: self.step,
+            labels: self.labels.clone(),
+            lut: match &self.lut {
+                Some(p) => Some(cdvol::labels::LabelTable::load(p)?),
+                None => None,
+            },
         })
     }
 
@@ -170,6 +175,7 @@ impl RenderArgs {
                 "preset {preset} has no iso value for --mode {mode}; render it with --mode \
                  composite"
             ),
+            ResolveError::Labels(m) => anyhow::anyhow!("{}: {m}", vol.path().display()),
         })?;
         let cap_colours = look.cap_colours();
         Ok(RenderJob {

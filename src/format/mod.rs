@@ -198,6 +198,11 @@ pub struct Header {
     /// default look in `render` and `serve`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub look: Option<String>,
+    /// A label file (`prep --labels`): the labels it holds and its colour
+    /// table ([`crate::labels`]); absent otherwise, so older files read
+    /// unchanged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub labels: Option<crate::labels::LabelInfo>,
     pub summary: Summary,
 }
 

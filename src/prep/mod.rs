@@ -81,6 +81,13 @@ pub struct PrepOptions {
     /// library's default is true; `cdvol prep` and `prep-batch` refuse
     /// unless `--allow-empty` is given.
     pub allow_empty: bool,
+    /// `--labels`: the input is a label map ([`crate::labels`]): integer
+    /// samples 0..=65535 without rescale, classified by the union of its
+    /// labels (any vertex not 0); replaces `classification`. The header
+    /// records the labels and `label_table`.
+    pub labels: bool,
+    /// The colour table recorded in a label file (`prep --lut`).
+    pub label_table: Option<crate::labels::LabelTable>,
 }
 
 impl PrepOptions {
@@ -102,6 +109,8 @@ impl PrepOptions {
             decided: None,
             format_version: FORMAT_VERSION,
             allow_empty: true,
+            labels: false,
+            label_table: None,
         }
     }
 
@@ -132,6 +141,54 @@ impl PrepOptions {
             });
         }
         Ok(())
+    }
+}
+
+impl PrepOptions {
+    /// The options of a label map ([`PrepOptions::labels`]): classified
+    /// by the union of its labels, after checking that the input can be
+    /// one (an integer type, no rescale) and that no other classification
+    /// was asked for.
+    fn for_labels(&self, meta: &crate::input::VolumeMeta) -> Result<PrepOptions, PrepError> {
+        let bad = |field: &'static str, msg: String| {
+            PrepError::Labels(crate::labels::LabelError::Volume {
+                source_desc: meta.origin_desc.clone(),
+                field,
+                msg,
+            })
+        };
+        if meta.dtype.is_float() {
+            return Err(bad(
+                "dtype",
+                format!(
+                    "{}, expected an integer type (u8, u16, i16, ...): a label map holds a whole \
+                     number per sample",
+                    meta.dtype.name()
+                ),
+            ));
+        }
+        let r = meta.rescale;
+        if r.slope != 1.0 || r.intercept != 0.0 {
+            return Err(bad(
+                "rescale",
+                format!(
+                    "slope {} intercept {}, expected none (slope 1, intercept 0): labels are \
+                     numbers, not measurements",
+                    r.slope, r.intercept
+                ),
+            ));
+        }
+        if self.preset.is_some() || !self.envelope.is_empty() {
+            return Err(PrepError::Option {
+                field: "labels",
+                value: "on".into(),
+                msg: "a label map is classified by its labels: no --preset or --envelope".into(),
+            });
+        }
+        let mut o = self.clone();
+        o.classification = Classification::Iso { iso: 0.5 };
+        o.decided = None;
+        Ok(o)
     }
 }
 
@@ -299,6 +356,9 @@ pub enum PrepError {
         source_desc: String,
         warning: SelectionWarning,
     },
+    /// A label map that is not one (`--labels`).
+    #[error(transparent)]
+    Labels(#[from] crate::labels::LabelError),
     /// A [`PrepOptions`] field is out of range: the field, its value, and
     /// what was expected.
     #[error("{field} {value}: {msg}")]
@@ -402,8 +462,13 @@ pub fn prep(
         )));
     }
     // Decided after the checks above: it reads slices (the modality's
-    // guess, an MR preset's landmarks).
-    let opts = &opts.resolved(src)?;
+    // guess, an MR preset's landmarks). A label map has no modality and
+    // is classified by its labels.
+    let opts = &if opts.labels {
+        opts.for_labels(&meta)?
+    } else {
+        opts.resolved(src)?
+    };
     let decided = opts.decided.as_ref();
     let b = opts.brick_size;
     let [nx, ny, nz] = meta.dims();
@@ -450,6 +515,9 @@ pub fn prep(
     };
     let (mut raw_min, mut raw_max) = (f64::INFINITY, f64::NEG_INFINITY);
     let mut values = HistogramBuilder::new(meta.dtype);
+    let mut label_counter = opts
+        .labels
+        .then(|| crate::labels::LabelCounter::new(&meta.origin_desc));
     let mut st = StageTimes::default();
     let lap = |t: &mut Instant| {
         let e = t.elapsed().as_secs_f64();
@@ -463,6 +531,9 @@ pub fn prep(
         st.read1 += lap(&mut t);
         if meta.dtype.is_float() {
             summary.nan_samples += buf.par_iter().filter(|v| v.is_nan()).count() as u64;
+        }
+        if let Some(c) = label_counter.as_mut() {
+            c.add_slice(&buf, nx, z)?;
         }
         let cur = z % 2;
         let (lo, hi) = match cls {
@@ -513,7 +584,11 @@ pub fn prep(
             warning: SelectionWarning {
                 one_cells: 0,
                 cells: summary.cells,
-                classification: describe_classification(cls),
+                classification: if opts.labels {
+                    "the labels (every sample is 0)".into()
+                } else {
+                    describe_classification(cls)
+                },
                 range: range.map(|(a, b)| {
                     let (a, b) = (meta.rescale.apply(a), meta.rescale.apply(b));
                     [a.min(b), a.max(b)]
@@ -555,6 +630,7 @@ pub fn prep(
             crate::format::landmarks::Landmarks::of(h, "the file's value histogram")
         }),
         look: decided.and_then(|d| d.look.clone()),
+        labels: label_counter.map(|c| c.finish(opts.label_table.clone())),
         summary: Summary::default(),
     };
     if header.max_payload_len() > crate::format::MAX_PAYLOAD_LEN {

@@ -34,11 +34,18 @@ pub enum Mode {
     Cost,
     /// Distance to the iso-surface in mm.
     Depth { hit: HitMethod },
+    /// The surfaces of the chosen labels of a label file
+    /// ([`crate::labels`]): each the 0.5 level of its smoothed indicator,
+    /// shaded in its colour, drawn front to back by its opacity.
+    Labels {
+        hit: HitMethod,
+        style: std::sync::Arc<crate::labels::LabelStyle>,
+    },
 }
 
 impl Mode {
     /// The stable name of the mode (stats JSON, part keys): `surface`,
-    /// `mip`, `composite`, `cost`, `depth`.
+    /// `mip`, `composite`, `cost`, `depth`, `labels`.
     pub fn name(&self) -> &'static str {
         match self {
             Mode::Surface { .. } => "surface",
@@ -46,6 +53,7 @@ impl Mode {
             Mode::Composite { .. } => "composite",
             Mode::Cost => "cost",
             Mode::Depth { .. } => "depth",
+            Mode::Labels { .. } => "labels",
         }
     }
 }
@@ -508,6 +516,12 @@ pub(crate) fn check_mode(
                 None => Ok(()),
             }
         }
+        (Mode::Labels { .. }, _) if h.labels.is_none() => Err(RenderError::Incompatible {
+            path,
+            msg: "--labels draws the labels of a label file, and this file holds none: prepare \
+                  the segmentation with `cdvol prep --labels`"
+                .into(),
+        }),
         _ => Ok(()),
     }
 }

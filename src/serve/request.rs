@@ -245,6 +245,8 @@ impl ViewRequest {
             hit: self.hit,
             shadows: self.shadows,
             step_mm: self.step_mm,
+            labels: None,
+            lut: None,
         };
         let bad_preset = |expected: String| RequestError::Bad {
             name: "preset",
@@ -262,6 +264,7 @@ impl ViewRequest {
             ResolveError::NoIso { .. } => {
                 bad_preset(format!("a preset with an iso value for mode={}", self.mode))
             }
+            ResolveError::Labels(m) => RequestError::Conflict(m),
         })?;
         let cap_colours = look.cap_colours();
         let mut o = RenderOptions::new(look.mode, crate::render::default_method(h));

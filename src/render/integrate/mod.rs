@@ -15,6 +15,7 @@ mod composite;
 mod cost;
 mod depth;
 mod index_map;
+mod labels;
 mod mip;
 pub(crate) mod policy;
 mod refine;
@@ -282,6 +283,7 @@ pub(crate) fn pixel<T: Real>(
             surface::surface(ctx, ray, span, acc, *hit, *shadows, &mut px)
         }
         Mode::Depth { hit } => depth::depth(ctx, ray, span, acc, *hit, &mut px),
+        Mode::Labels { hit, style } => labels::labels(ctx, ray, span, acc, *hit, style, &mut px),
         Mode::Mip => mip::mip(ctx, ray, span, acc, &mut px),
         Mode::Cost => cost::cost(ctx, ray, acc, &mut px),
         Mode::Composite { step_mm, .. } => {
@@ -294,7 +296,7 @@ pub(crate) fn pixel<T: Real>(
             }
         }
     };
-    if !matches!(ctx.opts.mode, Mode::Composite { .. }) {
+    if !matches!(ctx.opts.mode, Mode::Composite { .. } | Mode::Labels { .. }) {
         px.alpha = if px.hit { 1.0 } else { 0.0 };
     }
     px.steps = counts.steps.min(u32::MAX as u64) as u32;

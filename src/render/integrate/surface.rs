@@ -41,7 +41,7 @@ struct Hit {
 /// Whether the first visit `v` (cut to `span`) starts on `span`'s cut:
 /// its entry is the span's start (within the walk's rounding of it).
 #[inline]
-fn on_cut(v: &Visit, span: &Span) -> bool {
+pub(super) fn on_cut(v: &Visit, span: &Span) -> bool {
     span.cut.is_some() && v.t_enter - span.start <= 1e-9 * span.start.abs().max(1.0)
 }
 

@@ -142,11 +142,16 @@ pub struct OptionsKey {
     /// The scene's iso value (`render --iso`), when given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub iso: Option<f64>,
+    /// Labels: the chosen labels, their colours and opacities (debug
+    /// text, which round-trips floats).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub labels: Option<String>,
 }
 
 impl OptionsKey {
     pub fn new(o: &RenderOptions) -> OptionsKey {
         let (mut hit, mut shadows, mut tf, mut step_mm) = (None, None, None, None);
+        let mut labels = None;
         match &o.mode {
             Mode::Surface { hit: h, shadows: s } => {
                 hit = Some(h.name().to_string());
@@ -156,6 +161,10 @@ impl OptionsKey {
             Mode::Composite { tf: t, step_mm: s } => {
                 tf = Some(t.clone());
                 step_mm = Some(*s);
+            }
+            Mode::Labels { hit: h, style } => {
+                hit = Some(h.name().to_string());
+                labels = Some(format!("{style:?}"));
             }
             Mode::Mip | Mode::Cost => {}
         }
@@ -180,6 +189,7 @@ impl OptionsKey {
             normals: (composite || matches!(o.mode, Mode::Surface { .. }))
                 .then(|| o.normals.name().into()),
             iso: o.iso,
+            labels,
         }
     }
 }

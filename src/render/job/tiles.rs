@@ -310,6 +310,18 @@ pub struct TilePx {
 }
 
 impl TilePx {
+    /// The distance in mm along its ray of each pixel's first hit (NaN
+    /// on a miss), row by row: what a part file stores, before colouring.
+    pub fn depths(&self) -> Vec<f32> {
+        self.px().map(|p| p.depth).collect()
+    }
+
+    /// Each pixel's coverage in [0, 1] (the composite's or the labels'
+    /// opacity, 1 on a surface hit), row by row.
+    pub fn coverage(&self) -> Vec<f32> {
+        self.px().map(|p| p.alpha).collect()
+    }
+
     /// The `w * h` pixels row by row, a left-out tile's as misses.
     pub(crate) fn px(&self) -> impl Iterator<Item = &Px> {
         let missing = if self.pixels.is_empty() {

@@ -30,7 +30,7 @@ impl Colouring {
     /// The colouring of a render of `vol` with `opts` (MIP: `opts.window`).
     pub fn of(vol: &PackedVolume, opts: &RenderOptions) -> Colouring {
         match opts.mode {
-            Mode::Surface { .. } | Mode::Composite { .. } => Colouring::Rgb,
+            Mode::Surface { .. } | Mode::Composite { .. } | Mode::Labels { .. } => Colouring::Rgb,
             Mode::Mip => Colouring::Mip {
                 window: match opts.window {
                     Window::Auto => None,

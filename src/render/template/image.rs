@@ -180,7 +180,7 @@ pub fn render_template_with(
             Mode::Surface { .. } => Colouring::Rgb,
             Mode::Depth { .. } => Colouring::Depth,
             Mode::Cost => Colouring::Cost,
-            Mode::Mip | Mode::Composite { .. } => {
+            Mode::Mip | Mode::Composite { .. } | Mode::Labels { .. } => {
                 return Err(refuse(format!(
                     "mode {} is not implemented for templates (surface, depth and cost are)",
                     opts.mode.name()
