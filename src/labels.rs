@@ -549,6 +549,19 @@ const W: [f64; 3] = [0.25, 0.5, 0.25];
 /// hold its surface, so the union of the labels' 1-cells holds them all.
 #[inline]
 pub fn smoothed(block: &[u16], n: usize, at: [usize; 3], label: u16) -> f64 {
+    let s = filtered(block, n, at, label);
+    if block[(at[2] * n + at[1]) * n + at[0]] == label {
+        s.max(0.5 + MARGIN)
+    } else {
+        s.min(0.5 - MARGIN)
+    }
+}
+
+/// [`smoothed`] before the clamp: the binomial filter of the indicator
+/// alone, whose gradient shades the surface (the clamp's kinks would show
+/// as streaks).
+#[inline]
+pub fn filtered(block: &[u16], n: usize, at: [usize; 3], label: u16) -> f64 {
     let mut s = 0.0;
     for (dz, wz) in W.iter().enumerate() {
         for (dy, wy) in W.iter().enumerate() {
@@ -560,11 +573,7 @@ pub fn smoothed(block: &[u16], n: usize, at: [usize; 3], label: u16) -> f64 {
             }
         }
     }
-    if block[(at[2] * n + at[1]) * n + at[0]] == label {
-        s.max(0.5 + MARGIN)
-    } else {
-        s.min(0.5 - MARGIN)
-    }
+    s
 }
 
 #[cfg(test)]

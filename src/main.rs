@@ -228,6 +228,18 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                 info.surface_iso
             );
         }
+        Command::Segment(a) => {
+            let s = cdvol::tools::segment::segment_ct(&a.input, &a.output, progress)?;
+            println!(
+                "wrote {}, {} and {}: {} soft tissue, {} bone and {} air-space samples",
+                s.sidecar.display(),
+                s.raw.display(),
+                s.lut.display(),
+                s.counts[1],
+                s.counts[2],
+                s.counts[3]
+            );
+        }
         Command::Render(a) => render(&a, progress)?,
         Command::Demo(a) => demo::run(&a.dir, progress)?,
         Command::Assemble(a) => {

@@ -16,7 +16,7 @@ pub use render::{AssembleArgs, ExperimentRenderArgs, RenderArgs};
 pub use render_job::render_error;
 pub use tools::{
     phantom_error, DemoArgs, ExperimentCmd, ExportArgs, HistogramArgs, InfoArgs, PhantomCmd,
-    PresetsArgs, ServeArgs,
+    PresetsArgs, SegmentArgs, ServeArgs,
 };
 
 /// The headings of `--help`, in the order the commands list them: the
@@ -67,6 +67,9 @@ pub enum Command {
     /// Generate test volumes.
     #[command(subcommand)]
     Phantom(PhantomCmd),
+    /// A label map of a CT by thresholds (soft tissue, bone, air spaces)
+    /// with its colour table, for `prep --labels`.
+    Segment(SegmentArgs),
     /// Ray-cast a packed file into a PNG.
     Render(Box<RenderArgs>),
     /// Generate the CT-like phantom and a sphere scene, prepare and render

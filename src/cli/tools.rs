@@ -288,6 +288,16 @@ pub struct ExportArgs {
     pub output: PathBuf,
 }
 
+#[derive(Args, Debug)]
+pub struct SegmentArgs {
+    /// A CT (any input prep reads), in HU after its rescale.
+    pub input: PathBuf,
+    /// Output sidecar of the u8 label map; STEM.raw and the colour table
+    /// STEM.lut.json go beside it.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
 #[derive(Subcommand, Debug)]
 pub enum PhantomCmd {
     /// The paper's section 5.1 scenes: N^3 random spheres of equal total volume.

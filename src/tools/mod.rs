@@ -27,3 +27,4 @@ pub mod corpus;
 pub mod experiment;
 pub mod normals;
 pub mod phantom;
+pub mod segment;

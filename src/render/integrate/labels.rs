@@ -25,7 +25,7 @@ use glam::DVec3;
 
 use super::surface::on_cut;
 use super::{walk_span, Ctx, Px};
-use crate::labels::{smoothed, LabelStyle};
+use crate::labels::{filtered, smoothed, LabelStyle};
 use crate::render::cache::Accessor;
 use crate::render::clip::Span;
 use crate::render::clock;
@@ -244,9 +244,10 @@ pub(super) fn labels<T: Real>(
     counts
 }
 
-/// The gradient (per mm) of `label`'s smoothed indicator at point `p` of
-/// `cell`: central differences at the 8 vertices (one-sided at the
-/// volume's faces), interpolated trilinearly. It points into the label,
+/// The gradient (per mm) of `label`'s filtered indicator
+/// ([`filtered`]: smoothed, not clamped) at point `p` of `cell`: central
+/// differences at the 8 vertices (one-sided at the volume's faces),
+/// interpolated trilinearly. It points into the label,
 /// as an iso-surface's gradient points into the object.
 fn smooth_normal(
     acc: &mut Accessor,
@@ -261,7 +262,7 @@ fn smooth_normal(
     let mut block = [0u16; 216];
     read_block(acc, n, cell.map(|c| c as i64 - 2), 6, &mut block);
     let c = cell.map(|x| x as usize);
-    let s = |o: [usize; 3]| smoothed(&block, 6, [o[0] + 1, o[1] + 1, o[2] + 1], label);
+    let s = |o: [usize; 3]| filtered(&block, 6, [o[0] + 1, o[1] + 1, o[2] + 1], label);
     let g: [DVec3; 8] = std::array::from_fn(|v| {
         // Vertex v at block offset 1 + (0 or 1) per axis.
         let o = [1 + (v & 1), 1 + (v >> 1 & 1), 1 + (v >> 2)];
