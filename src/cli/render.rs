@@ -220,9 +220,15 @@ pub struct RenderArgs {
     /// A file made by `prep --labels` draws all its labels by default;
     /// each label's surface is the 0.5 level of its smoothed indicator,
     /// in the colour table's colour and opacity.
-    #[arg(long, value_name = "LIST", conflicts_with_all = ["mode", "preset", "tf", "iso"],
-          help_heading = heading::LOOK)]
+    #[arg(long, value_name = "LIST", help_heading = heading::LOOK)]
     pub labels: Option<String>,
+    /// Draw a label file (on this file's grid) inside this render.
+    ///
+    /// Surface and composite renders: each ray ends at the first surface
+    /// of the chosen labels (--labels, --lut), which is drawn behind what
+    /// the scan shows in front of it.
+    #[arg(long, value_name = "FILE", help_heading = heading::LOOK)]
+    pub overlay: Option<PathBuf>,
     /// Label files: a colour table over the file's own (ITK-SNAP,
     /// FreeSurfer *LUT.txt or JSON).
     #[arg(long, value_name = "FILE", help_heading = heading::LOOK)]

@@ -49,12 +49,41 @@ impl RenderArgs {
             hit: self.hit.into(),
             shadows: self.shadows,
             step_mm: self.step,
-            labels: self.labels.clone(),
+            // With --overlay, --labels and --lut are the overlay's.
+            labels: self.labels.clone().filter(|_| self.overlay.is_none()),
             lut: match &self.lut {
-                Some(p) => Some(cdvol::labels::LabelTable::load(p)?),
-                None => None,
+                Some(p) if self.overlay.is_none() => Some(cdvol::labels::LabelTable::load(p)?),
+                _ => None,
             },
         })
+    }
+
+    /// The label file of `--overlay` with the labels of `--labels` (all
+    /// by default) in the colours of `--lut` or its own table.
+    fn overlay(&self) -> anyhow::Result<Option<cdvol::render::Overlay>> {
+        let Some(path) = &self.overlay else {
+            return Ok(None);
+        };
+        let vol = cdvol::format::reader::PackedVolume::open(path)?;
+        let Some(info) = vol.header().labels.clone() else {
+            anyhow::bail!(
+                "{}: --overlay draws a label file, and this file holds no labels: prepare the \
+                 segmentation with `cdvol prep --labels`",
+                path.display()
+            );
+        };
+        let lut = match &self.lut {
+            Some(p) => Some(cdvol::labels::LabelTable::load(p)?),
+            None => None,
+        };
+        let spec = self.labels.as_deref().unwrap_or("all");
+        let style = cdvol::labels::LabelStyle::parse(spec, &info, lut.as_ref())
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        Ok(Some(cdvol::render::Overlay {
+            vol: std::sync::Arc::new(vol),
+            style: std::sync::Arc::new(style),
+            hit: self.hit.into(),
+        }))
     }
 
     /// The MIP window of `--window` and `--level`; `None` for `auto` (the
@@ -213,6 +242,7 @@ impl RenderArgs {
                 clip: self.clip(vol)?,
                 cap: !self.no_cap,
                 cap_colours,
+                overlay: self.overlay()?,
             },
             template: self.traversal == Some(TraversalArg::Template),
             output: self.output.clone(),

@@ -123,6 +123,112 @@ pub struct RenderOptions {
     /// the cut's data value tints it (a surface render's preset's); grey
     /// without one.
     pub cap_colours: Option<TransferFunction>,
+    /// Labels drawn inside this render (`render --overlay`): surface and
+    /// composite renders only ([`Overlay`]).
+    pub overlay: Option<Overlay>,
+}
+
+/// A label file drawn inside a surface or composite render of a scan on
+/// the same grid (`render --overlay`, issue 55). Each ray is first walked
+/// through the label file (its own traversal and brick cache) to its
+/// label surfaces ([`Mode::Labels`]), then through the scan up to the
+/// first label hit only: the scan's surface or its composite samples in
+/// front of the label occlude it, and the label's colour goes behind them
+/// (`rgb = scan + (1 - scan alpha) * label`). Translucent labels are
+/// composited among themselves; the scan behind the first label surface
+/// is not drawn.
+#[derive(Clone)]
+pub struct Overlay {
+    pub vol: std::sync::Arc<PackedVolume>,
+    pub style: std::sync::Arc<crate::labels::LabelStyle>,
+    pub hit: HitMethod,
+}
+
+/// The label file's path and the style (render part keys hold the
+/// options' debug text).
+impl std::fmt::Debug for Overlay {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Overlay")
+            .field("vol", &self.vol.path())
+            .field("style", &self.style)
+            .field("hit", &self.hit)
+            .finish()
+    }
+}
+
+/// Refuses an overlay on another grid than the scan's (naming both), on a
+/// file without labels, or under a mode that draws no surface to put it
+/// in.
+pub(crate) fn check_overlay(vol: &PackedVolume, opts: &RenderOptions) -> Result<(), RenderError> {
+    let Some(ov) = &opts.overlay else {
+        return Ok(());
+    };
+    let (a, b) = (vol.header(), ov.vol.header());
+    if !matches!(opts.mode, Mode::Surface { .. } | Mode::Composite { .. }) {
+        return Err(bad(
+            "overlay",
+            ov.vol.path().display().to_string(),
+            format!(
+                "a surface or composite render to draw the labels in, not mode {}",
+                opts.mode.name()
+            ),
+        ));
+    }
+    if b.labels.is_none() {
+        return Err(RenderError::Incompatible {
+            path: ov.vol.path().to_path_buf(),
+            msg: "--overlay draws a label file, and this file holds no labels: prepare the \
+                  segmentation with `cdvol prep --labels`"
+                .into(),
+        });
+    }
+    let same = a.dims == b.dims
+        && (0..3).all(|k| {
+            let (x, y) = (a.axes[k].coords(), b.axes[k].coords());
+            x.len() == y.len() && x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits())
+        });
+    if !same {
+        return Err(RenderError::Incompatible {
+            path: ov.vol.path().to_path_buf(),
+            msg: format!(
+                "the label file's grid, {}, is not the scan's, {} ({}): labels are drawn on \
+                 the scan's own samples, and cdvol does not resample",
+                grid_words(b),
+                grid_words(a),
+                vol.path().display()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// A grid for people: `256 x 256 x 108 samples over 0 .. 244 x 0 .. 244 x
+/// 0 .. 160.5 mm`, and `(rectilinear z)` where an axis is not uniform.
+fn grid_words(h: &crate::format::Header) -> String {
+    let ext: Vec<String> = h
+        .axes
+        .iter()
+        .map(|a| {
+            let c = a.coords();
+            format!("{} .. {}", c[0], c[c.len() - 1])
+        })
+        .collect();
+    let rect: Vec<&str> = (0..3)
+        .filter(|&k| !h.axes[k].is_uniform())
+        .map(|k| ["x", "y", "z"][k])
+        .collect();
+    format!(
+        "{} x {} x {} samples over {} mm{}",
+        h.dims[0],
+        h.dims[1],
+        h.dims[2],
+        ext.join(" x "),
+        if rect.is_empty() {
+            String::new()
+        } else {
+            format!(" (rectilinear {})", rect.join(", "))
+        }
+    )
 }
 
 /// Default of [`RenderOptions::early_stop`].
@@ -290,6 +396,7 @@ impl RenderOptions {
             clip: Clip::default(),
             cap: true,
             cap_colours: None,
+            overlay: None,
         }
     }
 }
@@ -378,6 +485,7 @@ pub(crate) fn check_render(
 ) -> Result<(), RenderError> {
     check_mode(vol, &opts.mode, opts.iso)?;
     check_scene_iso(vol, opts)?;
+    check_overlay(vol, opts)?;
     let h = vol.header();
     let lo = h.axes.each_ref().map(|a| a.coords()[0]);
     let hi = h.axes.each_ref().map(|a| a.coords()[a.coords().len() - 1]);

@@ -411,3 +411,127 @@ fn bad_label_inputs_are_refused_by_name_and_nothing_is_written() {
         .arg("-o")
         .arg(p.join("named.png")));
 }
+
+/// A scan on the phantom's grid: 1000 in a lid over `x < 20` mm at the
+/// top of the volume (`z > 24` mm), 0 elsewhere.
+fn lidded_scan(dir: &Path) -> PackedVolume {
+    let [xs, ys, zs] = positions();
+    let mut v = Vec::new();
+    for z in &zs {
+        for _ in &ys {
+            for x in &xs {
+                v.push(if *x < 20.0 && *z > 24.0 { 1000.0 } else { 0.0 });
+            }
+        }
+    }
+    let ax = [axis_json(&xs), axis_json(&ys), axis_json(&zs)];
+    let input = write_stack(dir, "scan", DIMS, "i16", &v, [&ax[0], &ax[1], &ax[2]], "");
+    crate::common::packed(&input, &dir.join("scan.cdv"), 500.0)
+}
+
+#[test]
+fn labels_over_a_scan_are_hidden_by_what_lies_in_front_of_them() {
+    let d = tempfile::tempdir().unwrap();
+    let (_, labels) = prepared(d.path());
+    let scan = lidded_scan(d.path());
+    // Looking down -z: the lid hides spheres 2 and 3, not 1.
+    let cam = camera([0.0, 0.0, -1.0]);
+    let info = labels.header().labels.clone().unwrap();
+    let style = std::sync::Arc::new(LabelStyle::parse("all", &info, None).unwrap());
+    let surface = Mode::Surface {
+        hit: HitMethod::Exact,
+        shadows: false,
+    };
+    let alone = test_opts(surface.clone(), Method::Cd { min_leap: 1 });
+    let mut with = alone.clone();
+    with.overlay = Some(cdvol::render::Overlay {
+        vol: std::sync::Arc::new(labels.clone()),
+        style: style.clone(),
+        hit: HitMethod::Exact,
+    });
+    let depths = |vol: &PackedVolume, opts: &cdvol::render::RenderOptions| {
+        let part = render_part(vol, &cam, opts, Shard::WHOLE, &NoProgress).unwrap();
+        let w = cam.width as usize;
+        let mut out = vec![f32::NAN; w * cam.height as usize];
+        for t in &part.tiles {
+            for (i, dd) in t.depths().into_iter().enumerate() {
+                out[(t.y0 as usize + i / t.w as usize) * w + t.x0 as usize + i % t.w as usize] = dd;
+            }
+        }
+        out
+    };
+    let frame = |vol: &PackedVolume, opts: &cdvol::render::RenderOptions| {
+        cdvol::render::render(vol, &cam, opts, &NoProgress)
+            .unwrap()
+            .0
+    };
+    let (scan_d, lab_d) = (
+        depths(&scan, &alone),
+        draw_style(&labels, &cam, (*style).clone(), HitMethod::Exact).0,
+    );
+    let both_d = depths(&scan, &with);
+    let (scan_f, both_f) = (frame(&scan, &alone), frame(&scan, &with));
+    let lab_f = frame(
+        &labels,
+        &test_opts(
+            Mode::Labels {
+                hit: HitMethod::Exact,
+                style,
+            },
+            Method::Cd { min_leap: 1 },
+        ),
+    );
+    let (mut hidden, mut shown) = (0, 0);
+    for i in 0..both_d.len() {
+        let (s, l) = (scan_d[i], lab_d[i]);
+        let px = |f: &cdvol::render::Frame| f.rgb[3 * i..3 * i + 3].to_vec();
+        if s.is_finite() && !(l < s) {
+            // The scan's surface is in front: it alone is drawn.
+            assert_eq!(both_d[i].to_bits(), s.to_bits(), "pixel {i}");
+            assert_eq!(px(&both_f), px(&scan_f), "pixel {i}");
+            hidden += l.is_finite() as u32;
+        } else if l.is_finite() {
+            // The label is in front of (or without) any scan surface.
+            assert_eq!(both_d[i].to_bits(), l.to_bits(), "pixel {i}");
+            assert_eq!(px(&both_f), px(&lab_f), "pixel {i}");
+            shown += 1;
+        } else {
+            assert!(both_d[i].is_nan(), "pixel {i}");
+        }
+    }
+    // Spheres 2 and 3 lie under the lid; spheres 1 and 4 are seen.
+    assert!(
+        hidden > 300 && shown > 300,
+        "{hidden} hidden, {shown} shown"
+    );
+
+    // Grids that differ are refused, naming both.
+    let other = {
+        let dd = d.path().join("o");
+        std::fs::create_dir_all(&dd).unwrap();
+        let v = vec![0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0];
+        let input = write_stack(&dd, "o", [2, 2, 2], "u8", &v, ["1.0", "1.0", "1.0"], "");
+        let out = dd.join("o.cdv");
+        let src = cdvol::input::open(&input).unwrap();
+        let mut o = PrepOptions::new(cdvol::classify::Classification::Iso { iso: 0.0 });
+        o.labels = true;
+        prep(src.as_ref(), &out, &o, &NoProgress).unwrap();
+        PackedVolume::open(&out).unwrap()
+    };
+    let info = other.header().labels.clone().unwrap();
+    with.overlay = Some(cdvol::render::Overlay {
+        vol: std::sync::Arc::new(other),
+        style: std::sync::Arc::new(LabelStyle::parse("all", &info, None).unwrap()),
+        hit: HitMethod::Exact,
+    });
+    let e = cdvol::render::render(&scan, &cam, &with, &NoProgress)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("o.cdv")
+            && e.contains("2 x 2 x 2 samples")
+            && e.contains("46 x 36 x 26 samples")
+            && e.contains("(rectilinear z)"),
+        "{e}"
+    );
+}

@@ -259,17 +259,21 @@ pub(crate) fn walk_span<T: Real>(
 /// over the interval the clip keeps ([`Clip::span`]): a ray it keeps none
 /// of is a miss without a walk. The cost map traces from 0 and ignores the
 /// clip, as it shows what the whole traversal costs.
-pub(crate) fn pixel<T: Real>(
+///
+/// The walk also ends at `t_end` (an overlay's first label hit,
+/// [`RenderOptions::overlay`]; infinite without one).
+pub(crate) fn pixel_until<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
     t_start: f64,
+    t_end: f64,
     acc: &mut Accessor,
 ) -> (Px, StepCounts) {
     let mut px = Px {
         depth: f32::NAN,
         ..Px::default()
     };
-    let span = match &ctx.opts.mode {
+    let mut span = match &ctx.opts.mode {
         Mode::Cost => Span::from(0.0),
         _ if ctx.clip.is_none() => Span::from(t_start),
         _ => match ctx.clip.span(ray, t_start) {
@@ -277,6 +281,12 @@ pub(crate) fn pixel<T: Real>(
             None => return (Px::MISS, StepCounts::default()),
         },
     };
+    if t_end < span.end {
+        if !(t_end > span.start) {
+            return (Px::MISS, StepCounts::default());
+        }
+        span.end = t_end;
+    }
     let span = &span;
     let counts = match &ctx.opts.mode {
         Mode::Surface { hit, shadows } => {
@@ -301,4 +311,21 @@ pub(crate) fn pixel<T: Real>(
     }
     px.steps = counts.steps.min(u32::MAX as u64) as u32;
     (px, counts)
+}
+
+/// `front` (a scan's pixel over the interval before the label hit) over
+/// `back` (the labels' pixel): colours premultiplied, so `front + (1 -
+/// its alpha) * back`; the nearer depth, the summed steps.
+pub(crate) fn over(front: Px, back: Px) -> Px {
+    if back.is_miss() {
+        return front;
+    }
+    let k = 1.0 - front.alpha;
+    Px {
+        rgb: std::array::from_fn(|i| front.rgb[i] + k * back.rgb[i]),
+        alpha: front.alpha + k * back.alpha,
+        depth: if front.hit { front.depth } else { back.depth },
+        steps: front.steps.saturating_add(back.steps),
+        hit: front.hit || back.hit,
+    }
 }

@@ -20,7 +20,7 @@ use crate::progress::Progress;
 use crate::render::cache::{Accessor, BrickCache, CacheCounters};
 use crate::render::clock::{self, KernelUse, TileTime};
 use crate::render::error::RenderError;
-use crate::render::integrate::{pixel, Ctx, Px};
+use crate::render::integrate::{over, pixel_until, Ctx, Px};
 use crate::render::options::{check_render, Precision, RenderOptions};
 use crate::render::output::canvas::{Canvas, Planes};
 use crate::render::output::colour::{colour_blocks, Colouring, PxBlock};
@@ -89,6 +89,7 @@ fn render_whole(
         progress,
         stop,
         canvas: canvas.as_ref(),
+        under: None,
     });
     drop(canvas);
     let (tiles, stats) = tiles?;
@@ -144,6 +145,7 @@ pub(crate) fn render_shard(
         progress,
         stop: None,
         canvas: None,
+        under: None,
     })
 }
 
@@ -160,6 +162,10 @@ struct TileJob<'a, 'c> {
     progress: &'a dyn Progress,
     stop: Option<&'a AtomicBool>,
     canvas: Option<&'a Canvas<'c>>,
+    /// The overlay's label pixels of the whole image, row by row, which
+    /// this render's pixels end at and are drawn over
+    /// ([`RenderOptions::overlay`]).
+    under: Option<&'a [Px]>,
 }
 
 /// Checks the options ([`check_render`]) and the shard.
@@ -186,9 +192,23 @@ fn render_checked(job: &TileJob) -> Result<(Vec<TilePx>, Stats), RenderError> {
     let (t0, k0) = (Instant::now(), KernelUse::now());
     let (cache, opts) = (job.cache, job.opts);
     let (w, hgt) = (job.camera.width, job.camera.height);
+    // An overlay's labels first, in the same tiles: the scan's rays then
+    // end at them.
+    let (under, label_stats) = match &opts.overlay {
+        Some(ov) if job.under.is_none() => {
+            let (px, s) = overlay_pixels(job, ov)?;
+            (Some(px), Some(s))
+        }
+        _ => (None, None),
+    };
+    let with_under = TileJob {
+        under: under.as_deref().or(job.under),
+        canvas: job.canvas,
+        ..*job
+    };
     let results = match opts.precision {
-        Precision::F64 => render_tiles::<f64>(job),
-        Precision::F32 => render_tiles::<f32>(job),
+        Precision::F64 => render_tiles::<f64>(&with_under),
+        Precision::F32 => render_tiles::<f32>(&with_under),
     };
 
     // Merge counters; keep the tiles' pixels for colouring.
@@ -217,6 +237,12 @@ fn render_checked(job: &TileJob) -> Result<(Vec<TilePx>, Stats), RenderError> {
             pixels: r.pixels,
         });
     }
+    if let Some(ls) = &label_stats {
+        // The labels' walks are part of this render's work.
+        steps.steps += ls.steps;
+        steps.macro_steps += ls.macro_steps;
+        steps.cell_steps += ls.cell_steps;
+    }
     let mut stats = Stats::counted(rays, hits, &steps, &cc, cache, opts, t0);
     (stats.width, stats.height) = (w, hgt);
     stats.rays_culled = culled;
@@ -227,6 +253,63 @@ fn render_checked(job: &TileJob) -> Result<(Vec<TilePx>, Stats), RenderError> {
         stats.seconds_sample,
     ) = clock::split(&times, cc.decode_seconds);
     Ok((tiles, stats))
+}
+
+/// The label pixels of `job`'s overlay over the whole image (misses
+/// outside the job's shard), rendered in the job's tiles with the label
+/// file's own cache and the job's clip, and that pass's counters.
+fn overlay_pixels(
+    job: &TileJob,
+    ov: &crate::render::options::Overlay,
+) -> Result<(Vec<Px>, Stats), RenderError> {
+    use crate::render::options::Mode;
+    let opts = job.opts;
+    let lopts = RenderOptions {
+        mode: Mode::Labels {
+            hit: ov.hit,
+            style: ov.style.clone(),
+        },
+        method: crate::render::default_method(ov.vol.header()),
+        tile: opts.tile,
+        cache_bytes: opts.cache_bytes,
+        early_stop: opts.early_stop,
+        clip: opts.clip.clone(),
+        cap: opts.cap,
+        cull: opts.cull,
+        ..RenderOptions::new(
+            Mode::Labels {
+                hit: ov.hit,
+                style: ov.style.clone(),
+            },
+            crate::render::default_method(ov.vol.header()),
+        )
+    };
+    let vol: &PackedVolume = &ov.vol;
+    check_render(vol, [job.camera.width, job.camera.height], &lopts)?;
+    let cache = crate::render::cache_for(vol, &lopts);
+    let (tiles, stats) = render_checked(&TileJob {
+        vol,
+        cache: &cache,
+        camera: job.camera,
+        opts: &lopts,
+        shard: job.shard,
+        progress: job.progress,
+        stop: job.stop,
+        canvas: None,
+        under: None,
+    })?;
+    let w = job.camera.width as usize;
+    let mut px = vec![Px::MISS; w * job.camera.height as usize];
+    for t in &tiles {
+        for (i, p) in t.px().enumerate() {
+            let (x, y) = (
+                t.x0 as usize + i % t.w as usize,
+                t.y0 as usize + i / t.w as usize,
+            );
+            px[y * w + x] = *p;
+        }
+    }
+    Ok((px, stats))
 }
 
 /// Which tiles a render computes, out of the Morton-ordered tile list.
@@ -415,6 +498,7 @@ fn render_tiles<T: Real>(job: &TileJob) -> Vec<TileOut> {
                 &ctx,
                 cover.as_ref(),
                 job.canvas,
+                job.under,
                 cache,
                 tx * ts,
                 ty * ts,
@@ -482,10 +566,12 @@ impl TileOut {
 /// miss without a ray (render/view/cull.rs), and a tile it leaves out whole
 /// has no pixels to write. With a `canvas` the tile colours its pixels
 /// into it and returns none.
+#[allow(clippy::too_many_arguments)]
 fn render_tile<T: Real>(
     ctx: &Ctx<T>,
     cover: Option<&Cover>,
     canvas: Option<&Canvas>,
+    under: Option<&[Px]>,
     cache: &BrickCache,
     x0: u32,
     y0: u32,
@@ -494,7 +580,7 @@ fn render_tile<T: Real>(
     let cam = ctx.camera;
     let w = ts.min(cam.width - x0);
     let hh = ts.min(cam.height - y0);
-    if cover.is_some_and(|c| !c.any_in(x0, y0, w, hh)) {
+    if under.is_none() && cover.is_some_and(|c| !c.any_in(x0, y0, w, hh)) {
         return TileOut {
             w,
             h: hh,
@@ -516,9 +602,12 @@ fn render_tile<T: Real>(
     let exact = ctx.opts.method.is_exact();
     for y in y0..y0 + hh {
         for x in x0..x0 + w {
+            // The overlay's labels at this pixel, if any.
+            let back = under.map_or(Px::MISS, |u| u[(y * cam.width + x) as usize]);
             if cover.is_some_and(|c| !c.covered(x, y)) {
                 culled += 1;
-                pixels.push(Px::MISS);
+                hits += back.hit as u64;
+                pixels.push(back);
                 continue;
             }
             let ray = cam.ray(x, y);
@@ -527,7 +616,13 @@ fn render_tile<T: Real>(
                 Some(c) if exact => c.start(x, y),
                 _ => 0.0,
             };
-            let (p, s) = pixel(ctx, &ray, t0, &mut acc);
+            let t_end = if back.hit {
+                back.depth as f64
+            } else {
+                f64::INFINITY
+            };
+            let (p, s) = pixel_until(ctx, &ray, t0, t_end, &mut acc);
+            let p = over(p, back);
             clock::end_ray(&acc);
             steps.add(&s);
             hits += p.hit as u64;
