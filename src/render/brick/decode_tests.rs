@@ -39,6 +39,7 @@ fn header(
         modality: None,
         landmarks: None,
         look: None,
+        labels: None,
         summary: Default::default(),
     }
 }
