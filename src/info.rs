@@ -75,6 +75,8 @@ pub struct Info {
     pub histogram: Option<ValueHistogram>,
     /// The classification selected no cells or nearly all of them.
     pub selection_warning: Option<String>,
+    /// A label file's labels, counts and colour table (`prep --labels`).
+    pub labels: Option<crate::labels::LabelInfo>,
 }
 
 /// `x` to about four significant digits, for the text form.
@@ -150,6 +152,7 @@ impl Info {
             nan_samples: s.nan_samples,
             histogram: s.histogram.clone(),
             selection_warning: crate::prep::selection_warning(h).map(|w| w.to_string()),
+            labels: h.labels.clone(),
         }
     }
 
@@ -181,12 +184,17 @@ impl Info {
             ""
         };
         let _ = writeln!(o, "orientation  {}{unknown}", self.orientation);
-        let _ = writeln!(
-            o,
-            "modality     {} ({})",
-            self.modality, self.modality_source
-        );
-        if let Some(l) = &self.landmarks {
+        if let Some(l) = &self.labels {
+            // A label map has no modality, landmarks or presets.
+            label_text(&mut o, l);
+        } else {
+            let _ = writeln!(
+                o,
+                "modality     {} ({})",
+                self.modality, self.modality_source
+            );
+        }
+        if let Some(l) = self.landmarks.as_ref().filter(|_| self.labels.is_none()) {
             let _ = writeln!(
                 o,
                 "landmarks    threshold {} (object above), object p50 {}, p95 {}, p99 {}; \
@@ -218,26 +226,33 @@ impl Info {
             );
         }
         let _ = writeln!(o, "samples      {} stored as {}", self.dtype, self.storage);
-        let _ = writeln!(o, "classify     {}", self.classification_text);
-        let e = &self.envelope;
-        let _ = writeln!(o, "envelope     {}", e.statement);
-        let list = |v: &[String]| {
-            if v.is_empty() {
-                "none".to_string()
-            } else {
-                v.join(", ")
-            }
-        };
-        let _ = writeln!(
-            o,
-            "  presets    composite/--tf: {}",
-            list(&e.composite_presets)
-        );
-        let _ = writeln!(
-            o,
-            "             surface/--iso:  {}",
-            list(&e.surface_presets)
-        );
+        if self.labels.is_some() {
+            let _ = writeln!(
+                o,
+                "classify     the union of the labels (a cell with any vertex not 0)"
+            );
+        } else {
+            let _ = writeln!(o, "classify     {}", self.classification_text);
+            let e = &self.envelope;
+            let _ = writeln!(o, "envelope     {}", e.statement);
+            let list = |v: &[String]| {
+                if v.is_empty() {
+                    "none".to_string()
+                } else {
+                    v.join(", ")
+                }
+            };
+            let _ = writeln!(
+                o,
+                "  presets    composite/--tf: {}",
+                list(&e.composite_presets)
+            );
+            let _ = writeln!(
+                o,
+                "             surface/--iso:  {}",
+                list(&e.surface_presets)
+            );
+        }
         let _ = writeln!(o, "codes        {}", self.codes);
         let _ = writeln!(
             o,
@@ -411,6 +426,41 @@ fn value_histogram_text(o: &mut String, h: &ValueHistogram) {
             100.0 * (n as f64 / total as f64).min(1.0),
             "#".repeat(bar.min(40))
         );
+    }
+}
+
+/// A label file's labels for the text form: how many, then a line each
+/// (at most 40) with its samples, name and colour.
+fn label_text(o: &mut String, l: &crate::labels::LabelInfo) {
+    use std::fmt::Write;
+    let total: u64 = l.counts.iter().map(|c| c.1).sum::<u64>() + l.background;
+    let _ = writeln!(
+        o,
+        "labels       {} labels besides 0 (render --labels; colours {})",
+        l.counts.len(),
+        if l.table.is_some() {
+            "from the table given to prep --lut"
+        } else {
+            "from the default palette"
+        }
+    );
+    for &(id, n) in l.counts.iter().take(40) {
+        let e = l.table.as_ref().and_then(|t| t.get(id));
+        let c = e.map_or(crate::labels::default_colour(id), |e| e.color);
+        let _ = writeln!(
+            o,
+            "  {id:>6}     {n:>10} samples ({:.2} %){}  #{:02x}{:02x}{:02x}{}",
+            100.0 * n as f64 / total.max(1) as f64,
+            e.map_or(String::new(), |e| format!("  {}", e.name)),
+            (c[0] * 255.0).round() as u8,
+            (c[1] * 255.0).round() as u8,
+            (c[2] * 255.0).round() as u8,
+            e.filter(|e| e.opacity < 1.0)
+                .map_or(String::new(), |e| format!(", opacity {}", e.opacity))
+        );
+    }
+    if l.counts.len() > 40 {
+        let _ = writeln!(o, "  ... ({} more; --json lists them all)", l.counts.len() - 40);
     }
 }
 
