@@ -460,7 +460,11 @@ fn label_text(o: &mut String, l: &crate::labels::LabelInfo) {
         );
     }
     if l.counts.len() > 40 {
-        let _ = writeln!(o, "  ... ({} more; --json lists them all)", l.counts.len() - 40);
+        let _ = writeln!(
+            o,
+            "  ... ({} more; --json lists them all)",
+            l.counts.len() - 40
+        );
     }
 }
 

@@ -79,11 +79,12 @@ impl RenderArgs {
         let spec = self.labels.as_deref().unwrap_or("all");
         let style = cdvol::labels::LabelStyle::parse(spec, &info, lut.as_ref())
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        Ok(Some(cdvol::render::Overlay {
-            vol: std::sync::Arc::new(vol),
-            style: std::sync::Arc::new(style),
-            hit: self.hit.into(),
-        }))
+        Ok(Some(cdvol::render::Overlay::new(
+            vol,
+            style,
+            self.hit.into(),
+            self.cache_mb.saturating_mul(1 << 20),
+        )))
     }
 
     /// The MIP window of `--window` and `--level`; `None` for `auto` (the

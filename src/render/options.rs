@@ -142,6 +142,57 @@ pub struct Overlay {
     pub vol: std::sync::Arc<PackedVolume>,
     pub style: std::sync::Arc<crate::labels::LabelStyle>,
     pub hit: HitMethod,
+    /// The label file's bricks, kept from frame to frame.
+    pub(crate) cache: std::sync::Arc<crate::render::cache::BrickCache>,
+}
+
+impl Overlay {
+    /// The labels `style` of `vol`, found by `hit`, with a brick cache of
+    /// `cache_bytes` for them.
+    pub fn new(
+        vol: PackedVolume,
+        style: crate::labels::LabelStyle,
+        hit: HitMethod,
+        cache_bytes: usize,
+    ) -> Overlay {
+        let mode = Mode::Labels {
+            hit,
+            style: std::sync::Arc::new(style),
+        };
+        let mut o = RenderOptions::new(mode.clone(), crate::render::default_method(vol.header()));
+        o.cache_bytes = cache_bytes;
+        let cache = crate::render::cache_for(&vol, &o);
+        let Mode::Labels { style, .. } = mode else {
+            unreachable!("built above")
+        };
+        Overlay {
+            vol: std::sync::Arc::new(vol),
+            style,
+            hit,
+            cache: std::sync::Arc::new(cache),
+        }
+    }
+
+    /// The render options of the overlay's own walk within a render with
+    /// `opts`: its labels, the file's default traversal, `opts`' tiles,
+    /// clip, culling and early stop.
+    pub(crate) fn options(&self, opts: &RenderOptions) -> RenderOptions {
+        RenderOptions {
+            tile: opts.tile,
+            cache_bytes: opts.cache_bytes,
+            early_stop: opts.early_stop,
+            clip: opts.clip.clone(),
+            cap: opts.cap,
+            cull: opts.cull,
+            ..RenderOptions::new(
+                Mode::Labels {
+                    hit: self.hit,
+                    style: self.style.clone(),
+                },
+                crate::render::default_method(self.vol.header()),
+            )
+        }
+    }
 }
 
 /// The label file's path and the style (render part keys hold the

@@ -444,11 +444,12 @@ fn labels_over_a_scan_are_hidden_by_what_lies_in_front_of_them() {
     };
     let alone = test_opts(surface.clone(), Method::Cd { min_leap: 1 });
     let mut with = alone.clone();
-    with.overlay = Some(cdvol::render::Overlay {
-        vol: std::sync::Arc::new(labels.clone()),
-        style: style.clone(),
-        hit: HitMethod::Exact,
-    });
+    with.overlay = Some(cdvol::render::Overlay::new(
+        labels.clone(),
+        (*style).clone(),
+        HitMethod::Exact,
+        64 << 20,
+    ));
     let depths = |vol: &PackedVolume, opts: &cdvol::render::RenderOptions| {
         let part = render_part(vol, &cam, opts, Shard::WHOLE, &NoProgress).unwrap();
         let w = cam.width as usize;
@@ -519,11 +520,12 @@ fn labels_over_a_scan_are_hidden_by_what_lies_in_front_of_them() {
         PackedVolume::open(&out).unwrap()
     };
     let info = other.header().labels.clone().unwrap();
-    with.overlay = Some(cdvol::render::Overlay {
-        vol: std::sync::Arc::new(other),
-        style: std::sync::Arc::new(LabelStyle::parse("all", &info, None).unwrap()),
-        hit: HitMethod::Exact,
-    });
+    with.overlay = Some(cdvol::render::Overlay::new(
+        other,
+        LabelStyle::parse("all", &info, None).unwrap(),
+        HitMethod::Exact,
+        64 << 20,
+    ));
     let e = cdvol::render::render(&scan, &cam, &with, &NoProgress)
         .unwrap_err()
         .to_string();

@@ -87,17 +87,20 @@ fn read_block(
                 let from: [usize; 3] = std::array::from_fn(|k| runs[k].0[part[k]]);
                 let to: [usize; 3] = std::array::from_fn(|k| runs[k].0[part[k] + 1]);
                 // The first sample of the part, and the cell it reads from.
-                let s0: [usize; 3] =
-                    std::array::from_fn(|k| (cell[k] as i64 - off as i64 + from[k] as i64) as usize);
+                let s0: [usize; 3] = std::array::from_fn(|k| {
+                    (cell[k] as i64 - off as i64 + from[k] as i64) as usize
+                });
                 let c0: [u32; 3] = std::array::from_fn(|k| s0[k].min(n[k] - 2) as u32);
                 let (b, l) = acc.brick_with_values(c0);
                 if b.values.is_empty() {
                     continue;
                 }
-                let ls0: [usize; 3] = std::array::from_fn(|k| l[k] as usize + s0[k] - c0[k] as usize);
+                let ls0: [usize; 3] =
+                    std::array::from_fn(|k| l[k] as usize + s0[k] - c0[k] as usize);
                 for z in from[2]..to[2] {
                     for y in from[1]..to[1] {
-                        let base = b.sample_index([ls0[0], ls0[1] + y - from[1], ls0[2] + z - from[2]]);
+                        let base =
+                            b.sample_index([ls0[0], ls0[1] + y - from[1], ls0[2] + z - from[2]]);
                         let row = &mut out[(z * e + y) * e + from[0]..(z * e + y) * e + to[0]];
                         for (x, o) in row.iter_mut().enumerate() {
                             *o = label_of(b.values.get(base + x));

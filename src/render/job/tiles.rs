@@ -257,39 +257,18 @@ fn render_checked(job: &TileJob) -> Result<(Vec<TilePx>, Stats), RenderError> {
 
 /// The label pixels of `job`'s overlay over the whole image (misses
 /// outside the job's shard), rendered in the job's tiles with the label
-/// file's own cache and the job's clip, and that pass's counters.
+/// file's own cache (kept from frame to frame) and the job's clip, and
+/// that pass's counters.
 fn overlay_pixels(
     job: &TileJob,
     ov: &crate::render::options::Overlay,
 ) -> Result<(Vec<Px>, Stats), RenderError> {
-    use crate::render::options::Mode;
-    let opts = job.opts;
-    let lopts = RenderOptions {
-        mode: Mode::Labels {
-            hit: ov.hit,
-            style: ov.style.clone(),
-        },
-        method: crate::render::default_method(ov.vol.header()),
-        tile: opts.tile,
-        cache_bytes: opts.cache_bytes,
-        early_stop: opts.early_stop,
-        clip: opts.clip.clone(),
-        cap: opts.cap,
-        cull: opts.cull,
-        ..RenderOptions::new(
-            Mode::Labels {
-                hit: ov.hit,
-                style: ov.style.clone(),
-            },
-            crate::render::default_method(ov.vol.header()),
-        )
-    };
+    let lopts = ov.options(job.opts);
     let vol: &PackedVolume = &ov.vol;
     check_render(vol, [job.camera.width, job.camera.height], &lopts)?;
-    let cache = crate::render::cache_for(vol, &lopts);
     let (tiles, stats) = render_checked(&TileJob {
         vol,
-        cache: &cache,
+        cache: &ov.cache,
         camera: job.camera,
         opts: &lopts,
         shard: job.shard,
