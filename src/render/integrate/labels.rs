@@ -554,9 +554,9 @@ mod tests {
             }
             for label in 0..3 {
                 let f = filter_block::<6, 4>(&block, label);
-                for i in 0..64 {
+                for (i, fi) in f.iter().enumerate() {
                     let at = [1 + i % 4, 1 + i / 4 % 4, 1 + i / 16];
-                    assert_eq!(f[i].to_bits(), filtered(&block, 6, at, label).to_bits());
+                    assert_eq!(fi.to_bits(), filtered(&block, 6, at, label).to_bits());
                 }
                 let mut small = [0u16; 64];
                 for (i, s) in small.iter_mut().enumerate() {
