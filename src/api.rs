@@ -147,6 +147,10 @@ pub struct Look {
     /// Leave surfaces cut by the clip open (`render --no-cap`) instead of
     /// showing their cut faces.
     pub uncapped: bool,
+    /// A label file drawn inside a surface or composite (`render
+    /// --overlay`); `ask.labels` chooses the labels of a label file
+    /// rendered on its own.
+    pub overlay: Option<crate::render::Overlay>,
 }
 
 impl Look {
@@ -261,6 +265,7 @@ impl Renderer {
         opts.unrounded = look.unrounded;
         opts.clip = look.clip.clone();
         opts.cap = !look.uncapped;
+        opts.overlay = look.overlay.clone();
         opts.cache_bytes = self.cache_bytes;
         Ok(opts)
     }
