@@ -161,35 +161,41 @@ impl LabelTable {
             let itk = text
                 .lines()
                 .any(|l| !l.trim_start().starts_with('#') && l.contains('"'));
-            parse_lines(text, itk).map_err(e)?
+            parse_lines(path, text, itk)?
         };
         table.labels.sort_by_key(|l| l.id);
-        table.check().map_err(e)?;
+        table.check(path)?;
         Ok(table)
     }
 
     /// Every id in 0..=[`MAX_LABEL`] and once; colours and opacities in
-    /// [0, 1]; names not empty.
-    fn check(&self) -> Result<(), String> {
+    /// [0, 1]; names not empty. Errors name `path`.
+    fn check(&self, path: &Path) -> Result<(), LabelError> {
+        let fail = |msg: String| {
+            Err(LabelError::Table {
+                path: path.to_path_buf(),
+                msg,
+            })
+        };
         for (i, l) in self.labels.iter().enumerate() {
             let at = format!("label {}", l.id);
             if l.id > MAX_LABEL {
-                return Err(format!("{at}: expected a label in 0..={MAX_LABEL}"));
+                return fail(format!("{at}: expected a label in 0..={MAX_LABEL}"));
             }
             if i > 0 && self.labels[i - 1].id == l.id {
-                return Err(format!("{at}: given twice, expected each label once"));
+                return fail(format!("{at}: given twice, expected each label once"));
             }
             if l.color.iter().any(|c| !(0.0..=1.0).contains(c)) {
-                return Err(format!(
+                return fail(format!(
                     "{at}: color {:?}, expected three numbers in 0..=1",
                     l.color
                 ));
             }
             if !(0.0..=1.0).contains(&l.opacity) {
-                return Err(format!("{at}: opacity {}, expected 0..=1", l.opacity));
+                return fail(format!("{at}: opacity {}, expected 0..=1", l.opacity));
             }
             if l.name.trim().is_empty() {
-                return Err(format!("{at}: empty name"));
+                return fail(format!("{at}: empty name"));
             }
         }
         Ok(())
@@ -200,7 +206,11 @@ impl LabelTable {
 /// colours 0..255, A the opacity 0..1, VIS 0 hides the label) or a
 /// FreeSurfer LUT (`ID NAME R G B A`, A the transparency 0..255, 0 =
 /// opaque). `#` starts a comment.
-fn parse_lines(text: &str, itk: bool) -> Result<LabelTable, String> {
+fn parse_lines(path: &Path, text: &str, itk: bool) -> Result<LabelTable, LabelError> {
+    let err = |msg: String| LabelError::Table {
+        path: path.to_path_buf(),
+        msg,
+    };
     let mut labels = Vec::new();
     for (n, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -208,10 +218,10 @@ fn parse_lines(text: &str, itk: bool) -> Result<LabelTable, String> {
             continue;
         }
         let at = |field: &str, found: &str, expected: &str| {
-            format!(
+            err(format!(
                 "line {}: field {field}: found {found:?}, expected {expected}",
                 n + 1
-            )
+            ))
         };
         let (fields, name) = if itk {
             let q = line.find('"').ok_or_else(|| {
@@ -252,7 +262,7 @@ fn parse_lines(text: &str, itk: bool) -> Result<LabelTable, String> {
         let id: u32 = fields[0]
             .parse()
             .map_err(|_| at("ID", fields[0], &format!("a label in 0..={MAX_LABEL}")))?;
-        let byte = |i: usize, f: &str| -> Result<f64, String> {
+        let byte = |i: usize, f: &str| -> Result<f64, LabelError> {
             match fields[i].parse::<u32>() {
                 Ok(v) if v <= 255 => Ok(v as f64 / 255.0),
                 _ => Err(at(f, fields[i], "an integer in 0..=255")),
@@ -288,7 +298,9 @@ fn parse_lines(text: &str, itk: bool) -> Result<LabelTable, String> {
         });
     }
     if labels.is_empty() {
-        return Err("no label lines, expected an ITK-SNAP, FreeSurfer or JSON colour table".into());
+        return Err(err(
+            "no label lines, expected an ITK-SNAP, FreeSurfer or JSON colour table".into(),
+        ));
     }
     Ok(LabelTable { labels })
 }
@@ -716,6 +728,11 @@ mod tests {
     fn counter_refuses_what_is_no_label() {
         let mut c = LabelCounter::new("seg.nii");
         c.add_slice(&[0.0, 1.0, 1.0, 7.0], 2, 0).unwrap();
+        let info = c.finish(None);
+        assert_eq!(info.counts, vec![(1, 2), (7, 1)]);
+        assert_eq!(info.background, 1);
+        assert!(info.holds(7) && !info.holds(2));
+        let mut c = LabelCounter::new("seg.nii");
         let err = c.add_slice(&[0.0, -1.0], 2, 4).unwrap_err().to_string();
         assert!(
             err.contains("seg.nii") && err.contains("value -1 at sample (1, 0, 4)"),
@@ -723,10 +740,8 @@ mod tests {
         );
         let err = c.add_slice(&[70000.0], 2, 5).unwrap_err().to_string();
         assert!(err.contains("0..=65535"), "{err}");
-        let info = c.finish(None);
-        assert_eq!(info.counts, vec![(1, 2), (7, 1)]);
-        assert_eq!(info.background, 1);
-        assert!(info.holds(7) && !info.holds(2));
+        let err = c.add_slice(&[2.5], 2, 6).unwrap_err().to_string();
+        assert!(err.contains("value 2.5"), "{err}");
     }
 
     #[test]

@@ -163,6 +163,7 @@ def prep(
     zstd_level: int = 3,
     aniso: bool = False,
     allow_empty: bool = False,
+    labels: bool = False,
     progress: bool = True,
 ) -> dict:
     """Prepares a volume into the packed file ``out`` (``cdvol prep``).
@@ -186,6 +187,10 @@ def prep(
       and the preset becomes the file's look;
     - ``envelope``: iso values, presets, ``"ct"`` or ``"mr"``: one file for
       all of them (``cdvol prep --envelope``).
+
+    - ``labels``: the source is a label map (integers 0..65535, 0 = none,
+      no rescale): classified by the union of its labels, every label kept
+      exactly (``cdvol prep --labels``); render it with ``labels=``.
 
     With none, ``envelope=["auto"]``: every preset of the input's modality.
 
@@ -221,6 +226,7 @@ def prep(
         zstd_level=int(zstd_level),
         aniso=bool(aniso),
         allow_empty=bool(allow_empty),
+        labels=bool(labels),
     )
     cb = _progress(progress)
     out = pathlib.Path(os.fspath(out))
@@ -268,7 +274,7 @@ class Renderer:
 
     def _render(self, view, mode, preset, iso, width, height, background,
                 shadows, shade, step, perspective, frame, bit_depth,
-                crop=None, clip=(), cap=True):
+                crop=None, clip=(), cap=True, labels=None):
         if bit_depth not in (8, 32):
             raise LookError(f"bit_depth {bit_depth}: expected 8 (uint8) or 32 (float32)")
         width = _in_range("width", width, 1, (1 << 32) - 1, ViewError)
@@ -294,6 +300,7 @@ class Renderer:
             crop=None if crop is None else [[float(a), float(b)] for a, b in crop],
             clip=[[float(x) for x in p] for p in clip],
             cap=bool(cap),
+            labels=None if labels is None else str(labels),
         ))
 
     def render(
@@ -315,6 +322,7 @@ class Renderer:
         crop: Optional[Sequence[Tuple[float, float]]] = None,
         clip: Sequence[Tuple[float, float, float, float]] = (),
         cap: bool = True,
+        labels: Optional[str] = None,
         return_stats: bool = False,
     ) -> Any:
         """Renders one view as an ``(height, width, 4)`` array, row 0 at the
@@ -342,13 +350,16 @@ class Renderer:
           file's coordinates; ``clip``: up to six planes ``(nx, ny, nz, d)``,
           each keeping ``nx*x + ny*y + nz*z >= d``; ``cap``: surfaces cut by
           them show their cut faces (else they are left open).
+        - ``labels``: a label file's labels to draw, ``"all"``, ``"1,5-9"``
+          or names from its colour table (default: all of them).
 
         With ``return_stats=True`` returns ``(image, stats)``, ``stats`` the
         dict ``cdvol render --stats-json`` prints.
         """
         rgba, _, stats = self._render(view, mode, preset, iso, width, height,
                                       background, shadows, shade, step,
-                                      perspective, frame, bit_depth, crop, clip, cap)
+                                      perspective, frame, bit_depth, crop, clip, cap,
+                                      labels)
         image = rgba.reshape(int(height), int(width), 4)
         return (image, json.loads(stats)) if return_stats else image
 

@@ -10,13 +10,13 @@ __version__: str
 _Progress = Optional[Callable[[str, str, int], None]]
 
 # The keywords of cdvol.prep, as a dict: iso, preset, envelope, modality,
-# brick, zstd_level, aniso, allow_empty.
+# brick, zstd_level, aniso, allow_empty, labels.
 PrepKw = Dict[str, Any]
 # An array's grid: spacing, origin, positions, rescale.
 GridKw = Dict[str, Any]
 # The keywords of Renderer.render, as a dict: view, mode, preset, iso,
 # width, height, background, shadows, shade, step, perspective, frame, float,
-# crop, clip, cap.
+# crop, clip, cap, labels.
 RenderKw = Dict[str, Any]
 
 def prep_path(

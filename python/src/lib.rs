@@ -166,6 +166,7 @@ struct PrepKw {
     zstd_level: i32,
     aniso: bool,
     allow_empty: bool,
+    labels: bool,
 }
 
 /// `cdvol.prep`'s grid keywords for an array (a dict): spacing x first
@@ -189,9 +190,12 @@ impl PrepKw {
             self.iso.is_some(),
             self.preset.is_some(),
             self.envelope.is_some(),
+            self.labels,
         ];
         if given.iter().filter(|&&g| g).count() > 1 {
-            return Err("iso, preset and envelope each choose the classification: give one".into());
+            return Err(
+                "iso, preset, envelope and labels each choose the classification: give one".into(),
+            );
         }
         let classification = match self.iso {
             Some(iso) if !iso.is_finite() => {
@@ -206,7 +210,10 @@ impl PrepKw {
         opts.zstd_level = self.zstd_level;
         opts.aniso = self.aniso;
         opts.allow_empty = self.allow_empty;
-        if let Some(p) = self.preset {
+        opts.labels = self.labels;
+        if self.labels {
+            // Classified by its labels.
+        } else if let Some(p) = self.preset {
             cdvol::presets::get(&p).map_err(|e| format!("preset: {e}"))?;
             opts.preset = Some(p);
         } else if self.iso.is_none() {
@@ -731,6 +738,7 @@ struct RenderKw<'py> {
     crop: Option<[[f64; 2]; 3]>,
     clip: Vec<[f64; 4]>,
     cap: bool,
+    labels: Option<String>,
 }
 
 impl RenderKw<'_> {
@@ -810,6 +818,7 @@ impl RenderKw<'_> {
                 .collect(),
         };
         look.uncapped = !self.cap;
+        look.ask.labels = self.labels.clone();
         Ok(look)
     }
 }

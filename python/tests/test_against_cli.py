@@ -105,3 +105,36 @@ def test_float_render_is_the_cli_float_tiff(tmp_path, cdvol_bin, phantom):
     tiff = tifffile.imread(tmp_path / "f.tif")
     assert tiff.dtype == np.float32 and tiff.shape == (48, 64, 3)
     assert np.array_equal(mine[..., :3], tiff)
+
+
+def test_a_label_map_preps_and_renders_as_the_cli(tmp_path, cdvol_bin):
+    """A label array (two balls and a nested core) prepared with
+    ``labels=True`` holds every label exactly and draws the label surfaces
+    ``cdvol render --labels`` draws."""
+    z, y, x = np.mgrid[0:30, 0:34, 0:38].astype(np.float64)
+    a = np.zeros((30, 34, 38), np.uint8)
+    a[(x - 12) ** 2 + (y - 16) ** 2 + (z - 15) ** 2 <= 64] = 1
+    a[(x - 12) ** 2 + (y - 16) ** 2 + (z - 15) ** 2 <= 9] = 4
+    a[(x - 27) ** 2 + (y - 17) ** 2 + (z - 14) ** 2 <= 36] = 2
+    side = write_sidecar(tmp_path, "seg", a, (1.0, 1.1, 1.3))
+    run(cdvol_bin, "prep", "--labels", side, "-o", tmp_path / "cli.cdv")
+    report = cdvol.prep(a, tmp_path / "py.cdv", labels=True, spacing=(1.0, 1.1, 1.3),
+                        progress=False)
+    assert report["one_cells"] > 0
+    py, cli = cdvol.open(tmp_path / "py.cdv"), cdvol.open(tmp_path / "cli.cdv")
+    # Every label back, exactly (codes stand for label 0).
+    assert np.array_equal(py.export("values", progress=False).reshape(a.shape), a)
+    assert [c[0] for c in py.info["labels"]["counts"]] == [1, 2, 4]
+    for spec in ("all", "2", "1,4"):
+        mine = py.render((30, 20), width=64, height=64, labels=spec)
+        out = tmp_path / "l.png"
+        run(cdvol_bin, "render", tmp_path / "cli.cdv", "--labels", spec, "--view", "30,20",
+            "--width", 64, "--height", 64, "-o", out)
+        assert np.array_equal(mine[..., :3], png(out)), spec
+        assert np.array_equal(mine, cli.render((30, 20), width=64, height=64, labels=spec))
+        assert mine[..., 3].any()
+    with pytest.raises(cdvol.Error, match="label 3 does not occur"):
+        py.render(labels="3")
+    with pytest.raises(cdvol.Error, match="dtype"):
+        cdvol.prep(a.astype(np.float32), tmp_path / "f.cdv", labels=True, progress=False)
+    assert not (tmp_path / "f.cdv").exists()

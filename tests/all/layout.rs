@@ -62,6 +62,21 @@ const RULES: &[(&str, &[&str])] = &[
             "crate::batch",
         ],
     ),
+    // Label maps: their record, colour tables and the smoothed indicator;
+    // read by prep, the format and the renderer, reading none of them.
+    (
+        "labels.rs",
+        &[
+            "crate::dt",
+            "crate::prep",
+            "crate::format",
+            "crate::render",
+            "crate::batch",
+            "crate::info",
+            "crate::export",
+            "crate::input",
+        ],
+    ),
     // The presets are transfer functions and nothing else.
     (
         "presets.rs",
