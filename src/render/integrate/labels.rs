@@ -16,8 +16,9 @@
 //!   where one reaches 0.5 is a hit ([`find_hit_with`], the surface
 //!   mode's hit methods).
 //!
-//! A hit is shaded by the smoothed indicator's gradient (central
-//! differences at the vertices, interpolated) in the label's colour and
+//! A hit is shaded by the gradient of the filtered indicator before the
+//! clamp ([`filtered`](crate::labels::filtered); central differences at the
+//! vertices, interpolated) in the label's colour and
 //! composited by its opacity; the ray goes on through translucent labels
 //! (skipping the one it is inside until it leaves it) and stops once the
 //! opacity reaches the early stop. No shadows.

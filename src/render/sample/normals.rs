@@ -527,7 +527,7 @@ fn sample_value(acc: &mut Accessor, home: &RBrick, n: [usize; 3], p: [usize; 3])
 /// outside the asking cell's brick: from the brick of cell
 /// `min(p, n - 2)` with its values (module docs, "Which brick a sample is
 /// read from"); NaN where the word is a code or the brick has no values.
-pub(crate) fn value_elsewhere(acc: &mut Accessor, n: [usize; 3], p: [usize; 3]) -> f32 {
+fn value_elsewhere(acc: &mut Accessor, n: [usize; 3], p: [usize; 3]) -> f32 {
     let at: [u32; 3] = std::array::from_fn(|k| p[k].min(n[k] - 2) as u32);
     let (b, l) = acc.brick_with_values(at);
     let ls: [usize; 3] = std::array::from_fn(|k| l[k] as usize + p[k] - at[k] as usize);
