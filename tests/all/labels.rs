@@ -586,7 +586,10 @@ fn every_exact_traversal_draws_the_same_labels() {
                     vol.renderer().render(&view, &l).unwrap()
                 })
                 .collect();
-            assert!(images[0].frame.alpha.iter().any(|&x| x > 0), "{az},{el}: drawn");
+            assert!(
+                images[0].frame.alpha.iter().any(|&x| x > 0),
+                "{az},{el}: drawn"
+            );
             for (m, im) in methods.iter().zip(&images).skip(1) {
                 assert!(
                     im.frame.rgb == images[0].frame.rgb && im.frame.alpha == images[0].frame.alpha,
