@@ -455,10 +455,10 @@ pub(super) fn labels<T: Real>(
 }
 
 /// The gradient (per mm) of `label`'s filtered indicator
-/// ([`filtered`](crate::labels::filtered): smoothed, not clamped) at point `p` of `cell`: central
-/// differences at the 8 vertices (one-sided at the volume's faces),
-/// interpolated trilinearly. It points into the label,
-/// as an iso-surface's gradient points into the object.
+/// ([`filtered`](crate::labels::filtered): smoothed, not clamped) at
+/// point `p` of `cell`: [`vertex_gradients`], remembered per thread,
+/// interpolated trilinearly. It points into the label, as an
+/// iso-surface's gradient points into the object.
 fn smooth_normal(
     acc: &mut Accessor,
     coords: [&[f64]; 3],
