@@ -155,16 +155,14 @@ impl Overlay {
         hit: HitMethod,
         cache_bytes: usize,
     ) -> Overlay {
+        let style = std::sync::Arc::new(style);
         let mode = Mode::Labels {
             hit,
-            style: std::sync::Arc::new(style),
+            style: style.clone(),
         };
-        let mut o = RenderOptions::new(mode.clone(), crate::render::default_method(vol.header()));
+        let mut o = RenderOptions::new(mode, crate::render::default_method(vol.header()));
         o.cache_bytes = cache_bytes;
         let cache = crate::render::cache_for(&vol, &o);
-        let Mode::Labels { style, .. } = mode else {
-            unreachable!("built above")
-        };
         Overlay {
             vol: std::sync::Arc::new(vol),
             style,
