@@ -72,6 +72,18 @@ pub enum PrecisionArg {
     F64,
 }
 
+/// `--integrate`: [`cdvol::render::Integrate`].
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IntegrateArg {
+    /// Composite: samples --step apart (as VTK); MIP: at cell faces.
+    Step,
+    /// Per ray-cell segment: exact opacity of each chord; MIP's exact
+    /// maximum.
+    Segment,
+    /// The f64 reference (1/64-cell substeps, no early stop): slow.
+    Reference,
+}
+
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OnOff {
     On,
@@ -209,9 +221,18 @@ pub struct RenderArgs {
     /// Also `"shade": true` in the --tf file.
     #[arg(long, help_heading = heading::LOOK)]
     pub shade: bool,
-    /// Composite sample distance in mm.
+    /// Composite sample distance in mm (--integrate step).
     #[arg(long, default_value_t = 0.5, help_heading = heading::LOOK)]
     pub step: f64,
+    /// Composite and MIP: integrate per ray-cell segment or by steps.
+    ///
+    /// segment (the default): the composite integrates each cell's
+    /// stretch of ray exactly through an integral table, the MIP takes
+    /// each cell's exact maximum; step: samples --step apart, and the MIP
+    /// at the cells' faces; reference: f64 at 1/64 of a cell, for
+    /// measuring the others (docs/TRADEOFFS.md, "Integrators").
+    #[arg(long, value_enum, help_heading = heading::LOOK)]
+    pub integrate: Option<IntegrateArg>,
     /// Shadow rays, traced with the same traversal.
     #[arg(long, help_heading = heading::LOOK)]
     pub shadows: bool,
@@ -372,6 +393,12 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value = "on",
           help_heading = heading::TUNING, hide_short_help = true)]
     pub sample_batches: OnOff,
+    /// --integrate segment: how far a chord may be from the interpolant,
+    /// as a share of the transfer function's narrowest gap between
+    /// points (smaller is slower and closer; docs/TRADEOFFS.md).
+    #[arg(long, default_value_t = cdvol::render::Integrate::SEGMENT_TOL,
+          help_heading = heading::TUNING, hide_short_help = true)]
+    pub segment_tol: f64,
     /// Composite: stop a ray once its opacity exceeds this (1 = never).
     #[arg(long, default_value_t = cdvol::render::EARLY_STOP,
           help_heading = heading::TUNING, hide_short_help = true)]

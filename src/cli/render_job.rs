@@ -111,6 +111,28 @@ impl RenderArgs {
         })
     }
 
+    /// `--integrate` and `--segment-tol`; the library's default without
+    /// `--integrate`.
+    pub fn integrate(&self) -> cdvol::render::Integrate {
+        use crate::cli::render::IntegrateArg;
+        use cdvol::render::Integrate;
+        match self.integrate {
+            None => match Integrate::default() {
+                Integrate::Segment { .. } => Integrate::Segment {
+                    tol: self.segment_tol,
+                },
+                other => other,
+            },
+            Some(IntegrateArg::Step) => Integrate::Step,
+            Some(IntegrateArg::Segment) => Integrate::Segment {
+                tol: self.segment_tol,
+            },
+            Some(IntegrateArg::Reference) => Integrate::Reference {
+                substeps: Integrate::REFERENCE_SUBSTEPS,
+            },
+        }
+    }
+
     /// The traversal for `vol`; `template` leaps like `cd` (its renderer
     /// is chosen by [`RenderJob::template`]); none named, the file's
     /// default ([`cdvol::render::default_method`]) with `--min-leap`.
@@ -231,6 +253,7 @@ impl RenderArgs {
                 sampling: self.sample_precision.into(),
                 sample_batches: self.sample_batches == OnOff::On,
                 early_stop: self.early_stop,
+                integrate: self.integrate(),
                 look: look.look,
                 window: look.window,
                 normals: match self.normals {

@@ -70,7 +70,7 @@ pub use job::tiles::{
     render, render_in, render_in_until, Shard, ShardLayout, ShardParseError, TilePx,
 };
 pub use options::{
-    default_method, mode_name, CompositeLook, GradientPoint, Mode, Overlay, Precision,
+    default_method, mode_name, CompositeLook, GradientPoint, Integrate, Mode, Overlay, Precision,
     RenderOptions, Window, DEFAULT_CACHE_BYTES, EARLY_STOP, MAX_PIXELS, MIN_STEP_MM,
 };
 pub use output::colour::Colouring;

@@ -90,6 +90,8 @@ pub struct RenderOptions {
     /// Composite stops a ray once its opacity exceeds this (early ray
     /// termination; 0.99 by default, 1 never stops early).
     pub early_stop: f64,
+    /// How composite and MIP integrate along a ray ([`Integrate`]).
+    pub integrate: Integrate,
     /// Composite shading and gradient opacity.
     pub look: CompositeLook,
     /// MIP grey mapping.
@@ -436,6 +438,7 @@ impl RenderOptions {
             sampling: Precision::F32,
             sample_batches: true,
             early_stop: EARLY_STOP,
+            integrate: Integrate::default(),
             look: CompositeLook::default(),
             window: Window::Auto,
             normals: Normals::default(),
@@ -447,6 +450,51 @@ impl RenderOptions {
             cap_colours: None,
             overlay: None,
         }
+    }
+}
+
+/// How the composite and MIP modes integrate along a ray (`render
+/// --integrate`). docs/TRADEOFFS.md ("Integrators") measures each
+/// against [`Integrate::Reference`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Integrate {
+    /// Composite: samples `step_mm` apart ([`Mode::Composite`]), as VTK
+    /// takes them. MIP: the interpolant where the ray crosses the 1-cells'
+    /// faces.
+    Step,
+    /// Per ray-cell segment, from the traversal's entry and exit of each
+    /// 1-cell. Composite: the interpolant's cubic along the segment split
+    /// where its chord may be more than `tol` times the transfer
+    /// function's narrowest gap between points off, each chord integrated
+    /// exactly through the extinction integral table (pre-integration,
+    /// integrate/segment.rs). MIP: the cubic's exact maximum.
+    Segment { tol: f64 },
+    /// The accuracy harness's reference: f64, `substeps` substeps per
+    /// cell width (1/64 of a cell at 64) at their midpoints, the transfer
+    /// function evaluated exactly, no early stop. Slow.
+    Reference { substeps: u32 },
+}
+
+impl Integrate {
+    /// The segment integrator's default tolerance (docs/TRADEOFFS.md,
+    /// "Integrators").
+    pub const SEGMENT_TOL: f64 = 0.05;
+    /// The reference's substeps per cell width.
+    pub const REFERENCE_SUBSTEPS: u32 = 64;
+
+    /// The stable name: `step`, `segment` or `reference`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Integrate::Step => "step",
+            Integrate::Segment { .. } => "segment",
+            Integrate::Reference { .. } => "reference",
+        }
+    }
+}
+
+impl Default for Integrate {
+    fn default() -> Integrate {
+        Integrate::Step
     }
 }
 
@@ -541,6 +589,19 @@ pub(crate) fn check_render(
     opts.clip.check(lo, hi)?;
     if opts.tile == 0 {
         return Err(bad("tile", "0".into(), "at least 1".into()));
+    }
+    match opts.integrate {
+        Integrate::Segment { tol } if !(tol > 0.0 && tol.is_finite()) => {
+            return Err(bad(
+                "segment_tol",
+                format!("{tol}"),
+                "a finite number above 0".into(),
+            ));
+        }
+        Integrate::Reference { substeps } if substeps == 0 => {
+            return Err(bad("substeps", "0".into(), "at least 1".into()));
+        }
+        _ => {}
     }
     if let Mode::Composite { step_mm, .. } = opts.mode {
         // Samples sit at t = k * step; k must stay far below 2^53.

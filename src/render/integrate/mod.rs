@@ -20,14 +20,16 @@ mod mip;
 pub(crate) mod policy;
 mod refine;
 mod sample;
+mod segment;
 mod surface;
 
 pub(crate) use mip::leaps_with as mip_leaps_with;
 
 use crate::render::cache::{Accessor, LAZY_MIN_CODE_CD};
 use crate::render::clip::{Clip, Cut, Span};
-use crate::render::options::{Mode, Precision, RenderOptions};
+use crate::render::options::{Integrate, Mode, Precision, RenderOptions};
 use crate::render::sample::lut::TfLut;
+use crate::render::sample::pretable::PreTable;
 use crate::render::traverse::{trace_until, Flow, Ray, Real, StepCounts, TGrid, Visit};
 use crate::render::view::camera::Camera;
 
@@ -88,6 +90,10 @@ pub(crate) struct Ctx<'a, T> {
     pub(crate) narrow: Option<f32>,
     /// The composite mode's transfer function, tabulated for its step.
     pub(crate) lut: Option<TfLut>,
+    /// The segment composite's extinction integral table, and its
+    /// tolerance in value units ([`Integrate::Segment`]'s `tol` times the
+    /// transfer function's narrowest gap between points).
+    pub(crate) pre: Option<(PreTable, f64)>,
     /// The composite mode's ramps out of transparency, where the lattice
     /// restarts (refine.rs).
     pub(crate) ramps: Option<refine::Ramps>,
@@ -208,6 +214,12 @@ impl<'a, T: Real> Ctx<'a, T> {
                 Mode::Composite { tf, step_mm } => Some(TfLut::new(tf, *step_mm)),
                 _ => None,
             },
+            pre: match (&opts.mode, opts.integrate) {
+                (Mode::Composite { tf, .. }, Integrate::Segment { tol }) => {
+                    Some((PreTable::new(tf), tol * narrowest_gap(tf)))
+                }
+                _ => None,
+            },
             ramps: match &opts.mode {
                 Mode::Composite { tf, step_mm } => Some(refine::Ramps::new(tf, *step_mm)),
                 _ => None,
@@ -294,8 +306,25 @@ pub(crate) fn pixel_until<T: Real>(
         }
         Mode::Depth { hit } => depth::depth(ctx, ray, span, acc, *hit, &mut px),
         Mode::Labels { hit, style } => labels::labels(ctx, ray, span, acc, *hit, style, &mut px),
-        Mode::Mip => mip::mip(ctx, ray, span, acc, &mut px),
+        Mode::Mip => match ctx.opts.integrate {
+            Integrate::Step => mip::mip(ctx, ray, span, acc, false, &mut px),
+            Integrate::Segment { .. } => mip::mip(ctx, ray, span, acc, true, &mut px),
+            Integrate::Reference { substeps } => {
+                mip::reference(ctx, ray, span, acc, substeps, &mut px)
+            }
+        },
         Mode::Cost => cost::cost(ctx, ray, acc, &mut px),
+        Mode::Composite { tf, .. } if ctx.opts.integrate != Integrate::Step => {
+            match (ctx.opts.integrate, &ctx.pre) {
+                (Integrate::Reference { substeps }, _) => {
+                    segment::reference(ctx, ray, span, acc, tf, substeps, &mut px)
+                }
+                (_, Some((table, tol))) => {
+                    segment::composite(ctx, ray, span, acc, table, *tol, &mut px)
+                }
+                _ => unreachable!("segment composites carry their table"),
+            }
+        }
         Mode::Composite { step_mm, .. } => {
             let lut = ctx.lut.as_ref().expect("composite renders carry a table");
             match ctx.opts.sampling {
@@ -311,6 +340,22 @@ pub(crate) fn pixel_until<T: Real>(
     }
     px.steps = counts.steps.min(u32::MAX as u64) as u32;
     (px, counts)
+}
+
+/// The narrowest gap between `tf`'s points in value units (the value
+/// span, or 1, for fewer than two points): the scale of the segment
+/// integrator's tolerance.
+pub(crate) fn narrowest_gap(tf: &crate::classify::TransferFunction) -> f64 {
+    let g = tf
+        .points
+        .windows(2)
+        .map(|w| w[1].value - w[0].value)
+        .fold(f64::INFINITY, f64::min);
+    if g.is_finite() && g > 0.0 {
+        g
+    } else {
+        1.0
+    }
 }
 
 /// `front` (a scan's pixel over the interval before the label hit) over

@@ -125,6 +125,14 @@ impl<'a> Look<'a> {
         if !self.look.shade {
             return s;
         }
+        self.lit(s, g, len)
+    }
+
+    /// The shading of [`Look::apply`] alone: premultiplied sample `s` lit
+    /// through gradient `g` of length `len` (the segment integrator
+    /// scales the extinction, not the opacity, by the gradient opacity).
+    #[inline(always)]
+    pub fn lit(&self, s: Vec4, g: Vec3A, len: f32) -> Vec4 {
         const AMBIENT: f32 = 0.12;
         let (diffuse, spec) = if len > 0.0 {
             // The light is at the eye: n.l = |g.e| / |g| for the normal

@@ -131,6 +131,10 @@ pub struct OptionsKey {
     /// Composite: the sampler's arithmetic, the early-stop opacity and
     /// the look.
     pub sampling: Option<String>,
+    /// Composite and MIP: `--integrate` other than `step` (absent from
+    /// manifests written before it existed, which integrated by steps).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub integrate: Option<String>,
     /// Composite: `--sample-batches` (absent from manifests written
     /// before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -183,6 +187,9 @@ impl OptionsKey {
             tile: o.tile,
             cd_lazy_min: o.cd_lazy_min,
             sampling: composite.then(|| o.sampling.name().into()),
+            integrate: ((composite || o.mode == Mode::Mip)
+                && o.integrate != crate::render::Integrate::Step)
+                .then(|| format!("{:?}", o.integrate)),
             sample_batches: composite.then_some(o.sample_batches),
             early_stop: composite.then_some(o.early_stop),
             look: composite.then(|| o.look.clone()),

@@ -73,37 +73,14 @@ impl TfLut {
             let e = exact(v0);
             return TfLut::with_entries(v0, 0.0, 0.0, vec![e, e]);
         }
-        let min_gap = p
-            .windows(2)
-            .map(|w| w[1].value - w[0].value)
-            .fold(f64::INFINITY, f64::min);
-        let want = ((v1 - v0) / min_gap * 16.0).ceil();
-        let least = if want.is_finite() {
-            (want as usize).clamp(Self::MIN_BINS, Self::MAX_BINS)
-        } else {
-            Self::MAX_BINS
-        };
-        // Where every point falls on an entry (commensurate points, as in
-        // hand-written functions), the table is exact at the kinks and only
-        // the smooth h^2 error remains; else the least count.
+        let bins = table_bins(tf, Self::MIN_BINS, Self::MAX_BINS);
         let span = v1 - v0;
-        let at_entry = |q: f64, bins: usize| {
-            let x = (q - v0) / span * bins as f64;
-            ((x - x.round()).abs() <= 1e-9 * bins as f64).then_some(x.round() as usize)
-        };
-        let bins = if p.len() <= 64 {
-            (least..=Self::MAX_BINS)
-                .find(|&b| p.iter().all(|q| at_entry(q.value, b).is_some()))
-                .unwrap_or(least)
-        } else {
-            least
-        };
         let h = span / bins as f64;
         let mut entries: Vec<[f64; 4]> = (0..=bins)
             .map(|i| exact(if i == bins { v1 } else { v0 + i as f64 * h }))
             .collect();
         for q in p {
-            if let Some(i) = at_entry(q.value, bins) {
+            if let Some(i) = at_entry(v0, span, q.value, bins) {
                 entries[i] = exact(q.value);
             }
         }
@@ -187,6 +164,45 @@ impl TfLut {
         let (a, b) = (&self.entries[i], &self.entries[i + 1]);
         std::array::from_fn(|k| a[k] + f * (b[k] - a[k]))
     }
+}
+
+/// The bin count of a table of `tf` over its points' values `[v_first,
+/// v_last]` (which must differ and be finite): at least `min` bins, more
+/// (up to `max`) when two points are closer than 16 bins, and the
+/// smallest such count that puts every point on an entry when there is
+/// one ([`TfLut`]; the segment integrator's table,
+/// [`PreTable`](super::pretable::PreTable), too).
+pub(crate) fn table_bins(tf: &TransferFunction, min: usize, max: usize) -> usize {
+    let p = &tf.points;
+    let (v0, v1) = (p[0].value, p[p.len() - 1].value);
+    let min_gap = p
+        .windows(2)
+        .map(|w| w[1].value - w[0].value)
+        .fold(f64::INFINITY, f64::min);
+    let want = ((v1 - v0) / min_gap * 16.0).ceil();
+    let least = if want.is_finite() {
+        (want as usize).clamp(min, max)
+    } else {
+        max
+    };
+    // Where every point falls on an entry (commensurate points, as in
+    // hand-written functions), the table is exact at the kinks and only
+    // the smooth h^2 error remains; else the least count.
+    let span = v1 - v0;
+    if p.len() <= 64 {
+        (least..=max)
+            .find(|&b| p.iter().all(|q| at_entry(v0, span, q.value, b).is_some()))
+            .unwrap_or(least)
+    } else {
+        least
+    }
+}
+
+/// The entry of a table of `bins` bins over `[v0, v0 + span]` that value
+/// `q` falls on, if it falls on one.
+pub(crate) fn at_entry(v0: f64, span: f64, q: f64, bins: usize) -> Option<usize> {
+    let x = (q - v0) / span * bins as f64;
+    ((x - x.round()).abs() <= 1e-9 * bins as f64).then_some(x.round() as usize)
 }
 
 /// `min(floor(x), last_bin)` for `x` in `[0, last_bin + 1]` (`last_bin` a

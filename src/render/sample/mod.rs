@@ -8,9 +8,11 @@
 //! normals.rs  shading normals: the cell's own or smooth (central
 //!             differences across bricks, through the cache)
 //! lut.rs      transfer-function lookup tables (opacity, colour)
+//! pretable.rs the segment integrator's extinction integral table
 //! ```
 
 pub mod hit;
 pub mod lut;
+pub mod pretable;
 pub mod normals;
 pub mod shade;
