@@ -151,6 +151,10 @@ pub struct Look {
     /// --overlay`); `ask.labels` chooses the labels of a label file
     /// rendered on its own.
     pub overlay: Option<crate::render::Overlay>,
+    /// How composites and MIPs integrate along a ray (`render
+    /// --integrate`); `None`: the default
+    /// ([`Integrate::default`](crate::render::Integrate)).
+    pub integrate: Option<crate::render::Integrate>,
 }
 
 impl Look {
@@ -266,6 +270,9 @@ impl Renderer {
         opts.clip = look.clip.clone();
         opts.cap = !look.uncapped;
         opts.overlay = look.overlay.clone();
+        if let Some(i) = look.integrate {
+            opts.integrate = i;
+        }
         opts.cache_bytes = self.cache_bytes;
         Ok(opts)
     }

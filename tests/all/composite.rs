@@ -16,7 +16,7 @@ use cdvol::progress::NoProgress;
 use cdvol::render::sample::lut::exact_sample;
 use cdvol::render::traverse::Method;
 use cdvol::render::view::camera::Camera;
-use cdvol::render::{render, render_in, Frame, Mode, Precision, RenderOptions, Window};
+use cdvol::render::{render, render_in, Frame, Integrate, Mode, Precision, RenderOptions, Window};
 
 /// A transfer function transparent below 40 and above 180, coloured so
 /// the channels differ.
@@ -276,9 +276,11 @@ fn oracle_image(
     want
 }
 
+/// The step composite (`--integrate step`), which the oracles model.
 fn opts(method: Method, sampling: Precision, step: f64) -> RenderOptions {
     RenderOptions {
         sampling,
+        integrate: Integrate::Step,
         ..common::test_opts(
             Mode::Composite {
                 tf: tf(),
@@ -480,54 +482,62 @@ fn composite_is_the_same_for_every_traversal_and_look() {
         },
     ];
     let mut images = Vec::new();
-    for look in &looks {
-        for sampling in [Precision::F32, Precision::F64] {
-            for early_stop in [0.5, 0.99, 1.0] {
-                let mut first: Option<Frame> = None;
-                for method in [
-                    Method::Fvt,
-                    Method::Cd { min_leap: 1 },
-                    Method::Cd { min_leap: 3 },
-                    Method::CdAniso { min_leap: 1 },
-                    Method::Octree,
-                ] {
-                    let o = RenderOptions {
-                        sampling,
-                        early_stop,
-                        look: look.clone(),
-                        ..common::test_opts(
-                            Mode::Composite {
-                                tf: skin.clone(),
-                                step_mm: 0.6,
-                            },
-                            method,
-                        )
-                    };
-                    let f = draw(&vol, &cam, &o);
-                    match &first {
-                        None => first = Some(f),
-                        Some(w) => assert!(
-                            w.rgb == f.rgb,
-                            "{method:?} {sampling:?} stop {early_stop} {look:?} differs from FVT"
-                        ),
+    for integrate in [Integrate::Step, Integrate::Segment { tol: 0.01 }] {
+        for look in &looks {
+            for sampling in [Precision::F32, Precision::F64] {
+                for early_stop in [0.5, 0.99, 1.0] {
+                    let mut first: Option<Frame> = None;
+                    for method in [
+                        Method::Fvt,
+                        Method::Cd { min_leap: 1 },
+                        Method::Cd { min_leap: 3 },
+                        Method::CdAniso { min_leap: 1 },
+                        Method::Octree,
+                    ] {
+                        let o = RenderOptions {
+                            sampling,
+                            early_stop,
+                            integrate,
+                            look: look.clone(),
+                            ..common::test_opts(
+                                Mode::Composite {
+                                    tf: skin.clone(),
+                                    step_mm: 0.6,
+                                },
+                                method,
+                            )
+                        };
+                        let f = draw(&vol, &cam, &o);
+                        match &first {
+                            None => first = Some(f),
+                            Some(w) => assert!(
+                                w.rgb == f.rgb,
+                                "{method:?} {integrate:?} {sampling:?} stop {early_stop} {look:?} \
+                             differs from FVT"
+                            ),
+                        }
                     }
+                    images.push(first.unwrap().rgb);
                 }
-                images.push(first.unwrap().rgb);
             }
         }
     }
-    // The knobs do something: shading, gradient opacity and the early
-    // stop each change the picture.
+    // The knobs do something, under each integrator (18 images each):
+    // shading, gradient opacity and the early stop each change the
+    // picture, and so does the integrator.
     let lit = |i: usize| images[i].iter().map(|&x| x as u64).sum::<u64>();
-    assert!(images[1] != images[7], "shading changes the image");
-    assert!(
-        images[7] != images[13],
-        "gradient opacity changes the image"
-    );
-    assert!(
-        lit(0) < lit(1),
-        "stopping at opacity 0.5 leaves less colour than at 0.99"
-    );
+    for k in [0, 18] {
+        assert!(images[k + 1] != images[k + 7], "shading changes the image");
+        assert!(
+            images[k + 7] != images[k + 13],
+            "gradient opacity changes the image"
+        );
+        assert!(
+            lit(k) < lit(k + 1),
+            "stopping at opacity 0.5 leaves less colour than at 0.99"
+        );
+    }
+    assert!(images[1] != images[19], "the integrator changes the image");
     assert!(images.iter().any(|i| i.iter().any(|&x| x > 0)));
 }
 

@@ -51,6 +51,7 @@ mod hostile_outputs;
 mod hostile_readers;
 mod hostile_serve;
 mod input_kinds;
+mod integrators;
 mod labels;
 mod layout;
 mod library;
