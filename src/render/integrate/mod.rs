@@ -90,10 +90,11 @@ pub(crate) struct Ctx<'a, T> {
     pub(crate) narrow: Option<f32>,
     /// The composite mode's transfer function, tabulated for its step.
     pub(crate) lut: Option<TfLut>,
-    /// The segment composite's extinction integral table, and its
-    /// tolerance in value units ([`Integrate::Segment`]'s `tol` times the
-    /// transfer function's narrowest gap between points).
-    pub(crate) pre: Option<(PreTable, f64)>,
+    /// The segment composite's extinction integral table, its tolerance
+    /// in value units ([`Integrate::Segment`]'s `tol` times the transfer
+    /// function's narrowest gap between points) and the optical depth of
+    /// a first part of a deep chord ([`segment::first_depth`]).
+    pub(crate) pre: Option<(PreTable, f64, f64)>,
     /// The composite mode's ramps out of transparency, where the lattice
     /// restarts (refine.rs).
     pub(crate) ramps: Option<refine::Ramps>,
@@ -215,9 +216,11 @@ impl<'a, T: Real> Ctx<'a, T> {
                 _ => None,
             },
             pre: match (&opts.mode, opts.integrate) {
-                (Mode::Composite { tf, .. }, Integrate::Segment { tol }) => {
-                    Some((PreTable::new(tf), tol * narrowest_gap(tf)))
-                }
+                (Mode::Composite { tf, .. }, Integrate::Segment { tol }) => Some((
+                    PreTable::new(tf),
+                    tol * narrowest_gap(tf),
+                    segment::first_depth(tol),
+                )),
                 _ => None,
             },
             ramps: match &opts.mode {
@@ -319,8 +322,12 @@ pub(crate) fn pixel_until<T: Real>(
                 (Integrate::Reference { substeps }, _) => {
                     segment::reference(ctx, ray, span, acc, tf, substeps, &mut px)
                 }
-                (_, Some((table, tol))) => {
-                    segment::composite(ctx, ray, span, acc, table, *tol, &mut px)
+                (_, Some((table, tol, depth))) => {
+                    let limits = segment::Limits {
+                        tol: *tol,
+                        depth: *depth,
+                    };
+                    segment::composite(ctx, ray, span, acc, table, limits, &mut px)
                 }
                 _ => unreachable!("segment composites carry their table"),
             }

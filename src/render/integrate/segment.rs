@@ -40,13 +40,23 @@ use crate::render::sample::pretable::{emission, PreTable};
 use crate::render::sample::shade::{at, CellEval};
 use crate::render::traverse::{Flow, Ray, Real, StepCounts, Visit};
 
-/// A chord deeper than this (optical depth) is split in value-linear
-/// parts this deep at most, each lit at its own middle: the colour of a
+/// The optical depth of the first part of a deep chord: parts are
+/// value-linear, each lit at its own middle, the first this deep and
+/// later ones deeper as the light left falls ([`deep`]); the colour of a
 /// part is its extinction-weighted colour, exact while the part is thin.
-/// At 0.25 the harness's p99 error was 6.8-7.2 grey levels on
-/// `ct-vessels` and 10.9 on `ct-lung` whatever the tolerance; at 0.05,
-/// 2.7 and 1.7 (docs/DECISIONS.md).
-pub const MAX_DEPTH: f64 = 0.05;
+/// Twice the tolerance, at most 0.02, so that both errors vanish together
+/// (docs/DECISIONS.md, "Integrators").
+pub(crate) fn first_depth(tol: f64) -> f64 {
+    (2.0 * tol).min(0.02)
+}
+
+/// How far a segment's pieces may be from the cubic (`tol`, value units)
+/// and how deep a chord's first part may be (`depth`).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Limits {
+    pub tol: f64,
+    pub depth: f64,
+}
 
 /// Pieces of one segment at most (a segment along a cell's diagonal
 /// through a sharp saddle).
@@ -245,7 +255,7 @@ pub(super) fn composite<T: Real>(
     span: &Span,
     acc: &mut Accessor,
     table: &PreTable,
-    tol: f64,
+    limits: Limits,
     px: &mut Px,
 ) -> StepCounts {
     let look = Look::new(&ctx.opts.look, ctx.opts.normals, ray);
@@ -264,7 +274,7 @@ pub(super) fn composite<T: Real>(
     };
     let counts = walk_span(ctx, ray, span, acc, |v, acc| {
         clock::enter(acc);
-        let flow = segment(ctx, ray, v, acc, table, tol, mm, &mut a, &mut last, stop);
+        let flow = segment(ctx, ray, v, acc, table, limits, mm, &mut a, &mut last, stop);
         clock::leave(acc);
         flow
     });
@@ -281,7 +291,7 @@ fn segment<T: Real>(
     v: &Visit,
     acc: &mut Accessor,
     table: &PreTable,
-    tol: f64,
+    limits: Limits,
     mm: f64,
     a: &mut Acc,
     last: &mut Exit,
@@ -313,7 +323,7 @@ fn segment<T: Real>(
     } else {
         (cub.k[0], table.integral(cub.k[0]))
     };
-    let n = pieces(cub.curvature(len), len, tol);
+    let n = pieces(cub.curvature(len), len, limits.tol);
     // The look's gradients at a piece's middle: smooth normals from the
     // cell's vertex gradients (the brick's gradient plane, else computed
     // and kept there), or the cell interpolant's own.
@@ -338,10 +348,11 @@ fn segment<T: Real>(
         let pb = table.integral(fb);
         let e = table.chord(fa, &pa, fb, &pb, (sb - sa) * mm);
         if e[0] > 0.0 {
-            if e[0] <= MAX_DEPTH {
+            if e[0] <= limits.depth {
                 a.add(e, gradient(0.5 * (sa + sb)));
             } else {
-                deep(table, (sa, fa, pa), (sb, fb, pb), mm, e[0], &gradient, a);
+                let d = limits.depth;
+                deep(table, (sa, fa, pa), (sb, fb, pb), mm, d, &gradient, a, stop);
             }
             if a.alpha > stop {
                 last.t = f64::NAN;
@@ -358,33 +369,52 @@ fn segment<T: Real>(
     Flow::Continue
 }
 
-/// A chord of optical depth `depth` above [`MAX_DEPTH`], from `sa` to
+/// A chord of optical depth above `first` ([`first_depth`]), from `sa` to
 /// `sb` along the segment (`mm` mm per unit), composited in value-linear
-/// parts at most that deep, each lit at its own middle.
+/// parts, each lit at its own middle. A part's colour error grows with
+/// its depth and counts as much as the light left to it (the ray's
+/// transmittance `T`), so each part ends where the chord's depth since
+/// its start reaches `first / T` ([`PreTable::value_at`]): about
+/// `1 / first` parts from clear to opaque (50 at the default), whatever
+/// the extinction and however much of the chord is clear, where equal
+/// parts of `first` take `ln(100) / first`. Ends once the ray is opaque
+/// (`stop`).
 #[cold]
+#[allow(clippy::too_many_arguments)]
 fn deep(
     table: &PreTable,
     (sa, fa, pa): (f64, f64, [f64; 4]),
     (sb, fb, pb): (f64, f64, [f64; 4]),
     mm: f64,
-    depth: f64,
+    first: f64,
     gradient: &dyn Fn(f64) -> Option<Vec3A>,
     a: &mut Acc,
+    stop: f64,
 ) {
-    let m = (depth / MAX_DEPTH).ceil().min(256.0);
-    let len = (sb - sa) / m;
-    let (mut x, mut px) = (fa, pa);
-    for j in 1..=m as u32 {
-        let (y, py) = if j == m as u32 {
-            (fb, pb)
-        } else {
-            let y = fa + (fb - fa) * j as f64 / m;
-            (y, table.integral(y))
+    // Depth per value unit along the chord: P[0] changes by `want / c`.
+    let c = (sb - sa) * mm / (fb - fa);
+    let up = fb > fa;
+    let (mut x, mut px, mut s) = (fa, pa, sa);
+    // From clear to opaque takes about 1 / first parts; a last one takes
+    // what is left after 4096.
+    for _ in 0..4096 {
+        let want = first / (1.0 - a.alpha).max(1e-6);
+        let y = table
+            .value_at(px[0] + want / c, up)
+            .filter(|&y| if up { y < fb } else { y > fb });
+        let (y, py, s1) = match y {
+            Some(y) if y != x => (y, table.integral(y), sa + (sb - sa) * (y - fa) / (fb - fa)),
+            _ => (fb, pb, sb),
         };
-        let g = gradient(sa + (j as f64 - 0.5) * len);
-        a.add(table.chord(x, &px, y, &py, len * mm), g);
-        (x, px) = (y, py);
+        let e = table.chord(x, &px, y, &py, (s1 - s) * mm);
+        a.add(e, gradient(0.5 * (s + s1)));
+        if s1 == sb || a.alpha > stop {
+            return;
+        }
+        (x, px, s) = (y, py, s1);
     }
+    let e = table.chord(x, &px, fb, &pb, (sb - s) * mm);
+    a.add(e, gradient(0.5 * (s + sb)));
 }
 
 /// The reference composite: per visit, `substeps` substeps per cell
@@ -528,7 +558,7 @@ mod tests {
         };
         let len = 1.7;
         for tol in [0.01, 0.1, 1.0] {
-            let n = pieces(cub.curvature(len), len, tol);
+            let n = pieces(cub.curvature(len), len, limits.tol);
             for i in 0..n {
                 let (s0, s1) = (len * i as f64 / n as f64, len * (i + 1) as f64 / n as f64);
                 let (a, b) = (cub.at(s0), cub.at(s1));

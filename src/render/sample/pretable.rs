@@ -157,6 +157,38 @@ impl PreTable {
         std::array::from_fn(|k| p[k] + self.h * x * (a[k] + 0.5 * x * (b[k] - a[k])))
     }
 
+    /// The value where the extinction integral `P[0]` reaches `target`
+    /// first going up (`up`) or last going down: `P[0]` never decreases
+    /// (the extinction is not negative), so this inverts it: a binary
+    /// search of the entries, then the bin's quadratic. `None` where it
+    /// never reaches `target` (transparent beyond).
+    pub fn value_at(&self, target: f64, up: bool) -> Option<f64> {
+        let last = self.q.len() - 1;
+        let end = self.v0 + last as f64 * self.h;
+        let (q0, ql, pl) = (self.q[0][0], self.q[last][0], self.p[last][0]);
+        if target < 0.0 || self.h == 0.0 {
+            // Below the first point (or a one-point function): linear.
+            return (q0 > 0.0).then(|| self.v0 + target / q0);
+        }
+        if target > pl {
+            return (ql > 0.0).then(|| end + (target - pl) / ql);
+        }
+        // The bin `i` whose span holds the crossing.
+        let i = if up {
+            self.p.partition_point(|p| p[0] < target).max(1) - 1
+        } else {
+            self.p.partition_point(|p| p[0] <= target).clamp(1, last) - 1
+        };
+        let (a, b) = (self.q[i][0], self.q[i + 1][0]);
+        // P = P_i + h (a x + (b - a) x^2 / 2) = target, x in [0, 1],
+        // by the form without cancellation.
+        let (qa, qb, qc) = (0.5 * self.h * (b - a), self.h * a, self.p[i][0] - target);
+        let disc = (qb * qb - 4.0 * qa * qc).max(0.0);
+        let den = qb + disc.sqrt();
+        let x = if den > 0.0 { (-2.0 * qc / den).clamp(0.0, 1.0) } else { 0.0 };
+        Some(self.v0 + (i as f64 + x) * self.h)
+    }
+
     /// `[int tau, int tau r, int tau g, int tau b]` over a chord of `len`
     /// mm whose value runs linearly from `a` to `b`, given `pa =
     /// P(a)` and `pb = P(b)`: zero where either value is NaN.
@@ -278,6 +310,38 @@ mod tests {
         assert!((e2[0] - e[0]).abs() < 1e-4 * e[0]);
         let n = f64::NAN;
         assert_eq!(table.chord(n, &table.integral(n), v, &table.integral(v), 1.0), [0.0; 4]);
+    }
+
+    /// `value_at` inverts the integral: going up and down, inside the
+    /// points, beyond them and across a transparent stretch.
+    #[test]
+    fn value_at_inverts_the_integral() {
+        let t = tf(&[
+            (-100.0, 0.2, [1.0; 3]),
+            (0.0, 0.0, [1.0; 3]),
+            (50.0, 0.0, [1.0; 3]),
+            (60.0, 0.999, [1.0; 3]),
+            (300.0, 0.4, [1.0; 3]),
+        ]);
+        let table = PreTable::new(&t);
+        for v in [-250.0, -100.0, -37.5, 51.0, 55.5, 59.99, 120.0, 299.0, 800.0] {
+            let p = table.integral(v)[0];
+            for up in [true, false] {
+                let got = table.value_at(p, up).unwrap();
+                assert!(
+                    (table.integral(got)[0] - p).abs() <= 1e-9 * p.abs().max(1.0),
+                    "{v} {up}: {got}"
+                );
+            }
+        }
+        // Across the clear stretch 0..50: a hair above its integral lands
+        // just past its top going up, a hair below just before its
+        // bottom going down.
+        let p = table.integral(25.0)[0];
+        let up = table.value_at(p + 1e-9, true).unwrap();
+        assert!((50.0..50.01).contains(&up), "{up}");
+        let down = table.value_at(p - 1e-9, false).unwrap();
+        assert!((-0.01..0.0).contains(&down), "{down}");
     }
 
     /// An opacity of 1 per mm is the capped extinction, not infinite.
