@@ -274,7 +274,7 @@ class Renderer:
 
     def _render(self, view, mode, preset, iso, width, height, background,
                 shadows, shade, step, perspective, frame, bit_depth,
-                crop=None, clip=(), cap=True, labels=None):
+                crop=None, clip=(), cap=True, labels=None, integrate=None):
         if bit_depth not in (8, 32):
             raise LookError(f"bit_depth {bit_depth}: expected 8 (uint8) or 32 (float32)")
         width = _in_range("width", width, 1, (1 << 32) - 1, ViewError)
@@ -301,6 +301,7 @@ class Renderer:
             clip=[[float(x) for x in p] for p in clip],
             cap=bool(cap),
             labels=None if labels is None else str(labels),
+            integrate=None if integrate is None else str(integrate),
         ))
 
     def render(
@@ -323,6 +324,7 @@ class Renderer:
         clip: Sequence[Tuple[float, float, float, float]] = (),
         cap: bool = True,
         labels: Optional[str] = None,
+        integrate: Optional[str] = None,
         return_stats: bool = False,
     ) -> Any:
         """Renders one view as an ``(height, width, 4)`` array, row 0 at the
@@ -342,7 +344,11 @@ class Renderer:
         - ``preset``: a name of :attr:`Volume.presets`; ``iso``: the surface's
           value (it must be one the file was prepared for).
         - ``shadows``, ``shade``: shadow rays for surfaces; shading for
-          composites. ``step``: the composite's step in mm (0.5).
+          composites. ``integrate``: ``"segment"`` (the default: each
+          cell's stretch of ray integrated exactly; the MIP's exact
+          maximum), ``"step"`` (samples ``step`` mm apart, 0.5; the MIP at
+          cell faces) or ``"reference"`` (slow f64, for measuring);
+          ``step`` alone implies ``"step"``.
         - ``perspective``: field of view in degrees (default orthographic);
           ``frame``: the orthographic frame's height in mm (default: the
           object fits).
@@ -359,7 +365,7 @@ class Renderer:
         rgba, _, stats = self._render(view, mode, preset, iso, width, height,
                                       background, shadows, shade, step,
                                       perspective, frame, bit_depth, crop, clip, cap,
-                                      labels)
+                                      labels, integrate)
         image = rgba.reshape(int(height), int(width), 4)
         return (image, json.loads(stats)) if return_stats else image
 

@@ -26,7 +26,7 @@ use cdvol::look::ModeKind;
 use cdvol::orient::NamedView;
 use cdvol::prep::{PrepOptions, PrepReport};
 use cdvol::progress::Progress;
-use cdvol::render::Background;
+use cdvol::render::{Background, Integrate};
 use cdvol::{Aim, Look, Renderer, View, Volume};
 
 /// An exception of `cdvol.errors` named `kind`, with the message of
@@ -739,6 +739,7 @@ struct RenderKw<'py> {
     clip: Vec<[f64; 4]>,
     cap: bool,
     labels: Option<String>,
+    integrate: Option<String>,
 }
 
 impl RenderKw<'_> {
@@ -819,6 +820,21 @@ impl RenderKw<'_> {
         };
         look.uncapped = !self.cap;
         look.ask.labels = self.labels.clone();
+        look.integrate = match self.integrate.as_deref() {
+            None => self.step.map(|_| Integrate::Step),
+            Some("segment") => Some(Integrate::Segment {
+                tol: Integrate::SEGMENT_TOL,
+            }),
+            Some("step") => Some(Integrate::Step),
+            Some("reference") => Some(Integrate::Reference {
+                substeps: Integrate::REFERENCE_SUBSTEPS,
+            }),
+            Some(other) => {
+                return Err(format!(
+                    "integrate {other:?}: expected \"segment\", \"step\" or \"reference\""
+                ))
+            }
+        };
         Ok(look)
     }
 }

@@ -282,3 +282,14 @@ def test_a_crop_of_the_whole_volume_changes_nothing_and_a_cut_face_is_flat(tmp_p
         vol.render(clip=[(0, 0, 0, 1)])
     with pytest.raises(cdvol.LookError, match="outside the volume"):
         vol.render(crop=((100, 120), (0, 10), (0, 10)))
+
+
+def test_integrators_are_chosen_by_name(prepped):
+    vol, _ = prepped
+    kw = dict(mode="mip", width=40, height=40, bit_depth=32)
+    faces = vol.render((30, 20), integrate="step", **kw)
+    # ``step`` alone implies the stepping integrator (the MIP's faces).
+    assert np.array_equal(vol.render((30, 20), step=0.5, **kw), faces)
+    assert vol.render((30, 20), integrate="segment", **kw).shape == faces.shape
+    with pytest.raises(cdvol.LookError, match='"segment", "step" or "reference"'):
+        vol.render((30, 20), integrate="exactly", **kw)

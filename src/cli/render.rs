@@ -221,9 +221,10 @@ pub struct RenderArgs {
     /// Also `"shade": true` in the --tf file.
     #[arg(long, help_heading = heading::LOOK)]
     pub shade: bool,
-    /// Composite sample distance in mm (--integrate step).
-    #[arg(long, default_value_t = 0.5, help_heading = heading::LOOK)]
-    pub step: f64,
+    /// Composite sample distance in mm [default: 0.5]; implies
+    /// --integrate step when --integrate is not given.
+    #[arg(long, help_heading = heading::LOOK)]
+    pub step: Option<f64>,
     /// Composite and MIP: integrate per ray-cell segment or by steps.
     ///
     /// segment (the default): the composite integrates each cell's

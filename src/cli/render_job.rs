@@ -48,7 +48,7 @@ impl RenderArgs {
             shade: self.shade,
             hit: self.hit.into(),
             shadows: self.shadows,
-            step_mm: self.step,
+            step_mm: self.step.unwrap_or(cdvol::render::DEFAULT_STEP_MM),
             // With --overlay, --labels and --lut are the overlay's.
             labels: self.labels.clone().filter(|_| self.overlay.is_none()),
             lut: match &self.lut {
@@ -111,12 +111,13 @@ impl RenderArgs {
         })
     }
 
-    /// `--integrate` and `--segment-tol`; the library's default without
-    /// `--integrate`.
+    /// `--integrate` and `--segment-tol`; without `--integrate`, steps
+    /// when `--step` is given, else the library's default.
     pub fn integrate(&self) -> cdvol::render::Integrate {
         use crate::cli::render::IntegrateArg;
         use cdvol::render::Integrate;
         match self.integrate {
+            None if self.step.is_some() => Integrate::Step,
             None => match Integrate::default() {
                 Integrate::Segment { .. } => Integrate::Segment {
                     tol: self.segment_tol,

@@ -71,7 +71,8 @@ pub use job::tiles::{
 };
 pub use options::{
     default_method, mode_name, CompositeLook, GradientPoint, Integrate, Mode, Overlay, Precision,
-    RenderOptions, Window, DEFAULT_CACHE_BYTES, EARLY_STOP, MAX_PIXELS, MIN_STEP_MM,
+    RenderOptions, Window, DEFAULT_CACHE_BYTES, DEFAULT_STEP_MM, EARLY_STOP, MAX_PIXELS,
+    MIN_STEP_MM,
 };
 pub use output::colour::Colouring;
 pub use output::{

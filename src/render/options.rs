@@ -15,6 +15,8 @@ use crate::render::traverse::Method;
 
 /// Smallest composite sample distance.
 pub const MIN_STEP_MM: f64 = 1e-4;
+/// The composite step of `--integrate step` when none is given (mm).
+pub const DEFAULT_STEP_MM: f64 = 0.5;
 /// Largest image (2^28 pixels, 16384 x 16384).
 pub const MAX_PIXELS: u64 = 1 << 28;
 
@@ -556,7 +558,7 @@ pub(crate) fn check_render(
                 "a finite number above 0".into(),
             ));
         }
-        Integrate::Reference { substeps } if substeps == 0 => {
+        Integrate::Reference { substeps: 0 } => {
             return Err(bad("substeps", "0".into(), "at least 1".into()));
         }
         _ => {}

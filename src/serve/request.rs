@@ -112,6 +112,9 @@ pub struct ViewRequest {
     pub width: u32,
     pub height: u32,
     pub step_mm: f64,
+    /// `step` was given: the composite and MIP integrate by steps
+    /// (`render --step` without `--integrate`), else per cell segment.
+    pub step_given: bool,
     pub encoding: Encoding,
     /// The client's session: a newer request of it cancels this one.
     pub session: Option<String>,
@@ -142,6 +145,7 @@ impl ViewRequest {
             width: 512,
             height: 512,
             step_mm: 0.5,
+            step_given: false,
             encoding: Encoding::Png,
             session: None,
         };
@@ -172,7 +176,7 @@ impl ViewRequest {
                 "clip" => r.clip = Some(plane(&v)?),
                 "w" => r.width = int("w", &v, 1, MAX_SIDE as u64)? as u32,
                 "h" => r.height = int("h", &v, 1, MAX_SIDE as u64)? as u32,
-                "step" => r.step_mm = step(&v)?,
+                "step" => (r.step_mm, r.step_given) = (step(&v)?, true),
                 "format" => {
                     r.encoding = match one_of("format", &v, &["png", "jpeg", "webp"])?.as_str() {
                         "jpeg" => Encoding::Jpeg(85),
@@ -273,6 +277,9 @@ impl ViewRequest {
         o.window = look.window;
         o.cap_colours = cap_colours;
         o.look = look.look;
+        if self.step_given {
+            o.integrate = crate::render::Integrate::Step;
+        }
         o.clip = crate::render::clip::Clip {
             crop: self.crop,
             planes: self

@@ -14,9 +14,11 @@
 //! integral table ([`PreTable`]; pre-integrated volume rendering,
 //! Röttger, Kraus and Ertl 2000, Engel, Kraus and Ertl 2001). The colour
 //! is the extinction-weighted colour of the chord times its opacity
-//! (self-attenuation inside a chord neglected); a chord whose optical
-//! depth exceeds [`MAX_DEPTH`] is split further so that this neglect
-//! stays small where the ray turns opaque.
+//! (self-attenuation inside a chord neglected); a chord deeper than
+//! [`first_depth`] is split further so that this neglect stays small
+//! where the ray turns opaque. (The exact pre-integration table of Lum,
+//! Wilson and Ma 2004 holds a chord of one length; segments here have
+//! every length, so it would be a table per length: not built.)
 //!
 //! A segment's exit value, on the face it shares with the next cell, is
 //! that cell's entry value and table lookup: one trilinear evaluation and
@@ -226,8 +228,8 @@ impl Acc<'_> {
             s = self.look.lit(v, g, len).to_array().map(|x| x as f64);
         }
         let w = 1.0 - self.alpha;
-        for c in 0..3 {
-            self.col[c] += w * s[c];
+        for (c, x) in self.col.iter_mut().zip(s) {
+            *c += w * x;
         }
         self.alpha += w * s[3];
     }
@@ -558,7 +560,7 @@ mod tests {
         };
         let len = 1.7;
         for tol in [0.01, 0.1, 1.0] {
-            let n = pieces(cub.curvature(len), len, limits.tol);
+            let n = pieces(cub.curvature(len), len, tol);
             for i in 0..n {
                 let (s0, s1) = (len * i as f64 / n as f64, len * (i + 1) as f64 / n as f64);
                 let (a, b) = (cub.at(s0), cub.at(s1));

@@ -326,8 +326,11 @@ fn surface_rows(d: &Dataset, o: &TradeoffOptions, pr: &dyn Progress) -> anyhow::
 }
 
 fn composite_rows(d: &Dataset, o: &TradeoffOptions, pr: &dyn Progress) -> anyhow::Result<Vec<Row>> {
-    let comp = |step_mm, p| {
-        opts(
+    // The step integrator's rows (docs/TRADEOFFS.md, "Integrators",
+    // measures the segments against the f64 reference).
+    let comp = |step_mm, p| RenderOptions {
+        integrate: crate::render::Integrate::Step,
+        ..opts(
             Mode::Composite {
                 tf: d.tf.clone(),
                 step_mm,
