@@ -198,7 +198,16 @@ struct Acc<'a> {
     alpha: f64,
 }
 
-impl Acc<'_> {
+impl<'a> Acc<'a> {
+    /// A clear ray of `ctx`'s look.
+    fn new<T: Real>(ctx: &'a Ctx<T>, ray: &Ray) -> Acc<'a> {
+        Acc {
+            look: Look::new(&ctx.opts.look, ctx.opts.normals, ray),
+            col: [0.0; 3],
+            alpha: 0.0,
+        }
+    }
+
     /// Composites a part of optical depth `e[0]` and extinction-weighted
     /// colour `e[1..]`, lit through gradient `g` (when the look is on).
     #[inline(always)]
@@ -260,12 +269,7 @@ pub(super) fn composite<T: Real>(
     limits: Limits,
     px: &mut Px,
 ) -> StepCounts {
-    let look = Look::new(&ctx.opts.look, ctx.opts.normals, ray);
-    let mut a = Acc {
-        look,
-        col: [0.0; 3],
-        alpha: 0.0,
-    };
+    let mut a = Acc::new(ctx, ray);
     let stop = ctx.opts.early_stop;
     // mm per unit of t (camera rays are unit: 1).
     let mm = ray.dir.length();
@@ -436,12 +440,7 @@ pub(super) fn reference<T: Real>(
     substeps: u32,
     px: &mut Px,
 ) -> StepCounts {
-    let look = Look::new(&ctx.opts.look, ctx.opts.normals, ray);
-    let mut a = Acc {
-        look,
-        col: [0.0; 3],
-        alpha: 0.0,
-    };
+    let mut a = Acc::new(ctx, ray);
     let gap = super::narrowest_gap(tf);
     let mm = ray.dir.length();
     let counts = walk_span(ctx, ray, span, acc, |v, acc| {
