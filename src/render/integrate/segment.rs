@@ -258,8 +258,8 @@ struct Exit {
     p: [f64; 4],
 }
 
-/// Composites `ray` over `span` segment by segment (module docs):
-/// `tol` in value units, stopping at the options' early stop.
+/// Composites `ray` over `span` segment by segment (module docs) within
+/// `limits`, stopping at the options' early stop.
 pub(super) fn composite<T: Real>(
     ctx: &Ctx<T>,
     ray: &Ray,
