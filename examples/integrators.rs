@@ -19,6 +19,13 @@
 //! Writes OUT_DIR/integrators.csv (one row per image) and
 //! OUT_DIR/integrators.svg (p99 error against time, one point per
 //! integrator and transfer function), and prints the summary table.
+//!
+//! With `INTEGRATORS_EXPORT=DIR`, also writes each composite reference
+//! for other renderers to be measured against it
+//! (tools/peers/vtk_integrators.py puts VTK through the same metrics):
+//! `DIR/NN-V.f32`, the image as f32 RGBA over black, row by row from the
+//! top, and `DIR/NN-V.json`, the case, the file, the camera the view was
+//! placed at and the transfer function with its look.
 
 use std::error::Error;
 use std::io::Write;
@@ -201,7 +208,12 @@ fn main() -> Result<(), Box<dyn Error>> {
     // Per case and integrator: seconds, mean, rmse, p99, max summed or
     // maxed over views.
     let mut rows: Vec<(String, String, [f64; 5])> = Vec::new();
-    for case in cases.iter().filter(|c| c.name.contains(&only)) {
+    let export = std::env::var_os("INTEGRATORS_EXPORT").map(PathBuf::from);
+    for (ci, case) in cases
+        .iter()
+        .enumerate()
+        .filter(|c| c.1.name.contains(&only))
+    {
         let r = &renderers[case.file];
         let mut sums: Vec<[f64; 5]> = vec![[0.0; 5]; integrators(case.mip).len() + 1];
         for (vi, &(az, el)) in VIEWS.iter().enumerate() {
@@ -210,6 +222,25 @@ fn main() -> Result<(), Box<dyn Error>> {
             let refi = r.render(&view, &with(&case.look, &reference(64)))?;
             let ref_s = t.elapsed().as_secs_f64();
             let refp = refi.rgba_f32(Background::BLACK);
+            if let (Some(dir), false) = (&export, case.mip) {
+                let opts = r.options(&with(&case.look, &reference(64)))?;
+                let tf = match &opts.mode {
+                    cdvol::render::Mode::Composite { tf, .. } => tf.clone(),
+                    _ => return Err(format!("{}: not a composite", case.name).into()),
+                };
+                let meta = serde_json::json!({
+                    "case": case.name, "file": &args[case.file], "view": [az, el],
+                    "size": size, "camera": refi.stats.camera,
+                    "points": tf.points, "shade": opts.look.shade,
+                    "gradient_opacity": opts.look.gradient_opacity,
+                });
+                let stem = dir.join(format!("{ci:02}-{vi}"));
+                std::fs::write(
+                    stem.with_extension("json"),
+                    serde_json::to_vec_pretty(&meta)?,
+                )?;
+                std::fs::write(stem.with_extension("f32"), bytemuck::cast_slice(&refp))?;
+            }
             let mut list = integrators(case.mip);
             if vi < 2 {
                 // The reference's convergence: twice the substeps.

@@ -7,6 +7,7 @@ use std::time::Instant;
 use crate::render::cache::{BrickCache, CacheCounters};
 use crate::render::options::RenderOptions;
 use crate::render::traverse::StepCounts;
+use crate::render::view::camera::{Camera, Projection};
 
 /// Counters of a render (the `--stats` contract).
 #[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize)]
@@ -90,6 +91,43 @@ pub struct Stats {
     pub mode: String,
     pub width: u32,
     pub height: u32,
+    /// Where the view was placed: with `render --eye --target --up` and
+    /// `--frame` (or `--fov`) it draws the same image, for another renderer
+    /// or a later run. The first part's or frame's in merged statistics.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraUsed>,
+}
+
+/// A placed camera as `render`'s exact-camera options spell it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CameraUsed {
+    pub eye: [f64; 3],
+    /// A point on the view axis (1 mm ahead of the eye).
+    pub target: [f64; 3],
+    pub up: [f64; 3],
+    /// Orthographic: the frame's height in mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame_mm: Option<f64>,
+    /// Perspective: the vertical field of view in degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fov_deg: Option<f64>,
+}
+
+impl CameraUsed {
+    /// How `camera` is spelled as `--eye --target --up --frame` / `--fov`.
+    pub fn of(camera: &Camera) -> CameraUsed {
+        let (frame_mm, fov_deg) = match camera.projection {
+            Projection::Ortho { frame_mm } => (Some(frame_mm), None),
+            Projection::Persp { fov_deg } => (None, Some(fov_deg)),
+        };
+        CameraUsed {
+            eye: camera.eye.to_array(),
+            target: (camera.eye + camera.forward).to_array(),
+            up: camera.up.to_array(),
+            frame_mm,
+            fov_deg,
+        }
+    }
 }
 
 impl Stats {
@@ -134,6 +172,7 @@ impl Stats {
             mode: opts.mode.name().into(),
             width: 0,
             height: 0,
+            camera: None,
         }
     }
 
@@ -172,5 +211,8 @@ impl Stats {
         self.page_faults += o.page_faults;
         self.huge_pages += o.huge_pages;
         self.huge_pages_slow += o.huge_pages_slow;
+        if self.camera.is_none() {
+            self.camera.clone_from(&o.camera);
+        }
     }
 }

@@ -57,6 +57,73 @@ pub struct PreTable {
     /// The function is transparent at every value up to this one (`-inf`
     /// when its first point is not).
     pub clear_below: f64,
+    /// The stretches of value the function's points bound, for
+    /// [`PreTable::slope`] and [`PreTable::spread`].
+    stretches: Stretches,
+}
+
+/// One stretch of [`PreTable::slope_memo`]: values `from <= v < to`,
+/// and its slope. The default holds no value.
+#[derive(Debug, Clone, Copy)]
+pub struct SlopeMemo {
+    from: f64,
+    to: f64,
+    slope: f64,
+    colour_slope: f64,
+}
+
+impl Default for SlopeMemo {
+    fn default() -> SlopeMemo {
+        SlopeMemo {
+            from: f64::INFINITY,
+            to: f64::NEG_INFINITY,
+            slope: 0.0,
+            colour_slope: 0.0,
+        }
+    }
+}
+
+/// The function's points cut the values into stretches: before the
+/// first point, between each two, after the last.
+#[derive(Debug, Clone)]
+struct Stretches {
+    /// The points' values, ascending.
+    at: Vec<f64>,
+    /// The points' colours.
+    colour: Vec<[f64; 3]>,
+    /// Per stretch, the largest change of any channel of the table's `q`
+    /// per value unit between two entries over it (the bins a point
+    /// falls inside count to both its stretches); 0 where the table is
+    /// constant there, as before the first point and after the last.
+    slope: Vec<f64>,
+    /// The largest of `slope`.
+    slope_max: f64,
+    /// Per stretch, the largest change of any colour channel per value
+    /// unit (the colour is linear inside a stretch).
+    colour_slope: Vec<f64>,
+}
+
+impl Stretches {
+    /// The stretch of `v`: how many points lie at or below it.
+    #[inline(always)]
+    fn of(&self, v: f64) -> usize {
+        self.at.partition_point(|&p| p <= v)
+    }
+
+    /// The function's colour at `v` (as [`TransferFunction::colour`]).
+    fn colour_at(&self, v: f64) -> [f64; 3] {
+        let k = self.of(v);
+        if k == 0 {
+            return self.colour[0];
+        }
+        if k == self.at.len() {
+            return self.colour[k - 1];
+        }
+        let (a, b) = (self.at[k - 1], self.at[k]);
+        let f = (v - a) / (b - a);
+        let (ca, cb) = (self.colour[k - 1], self.colour[k]);
+        std::array::from_fn(|c| ca[c] + f * (cb[c] - ca[c]))
+    }
 }
 
 impl PreTable {
@@ -74,6 +141,13 @@ impl PreTable {
             None => f64::INFINITY,
         };
         let (v0, v1) = (pts[0].value, pts[pts.len() - 1].value);
+        let mut stretches = Stretches {
+            at: pts.iter().map(|p| p.value).collect(),
+            colour: pts.iter().map(|p| p.color).collect(),
+            slope: vec![0.0; pts.len() + 1],
+            slope_max: 0.0,
+            colour_slope: vec![0.0; pts.len() + 1],
+        };
         if pts.len() < 2 || !(v1 > v0) || !(v1 - v0).is_finite() {
             let q = emission(tf, v0);
             return PreTable {
@@ -83,6 +157,7 @@ impl PreTable {
                 q: vec![q, q],
                 p: vec![[0.0; 4], [0.0; 4]],
                 clear_below,
+                stretches,
             };
         }
         let bins = super::lut::table_bins(tf, Self::MIN_BINS, Self::MAX_BINS);
@@ -104,6 +179,22 @@ impl PreTable {
             }
             p.push(sum);
         }
+        // Each stretch between two points: the entries from the bin of
+        // its first point to the bin end past its last.
+        for k in 1..pts.len() {
+            let entry = |v: f64| (v - v0) / h;
+            let i0 = (entry(pts[k - 1].value).floor().max(0.0) as usize).min(bins);
+            let i1 = (entry(pts[k].value).ceil().max(0.0) as usize).min(bins);
+            stretches.slope[k] = q[i0..=i1]
+                .windows(2)
+                .flat_map(|w| (0..4).map(|c| (w[1][c] - w[0][c]).abs() / h))
+                .fold(0.0, f64::max);
+            let (a, b) = (&pts[k - 1], &pts[k]);
+            stretches.colour_slope[k] = (0..3)
+                .map(|c| (b.color[c] - a.color[c]).abs() / (b.value - a.value))
+                .fold(0.0, f64::max);
+        }
+        stretches.slope_max = stretches.slope.iter().copied().fold(0.0, f64::max);
         PreTable {
             v0,
             h,
@@ -111,7 +202,84 @@ impl PreTable {
             q,
             p,
             clear_below,
+            stretches,
         }
+    }
+
+    /// The largest change of any channel of `q` per value unit over
+    /// `[lo, hi]` (the stretches it meets, [`Stretches::slope`]): 0 where
+    /// `q` is constant over it, so any chord there is exact; infinite at
+    /// NaN.
+    #[inline]
+    pub fn slope(&self, lo: f64, hi: f64) -> f64 {
+        if !(lo <= hi) {
+            return f64::INFINITY;
+        }
+        let st = &self.stretches;
+        let (a, b) = (st.of(lo), st.of(hi));
+        st.slope[a..=b].iter().copied().fold(0.0, f64::max)
+    }
+
+    /// [`PreTable::slope`] through `memo`, the last stretch a ray's cell
+    /// lay in: a ray's next cell mostly lies in it too.
+    #[inline(always)]
+    pub fn slope_memo(&self, lo: f64, hi: f64, memo: &mut SlopeMemo) -> f64 {
+        if lo >= memo.from && hi < memo.to {
+            return memo.slope;
+        }
+        let slope = self.slope(lo, hi);
+        let st = &self.stretches;
+        let k = st.of(lo);
+        if k == st.of(hi) {
+            let n = st.at.len();
+            *memo = SlopeMemo {
+                from: if k == 0 { f64::NEG_INFINITY } else { st.at[k - 1] },
+                to: if k == n { f64::INFINITY } else { st.at[k] },
+                slope,
+                colour_slope: st.colour_slope[k],
+            };
+        }
+        slope
+    }
+
+    /// The largest [`PreTable::slope`] anywhere.
+    pub fn slope_max(&self) -> f64 {
+        self.stretches.slope_max
+    }
+
+    /// [`PreTable::spread`] through `memo` ([`PreTable::slope_memo`]):
+    /// inside one stretch the colour is linear, so its spread is its slope
+    /// times the range (widened a bin each way).
+    #[inline(always)]
+    pub fn spread_memo(&self, lo: f64, hi: f64, memo: &SlopeMemo) -> f64 {
+        if lo >= memo.from && hi < memo.to {
+            return (memo.colour_slope * (hi - lo + 2.0 * self.h)).min(1.0);
+        }
+        self.spread(lo, hi)
+    }
+
+    /// How far apart the function's colours lie over `[lo, hi]`, widened
+    /// by a bin each way (the entries a chord's lookups read): the
+    /// largest spread of any channel, 0..=1; 1 at NaN. A chord whose
+    /// colour is constant composites exactly, however deep.
+    pub fn spread(&self, lo: f64, hi: f64) -> f64 {
+        if !(lo <= hi) {
+            return 1.0;
+        }
+        let st = &self.stretches;
+        let (lo, hi) = (lo - self.h, hi + self.h);
+        let (mut min, mut max) = (st.colour_at(lo), st.colour_at(lo));
+        let mut take = |c: [f64; 3]| {
+            for k in 0..3 {
+                min[k] = min[k].min(c[k]);
+                max[k] = max[k].max(c[k]);
+            }
+        };
+        take(st.colour_at(hi));
+        for c in &st.colour[st.of(lo)..st.of(hi)] {
+            take(*c);
+        }
+        (0..3).map(|k| max[k] - min[k]).fold(0.0, f64::max)
     }
 
     /// The bin of `v` and its fraction, `v` clamped to the table.
@@ -342,6 +510,67 @@ mod tests {
         assert!((50.0..50.01).contains(&up), "{up}");
         let down = table.value_at(p - 1e-9, false).unwrap();
         assert!((-0.01..0.0).contains(&down), "{down}");
+    }
+
+    proptest::proptest! {
+        /// Over random functions (flat stretches, steps, steep drops) and
+        /// random value ranges: `slope` bounds the table's change of every
+        /// channel between any two values of the range (the rate at 200
+        /// points of it), is 0 only where the rate is constant there, and
+        /// `spread` bounds the rate's colour spread over it; the memos
+        /// give the same slope and a spread no smaller, whatever stretch
+        /// they last held.
+        #[test]
+        fn slope_and_spread_bound_the_table(
+            pts in proptest::collection::vec(
+                (-500.0f64..500.0, 0.0f64..1.0, 0.0f64..1.0, proptest::bool::ANY), 2..7),
+            a in -700.0f64..700.0,
+            w in 0.0f64..300.0,
+            prior in -700.0f64..700.0,
+        ) {
+            let mut pts = pts;
+            pts.sort_by(|x, y| x.0.total_cmp(&y.0));
+            // Some stretches flat: a point repeats the one before it.
+            for i in 1..pts.len() {
+                if pts[i].3 {
+                    (pts[i].1, pts[i].2) = (pts[i - 1].1, pts[i - 1].2);
+                }
+            }
+            let t = tf(&pts.iter().map(|&(v, o, c, _)| (v, o, [c, 1.0 - c, 0.5])).collect::<Vec<_>>());
+            let table = PreTable::new(&t);
+            let (lo, hi) = (a, a + w);
+            let slope = table.slope(lo, hi);
+            let rates: Vec<(f64, [f64; 4])> = (0..=200)
+                .map(|j| lo + w * j as f64 / 200.0)
+                .map(|v| (v, table.rate(v)))
+                .collect();
+            let (mut cmin, mut cmax) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for (i, (v, q)) in rates.iter().enumerate() {
+                for (u, r) in &rates[..i] {
+                    for k in 0..4 {
+                        let d = (q[k] - r[k]).abs();
+                        proptest::prop_assert!(
+                            d <= slope * (v - u) * (1.0 + 1e-9) + 1e-12,
+                            "{u}..{v} channel {k}: {d} > slope {slope}"
+                        );
+                    }
+                }
+                if q[0] > 1e-9 {
+                    for k in 0..3 {
+                        cmin[k] = cmin[k].min(q[k + 1] / q[0]);
+                        cmax[k] = cmax[k].max(q[k + 1] / q[0]);
+                    }
+                }
+            }
+            let spread = table.spread(lo, hi);
+            let true_spread = (0..3).map(|k| cmax[k] - cmin[k]).fold(0.0, f64::max);
+            proptest::prop_assert!(true_spread <= spread + 1e-9, "{true_spread} > {spread}");
+            let mut memo = SlopeMemo::default();
+            table.slope_memo(prior, prior, &mut memo);
+            proptest::prop_assert_eq!(table.slope_memo(lo, hi, &mut memo), slope);
+            let sm = table.spread_memo(lo, hi, &memo);
+            proptest::prop_assert!(true_spread <= sm + 1e-9, "memo {sm} < {true_spread}");
+        }
     }
 
     /// An opacity of 1 per mm is the capped extinction, not infinite.
