@@ -2,10 +2,12 @@
 //! (docs/TRADEOFFS.md, "Integrators"; tools/integrators.sh runs it).
 //!
 //! `cargo run --release --example integrators -- CT.cdv MR.cdv SIZE OUT_DIR [ONLY]`,
-//! or `-- --plot OUT_DIR` to redraw the plot from the CSV.
+//! or `-- --plot OUT_DIR` to redraw the plot from the CSV (and
+//! OUT_DIR/integrators-vtk.csv, VTK's rows, when it is there).
 //!
 //! For every transfer function (each CT composite preset on CT.cdv, one
-//! deliberately sharp peak on CT.cdv, `mr-default` on MR.cdv) and eight
+//! deliberately sharp peak and the peers' skin-bone function on CT.cdv,
+//! `mr-default` on MR.cdv) and eight
 //! views (oblique ones included), renders the f64 reference
 //! (`Integrate::Reference`, 1/64-cell substeps, no early stop) and each
 //! integrator: steps of 1, 0.5, 0.25 and 0.125 mm, and segments at four
@@ -181,6 +183,19 @@ fn main() -> Result<(), Box<dyn Error>> {
         look: peak,
         mip: false,
     });
+    // The peers' function (tools/peers/skin-bone-tf.json, unshaded): the
+    // one `tools/peers/run.sh` times against VTK.
+    let peers =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/peers/skin-bone-tf.json");
+    let mut skin_bone = Look::default();
+    skin_bone.ask.mode = Some(ModeKind::Composite);
+    skin_bone.ask.tf = Some((TransferFunction::load(&peers)?, CompositeLook::default()));
+    cases.push(Case {
+        name: "peers skin-bone".into(),
+        file: 0,
+        look: skin_bone,
+        mip: false,
+    });
     cases.push(Case {
         name: "mr-default (MR)".into(),
         file: 1,
@@ -315,7 +330,11 @@ fn main() -> Result<(), Box<dyn Error>> {
 /// The plot of the rows in `dir`'s CSV: per function and integrator,
 /// the mean time and worst p99 over its views.
 fn replot(dir: &std::path::Path) -> Result<(), Box<dyn Error>> {
-    let text = std::fs::read_to_string(dir.join("integrators.csv"))?;
+    let mut text = std::fs::read_to_string(dir.join("integrators.csv"))?;
+    // VTK's rows (tools/peers/vtk_integrators.py), when there are some.
+    if let Ok(vtk) = std::fs::read_to_string(dir.join("integrators-vtk.csv")) {
+        text.extend(vtk.lines().skip(1).map(|l| format!("{l}\n")));
+    }
     let mut rows: Vec<(String, String, [f64; 5])> = Vec::new();
     let mut views: Vec<f64> = Vec::new();
     for line in text.lines().skip(1) {
@@ -378,8 +397,8 @@ fn plot(path: &std::path::Path, rows: &[(String, String, [f64; 5])]) -> Result<(
         .x_desc("frame seconds (mean over 8 views)")
         .y_desc("p99 |error|, grey levels (worst view)")
         .draw()?;
-    let families = ["step", "segment", "faces", "exact"];
-    let colours = [RED, BLUE, MAGENTA, GREEN];
+    let families = ["step", "segment", "faces", "exact", "vtk"];
+    let colours = [RED, BLUE, MAGENTA, GREEN, BLACK];
     for (f, c) in families.iter().zip(colours) {
         let series: Vec<(f64, f64)> = pts
             .iter()

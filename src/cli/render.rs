@@ -107,7 +107,8 @@ pub struct RenderArgs {
     /// AZ,EL in degrees.
     ///
     /// A name in patient terms, or AZ,EL, azimuth and elevation in degrees
-    /// around the volume centre. Anterior looks at the face, head up, so the patient's
+    /// around the centre of the object (the scene's 1-cells, which the
+    /// default frame fits). Anterior looks at the face, head up, so the patient's
     /// left is on the image's right (the radiological convention); left
     /// looks at the patient's left side; superior and inferior look along
     /// the body axis with the face at the top.
@@ -131,7 +132,8 @@ pub struct RenderArgs {
     /// Perspective field of view in degrees.
     #[arg(long, default_value_t = 40.0, help_heading = heading::VIEW)]
     pub fov: f64,
-    /// Orthographic frame height in mm (default: the whole volume).
+    /// Orthographic frame height in mm (default: the object fits it, with
+    /// a margin of 5 % each side).
     #[arg(long, help_heading = heading::VIEW)]
     pub frame: Option<f64>,
     /// Exact camera: eye, target and up in mm (all three needed).
@@ -312,7 +314,9 @@ pub struct RenderArgs {
           value_parser = cdvol::render::output::scalebar::ScaleBar::parse,
           help_heading = heading::OUTPUT)]
     pub scale_bar: Option<cdvol::render::output::scalebar::ScaleBar>,
-    /// Write render statistics as JSON.
+    /// Write render statistics as JSON, with the camera the view was
+    /// placed at (`camera`: eye, target, up, frame_mm or fov_deg; the same
+    /// image again with --eye, --target, --up and --frame, or --persp --fov).
     #[arg(long, help_heading = heading::OUTPUT)]
     pub stats: Option<PathBuf>,
 

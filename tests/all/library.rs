@@ -149,6 +149,52 @@ fn one_renderer_serves_threads_and_keeps_its_cache() {
     }
 }
 
+/// The camera a render reports (`Stats::camera`, `render --stats`) draws
+/// the same image again as an exact camera, orthographic and perspective,
+/// from oblique orbits whose placement depends on the object's box.
+#[test]
+fn the_reported_camera_draws_the_same_image() {
+    let d = tempfile::tempdir().unwrap();
+    let file = prepared_ct_phantom(d.path(), "plain", &["--envelope", "auto"]);
+    let r = Volume::open(&file).unwrap().renderer();
+    for (az, el, persp) in [(35.0, 15.0, None), (200.0, -40.0, Some(30.0))] {
+        let mut view = View::orbit(az, el, 72, 64);
+        view.persp_fov_deg = persp;
+        let first = r.render(&view, &Look::default()).unwrap();
+        let cam = first.stats.camera.clone().expect("a placed camera");
+        assert_eq!(
+            (cam.frame_mm.is_some(), cam.fov_deg),
+            (persp.is_none(), persp)
+        );
+        let exact = View {
+            aim: cdvol::Aim::LookAt {
+                eye: cam.eye,
+                target: cam.target,
+                up: cam.up,
+            },
+            persp_fov_deg: cam.fov_deg,
+            frame_mm: cam.frame_mm,
+            width: 72,
+            height: 64,
+        };
+        let again = r.render(&exact, &Look::default()).unwrap();
+        assert!(
+            first.frame.rgb.iter().any(|&x| x > 0),
+            "{az},{el}: an empty image"
+        );
+        assert!(
+            again.frame.rgb == first.frame.rgb,
+            "{az},{el}: the reported camera draws another image"
+        );
+        let back = again.stats.camera.expect("a placed camera");
+        let near = |a: [f64; 3], b: [f64; 3]| (0..3).all(|k| (a[k] - b[k]).abs() < 1e-9);
+        assert!(
+            near(back.eye, cam.eye) && near(back.target, cam.target) && near(back.up, cam.up),
+            "{az},{el}: {back:?} reported against {cam:?}"
+        );
+    }
+}
+
 #[test]
 fn library_errors_say_what_was_refused() {
     let d = tempfile::tempdir().unwrap();

@@ -35,6 +35,7 @@ ap.add_argument("out")
 ap.add_argument("--root", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
 ap.add_argument("--threads", type=int, default=2)
 ap.add_argument("--steps", default="1,0.5,0.25")
+ap.add_argument("--png", help="also write each VTK image and its reference side by side here")
 a = ap.parse_args()
 root = os.path.abspath(a.root)
 steps = [float(s) for s in a.steps.split(",")]
@@ -166,6 +167,11 @@ for meta_path in sorted(glob.glob(os.path.join(a.export, "*.json"))):
     for step in steps:
         px, dt = sc.render(m["camera"], step)
         mt = metrics(px, ref)
+        if a.png:
+            from PIL import Image
+            both = np.concatenate([px, 255.0 * ref[:, :, :3]], axis=1).clip(0, 255).astype(np.uint8)
+            stem = os.path.basename(meta_path)[:-5]
+            Image.fromarray(both).save(os.path.join(a.png, f"{stem}-{step:g}.png"))
         name = f"vtk step {step:g} mm"
         rows.append(f"{m['case']},{az:g}/{el:g},{name},{dt:.5f},{mt[0]:.4f},{mt[1]:.4f},"
                     f"{mt[2]:.3f},{mt[3]:.3f},{mt[4]}")

@@ -1,6 +1,6 @@
 //! Cameras: orthographic (the paper's parallel projection) or perspective,
-//! placed by an orbit around the volume centre or exactly by eye, target
-//! and up, all in mm, so rectilinear volumes look undistorted.
+//! placed by an orbit (around the object's centre, render/view/framing.rs)
+//! or exactly by eye, target and up, all in mm, so rectilinear volumes look undistorted.
 
 use glam::DVec3;
 
