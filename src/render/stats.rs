@@ -7,7 +7,6 @@ use std::time::Instant;
 use crate::render::cache::{BrickCache, CacheCounters};
 use crate::render::options::RenderOptions;
 use crate::render::traverse::StepCounts;
-use crate::render::view::camera::{Camera, Projection};
 
 /// Counters of a render (the `--stats` contract).
 #[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize)]
@@ -98,7 +97,8 @@ pub struct Stats {
     pub camera: Option<CameraUsed>,
 }
 
-/// A placed camera as `render`'s exact-camera options spell it.
+/// A placed camera as `render`'s exact-camera options spell it
+/// ([`Camera::used`](crate::render::view::camera::Camera::used)).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CameraUsed {
     pub eye: [f64; 3],
@@ -111,23 +111,6 @@ pub struct CameraUsed {
     /// Perspective: the vertical field of view in degrees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fov_deg: Option<f64>,
-}
-
-impl CameraUsed {
-    /// How `camera` is spelled as `--eye --target --up --frame` / `--fov`.
-    pub fn of(camera: &Camera) -> CameraUsed {
-        let (frame_mm, fov_deg) = match camera.projection {
-            Projection::Ortho { frame_mm } => (Some(frame_mm), None),
-            Projection::Persp { fov_deg } => (None, Some(fov_deg)),
-        };
-        CameraUsed {
-            eye: camera.eye.to_array(),
-            target: (camera.eye + camera.forward).to_array(),
-            up: camera.up.to_array(),
-            frame_mm,
-            fov_deg,
-        }
-    }
 }
 
 impl Stats {

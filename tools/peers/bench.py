@@ -126,8 +126,9 @@ def cdvol(rep, n):
                                  "--frames", "3", "--orbit", "0", "--view", a.view, "--frame", FRAME,
                                  "--width", str(a.size), "--height", str(a.size)] + extra)
         warm = statistics.median(fr["seconds_total"] for fr in json.load(open(st))[1:])
-        # --view gives the camera cam_args spell out to 4 decimals: the frames
-        # must be the same picture (a few pixels may differ by that rounding).
+        # --view places the camera cam_args spell out to 6 decimals: the
+        # frames must be the same picture (a few pixels may differ by that
+        # rounding).
         from PIL import Image, ImageChops
         cold = Image.open(img(f"cdvol-{mode}-{n}.png")).convert("RGB")
         for k in range(3):

@@ -32,4 +32,4 @@ fi
 "$CDVOL" --version >&2
 "$work/venv/bin/python" "$root/tools/peers/bench.py" --cdvol "$CDVOL" --ct "$sidecar" \
     --work "$work" --out "$out" --reps "${REPS:-5}" --size "${SIZE:-512}" \
-    --threads "${THREADS:-1,2}" --view "${VIEW:-35,15}" "--prep-flags=${PREP_FLAGS:-}"
+    --threads "${THREADS:-1,2}" "--view=${VIEW:-35,15}" "--prep-flags=${PREP_FLAGS:-}"

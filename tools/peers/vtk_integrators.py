@@ -11,8 +11,9 @@ view), renders each view with vtkFixedPointVolumeRayCastMapper at steps of
 with the same camera and transfer function (opacity per mm, as
 tools/peers/vtk_render.py sets it up, shading with cdvol's headlight), and
 measures it as the harness measures cdvol's integrators: over the pixels
-either image covers, |difference| in grey levels (the largest channel),
-mean, RMSE, p99 and max. Cases with gradient opacity are left out (VTK's
+either image covers (VTK's image has no coverage channel: its non-black
+pixels), |difference| in grey levels (the largest channel; VTK's are
+rounded to 8 bits, the reference's are not), mean, RMSE, p99 and max. Cases with gradient opacity are left out (VTK's
 gradient opacity takes gradients in its own scaled units).
 
 Appends rows `function,view,integrator,seconds,mean,rmse,p99,max,pixels`

@@ -346,7 +346,9 @@ fn segment<T: Real>(
     // spread small (as a deep chord's, below).
     if !a.look.on && (hi - lo) * slope <= 2.0 * limits.tol * table.slope_max() {
         let e = table.rate(0.5 * (lo + hi)).map(|x| x * len * mm);
-        if e[0] <= limits.depth || e[0] * table.spread_memo(lo, hi, &last.memo) <= limits.depth {
+        if e[0] <= limits.depth
+            || e[0] * table.spread_memo(lo, hi, &last.memo).sqrt() <= limits.depth
+        {
             a.add(e, None);
             last.t = f64::NAN;
             return if a.alpha > stop {
@@ -402,8 +404,11 @@ fn segment<T: Real>(
         let pb = table.integral(fb);
         let e = table.chord(fa, &pa, fb, &pb, (sb - sa) * mm);
         if e[0] > 0.0 {
-            // Unlit, a deep chord is off only by its colour's spread times
-            // its depth (the colour-weighted mean stands for the whole).
+            // Unlit, a deep chord is off only by its colour's spread: the
+            // colour-weighted mean stands for the whole, off by about
+            // `spread D^2 / 2` at depth `D` (self-attenuation), so a chord
+            // whose colour spreads little may be `1 / sqrt(spread)` deeper
+            // for the error a chord of any colour has at `depth`.
             let spread = if a.look.on {
                 1.0
             } else if e[0] <= limits.depth {
@@ -411,10 +416,11 @@ fn segment<T: Real>(
             } else {
                 table.spread_memo(fa.min(fb), fa.max(fb), &last.memo)
             };
-            if e[0] * spread <= limits.depth {
+            let root = spread.sqrt();
+            if e[0] * root <= limits.depth {
                 a.add(e, gradient(0.5 * (sa + sb)));
             } else {
-                let d = limits.depth / spread;
+                let d = limits.depth / root;
                 deep(table, (sa, fa, pa), (sb, fb, pb), mm, d, &gradient, a, stop);
             }
             if a.alpha > stop {

@@ -25,7 +25,7 @@ use crate::render::options::{check_render, Precision, RenderOptions};
 use crate::render::output::canvas::{Canvas, Planes};
 use crate::render::output::colour::{colour_blocks, Colouring, PxBlock};
 use crate::render::output::Frame;
-use crate::render::stats::{CameraUsed, Stats};
+use crate::render::stats::Stats;
 use crate::render::traverse::{Real, StepCounts, TGrid};
 use crate::render::view::camera::Camera;
 use crate::render::view::cull::Cover;
@@ -245,7 +245,7 @@ fn render_checked(job: &TileJob) -> Result<(Vec<TilePx>, Stats), RenderError> {
     }
     let mut stats = Stats::counted(rays, hits, &steps, &cc, cache, opts, t0);
     (stats.width, stats.height) = (w, hgt);
-    stats.camera = Some(CameraUsed::of(job.camera));
+    stats.camera = Some(job.camera.used());
     stats.rays_culled = culled;
     stats.set_kernel(k0);
     (

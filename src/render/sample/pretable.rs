@@ -249,10 +249,11 @@ impl PreTable {
 
     /// [`PreTable::spread`] through `memo` ([`PreTable::slope_memo`]):
     /// inside one stretch the colour is linear, so its spread is its slope
-    /// times the range (widened a bin each way).
+    /// times the range widened a bin each way, when that lies inside the
+    /// stretch (a bin holding a point mixes in the next stretch's colour).
     #[inline(always)]
     pub fn spread_memo(&self, lo: f64, hi: f64, memo: &SlopeMemo) -> f64 {
-        if lo >= memo.from && hi < memo.to {
+        if lo - self.h >= memo.from && hi + self.h < memo.to {
             return (memo.colour_slope * (hi - lo + 2.0 * self.h)).min(1.0);
         }
         self.spread(lo, hi)

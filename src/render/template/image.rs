@@ -335,6 +335,7 @@ pub fn render_template_with(
     let mut stats = Stats::counted(inter_px, hits, &steps, &cc, &cache, opts, t0);
     stats.traversal = format!("template {}", opts.method.name());
     (stats.width, stats.height) = (w, hh);
+    stats.camera = Some(camera.used());
     stats.set_kernel(k0);
     Ok((frame, stats))
 }

@@ -1,9 +1,11 @@
 //! Cameras: orthographic (the paper's parallel projection) or perspective,
 //! placed by an orbit (around the object's centre, render/view/framing.rs)
-//! or exactly by eye, target and up, all in mm, so rectilinear volumes look undistorted.
+//! or exactly by eye, target and up, all in mm, so rectilinear volumes
+//! look undistorted.
 
 use glam::DVec3;
 
+use crate::render::stats::CameraUsed;
 use crate::render::traverse::{Ray, RayError};
 
 /// Why a camera cannot be placed. Fields are named as in [`Camera::look_at`]
@@ -184,6 +186,23 @@ impl Camera {
         };
         let eye = std::array::from_fn(|k| centre[k] + dist * back[k]);
         Camera::look_at(eye, centre, up, projection, width, height)
+    }
+
+    /// How this camera is spelled as `render --eye --target --up` with
+    /// `--frame` or `--persp --fov` (the `camera` of `--stats`), the target
+    /// 1 mm ahead of the eye.
+    pub fn used(&self) -> CameraUsed {
+        let (frame_mm, fov_deg) = match self.projection {
+            Projection::Ortho { frame_mm } => (Some(frame_mm), None),
+            Projection::Persp { fov_deg } => (None, Some(fov_deg)),
+        };
+        CameraUsed {
+            eye: self.eye.to_array(),
+            target: (self.eye + self.forward).to_array(),
+            up: self.up.to_array(),
+            frame_mm,
+            fov_deg,
+        }
     }
 
     /// Mirrors the image left to right (the right vector reversed): for
