@@ -12,15 +12,12 @@ import json, os, sys, time
 import numpy as np
 import pyopenvdb as vdb
 
+import sidecar
+
 t0 = time.perf_counter()  # after the imports
 side, out = sys.argv[1], sys.argv[2]
-meta = json.load(open(side))
+meta, a = sidecar.read(side)
 nx, ny, nz = meta["dims"]
-dt = {"i16": "<i2", "u16": "<u2", "u8": "u1", "f32": "<f4"}[meta["dtype"]]
-if meta.get("endian", "little") == "big":
-    dt = dt.replace("<", ">")
-raw = os.path.join(os.path.dirname(side), meta["data"])
-a = np.fromfile(raw, dtype=dt, offset=meta.get("header_bytes", 0), count=nx * ny * nz)
 a = a.reshape(nz, ny, nx).transpose(2, 1, 0)  # -> [x, y, z]
 a = np.ascontiguousarray(-a.astype(np.float32))
 air = float(a.max())  # negated air: outside of the level set

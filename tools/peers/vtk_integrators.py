@@ -30,6 +30,8 @@ import numpy as np
 import vtk
 from vtk.util import numpy_support
 
+import sidecar
+
 ap = argparse.ArgumentParser()
 ap.add_argument("export")
 ap.add_argument("out")
@@ -53,15 +55,9 @@ def source_of(packed):
     return src if os.path.isabs(src) else os.path.join(root, src)
 
 
-def load(sidecar):
-    meta = json.load(open(sidecar))
+def load(path):
+    meta, arr = sidecar.read(path)
     nx, ny, nz = meta["dims"]
-    dt = {"i16": "<i2", "u16": "<u2", "u8": "u1", "f32": "<f4"}[meta["dtype"]]
-    if meta.get("endian", "little") == "big":
-        dt = dt.replace("<", ">")
-    raw = os.path.join(os.path.dirname(sidecar), meta["data"])
-    arr = np.fromfile(raw, dtype=dt, offset=meta.get("header_bytes", 0), count=nx * ny * nz)
-    arr = arr.astype(arr.dtype.newbyteorder("="))
     img = vtk.vtkImageData()
     img.SetDimensions(nx, ny, nz)
     img.SetSpacing(meta["x"], meta["y"], meta["z"])

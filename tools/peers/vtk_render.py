@@ -19,6 +19,8 @@ import numpy as np
 import vtk
 from vtk.util import numpy_support
 
+import sidecar
+
 ap = argparse.ArgumentParser()
 ap.add_argument("sidecar")
 ap.add_argument("mode", choices=["composite", "mip"])
@@ -45,14 +47,8 @@ vtk.vtkSMPTools.Initialize(a.threads)
 
 # --- load: raw -> vtkImageData (sample (i,j,k) at origin + (i*sx, j*sy, k*sz) mm)
 t0 = time.perf_counter()
-meta = json.load(open(a.sidecar))
+meta, arr = sidecar.read(a.sidecar)
 nx, ny, nz = meta["dims"]
-dt = {"i16": "<i2", "u16": "<u2", "u8": "u1", "f32": "<f4"}[meta["dtype"]]
-if meta.get("endian", "little") == "big":
-    dt = dt.replace("<", ">")
-raw = os.path.join(os.path.dirname(a.sidecar), meta["data"])
-arr = np.fromfile(raw, dtype=dt, offset=meta.get("header_bytes", 0), count=nx * ny * nz)
-arr = arr.astype(arr.dtype.newbyteorder("="))
 img = vtk.vtkImageData()
 img.SetDimensions(nx, ny, nz)
 img.SetSpacing(meta["x"], meta["y"], meta["z"])
