@@ -87,10 +87,8 @@ impl Default for SlopeMemo {
 /// first point, between each two, after the last.
 #[derive(Debug, Clone)]
 struct Stretches {
-    /// The points' values, ascending.
-    at: Vec<f64>,
-    /// The points' colours.
-    colour: Vec<[f64; 3]>,
+    /// The function (its points' values ascending).
+    tf: TransferFunction,
     /// Per stretch, the largest change of any channel of the table's `q`
     /// per value unit between two entries over it (the bins a point
     /// falls inside count to both its stretches); 0 where the table is
@@ -107,22 +105,15 @@ impl Stretches {
     /// The stretch of `v`: how many points lie at or below it.
     #[inline(always)]
     fn of(&self, v: f64) -> usize {
-        self.at.partition_point(|&p| p <= v)
+        self.tf.points.partition_point(|p| p.value <= v)
     }
 
-    /// The function's colour at `v` (as [`TransferFunction::colour`]).
-    fn colour_at(&self, v: f64) -> [f64; 3] {
-        let k = self.of(v);
-        if k == 0 {
-            return self.colour[0];
-        }
-        if k == self.at.len() {
-            return self.colour[k - 1];
-        }
-        let (a, b) = (self.at[k - 1], self.at[k]);
-        let f = (v - a) / (b - a);
-        let (ca, cb) = (self.colour[k - 1], self.colour[k]);
-        std::array::from_fn(|c| ca[c] + f * (cb[c] - ca[c]))
+    /// The values of stretch `k`, `from <= v < to`.
+    fn bounds(&self, k: usize) -> (f64, f64) {
+        let pts = &self.tf.points;
+        let from = if k == 0 { f64::NEG_INFINITY } else { pts[k - 1].value };
+        let to = pts.get(k).map_or(f64::INFINITY, |p| p.value);
+        (from, to)
     }
 }
 
@@ -142,8 +133,7 @@ impl PreTable {
         };
         let (v0, v1) = (pts[0].value, pts[pts.len() - 1].value);
         let mut stretches = Stretches {
-            at: pts.iter().map(|p| p.value).collect(),
-            colour: pts.iter().map(|p| p.color).collect(),
+            tf: tf.clone(),
             slope: vec![0.0; pts.len() + 1],
             slope_max: 0.0,
             colour_slope: vec![0.0; pts.len() + 1],
@@ -212,12 +202,20 @@ impl PreTable {
     /// NaN.
     #[inline]
     pub fn slope(&self, lo: f64, hi: f64) -> f64 {
+        self.slope_of(lo, hi).0
+    }
+
+    /// [`PreTable::slope`], and the stretch `[lo, hi]` lies in when it
+    /// lies in one.
+    #[inline(always)]
+    fn slope_of(&self, lo: f64, hi: f64) -> (f64, Option<usize>) {
         if !(lo <= hi) {
-            return f64::INFINITY;
+            return (f64::INFINITY, None);
         }
         let st = &self.stretches;
         let (a, b) = (st.of(lo), st.of(hi));
-        st.slope[a..=b].iter().copied().fold(0.0, f64::max)
+        let slope = st.slope[a..=b].iter().copied().fold(0.0, f64::max);
+        (slope, (a == b).then_some(a))
     }
 
     /// [`PreTable::slope`] through `memo`, the last stretch a ray's cell
@@ -227,16 +225,14 @@ impl PreTable {
         if lo >= memo.from && hi < memo.to {
             return memo.slope;
         }
-        let slope = self.slope(lo, hi);
-        let st = &self.stretches;
-        let k = st.of(lo);
-        if k == st.of(hi) {
-            let n = st.at.len();
+        let (slope, one) = self.slope_of(lo, hi);
+        if let Some(k) = one {
+            let (from, to) = self.stretches.bounds(k);
             *memo = SlopeMemo {
-                from: if k == 0 { f64::NEG_INFINITY } else { st.at[k - 1] },
-                to: if k == n { f64::INFINITY } else { st.at[k] },
+                from,
+                to,
                 slope,
-                colour_slope: st.colour_slope[k],
+                colour_slope: self.stretches.colour_slope[k],
             };
         }
         slope
@@ -269,16 +265,16 @@ impl PreTable {
         }
         let st = &self.stretches;
         let (lo, hi) = (lo - self.h, hi + self.h);
-        let (mut min, mut max) = (st.colour_at(lo), st.colour_at(lo));
+        let (mut min, mut max) = (st.tf.colour(lo), st.tf.colour(lo));
         let mut take = |c: [f64; 3]| {
             for k in 0..3 {
                 min[k] = min[k].min(c[k]);
                 max[k] = max[k].max(c[k]);
             }
         };
-        take(st.colour_at(hi));
-        for c in &st.colour[st.of(lo)..st.of(hi)] {
-            take(*c);
+        take(st.tf.colour(hi));
+        for p in &st.tf.points[st.of(lo)..st.of(hi)] {
+            take(p.color);
         }
         (0..3).map(|k| max[k] - min[k]).fold(0.0, f64::max)
     }
