@@ -124,3 +124,19 @@ mod tests {
         );
     }
 }
+
+/// `#[serde(with = "crate::json::f64_bits")]`: an `f64` as its bits, so
+/// that infinities and NaN survive JSON (which has neither) and every
+/// value comes back exactly (intermediate files, such as a sharded prep's
+/// scans).
+pub mod f64_bits {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u64(v.to_bits())
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        u64::deserialize(d).map(f64::from_bits)
+    }
+}

@@ -342,6 +342,21 @@ impl LabelCounter {
         Ok(())
     }
 
+    /// Samples per label so far, `0..=`[`MAX_LABEL`].
+    pub fn counts(&self) -> &[u64] {
+        &self.counts
+    }
+
+    /// A counter holding `counts` (merged from the shards of a sharded
+    /// prep): `counts.len()` must be [`MAX_LABEL`] + 1.
+    pub fn from_counts(source_desc: &str, counts: Vec<u64>) -> LabelCounter {
+        assert_eq!(counts.len(), MAX_LABEL as usize + 1, "a count per label");
+        LabelCounter {
+            counts,
+            source_desc: source_desc.to_string(),
+        }
+    }
+
     /// The labels seen and their counts.
     pub fn finish(self, table: Option<LabelTable>) -> LabelInfo {
         LabelInfo {

@@ -123,8 +123,43 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
                     None => println!("{line}"),
                 }
             }
-            let report = prep(src.as_ref(), &a.output, &opts, progress).map_err(cli::prep_error)?;
-            print_prep(&a.output, &report)?;
+            if let (Some(shard), Some(pass)) = (a.shard, a.pass) {
+                let parts = a
+                    .parts
+                    .clone()
+                    .unwrap_or_else(|| cdvol::prep::shard::parts_dir(&a.output));
+                let step = match pass {
+                    1 => cdvol::prep::shard::scan,
+                    _ => cdvol::prep::shard::bricks,
+                };
+                let r = step(src.as_ref(), &parts, shard.k, shard.n, &opts, progress)
+                    .map_err(cli::prep_error)?;
+                print_shard(&r, src.meta(), pass);
+            } else {
+                let report =
+                    prep(src.as_ref(), &a.output, &opts, progress).map_err(cli::prep_error)?;
+                print_prep(&a.output, &report)?;
+            }
+        }
+        Command::PrepMerge(a) => {
+            let parts = match a.parts.as_slice() {
+                [dir] if dir.is_dir() => cdvol::prep::shard::find_parts(dir)?,
+                files => files.to_vec(),
+            };
+            let r =
+                cdvol::prep::shard::merge(&parts, &a.output, progress).map_err(cli::prep_error)?;
+            let s = &r.header.summary;
+            println!(
+                "wrote {} ({:.2} MiB) from {} parts in {:.2} s ({:.1} MB/s of samples); {} of {} \
+                 cells are 1-cells",
+                a.output.display(),
+                r.file_bytes as f64 / 1048576.0,
+                r.parts,
+                r.seconds,
+                s.input_bytes as f64 / 1e6 / r.seconds.max(1e-9),
+                s.one_cells,
+                s.cells
+            );
         }
         Command::PrepBatch(a) => prep_batch(a, progress)?,
         Command::Info(a) => {
@@ -614,6 +649,34 @@ fn prep_batch(a: cli::PrepBatchArgs, progress: &dyn Progress) -> Result<()> {
 }
 
 /// Prints what prep wrote and how long each stage took.
+/// What a shard's pass of a sharded prep wrote, with its rate and stages.
+fn print_shard(r: &cdvol::prep::shard::ShardReport, meta: &cdvol::input::VolumeMeta, pass: u8) {
+    let [nx, ny, _] = meta.dims();
+    let bytes = (nx * ny * r.cells.len()) as f64 * meta.dtype.size() as f64;
+    println!(
+        "wrote {} (pass {pass}, cell slices {}..{}) in {:.2} s ({:.1} MB/s of samples){}",
+        r.path.display(),
+        r.cells.start,
+        r.cells.end,
+        r.seconds,
+        bytes / 1e6 / r.seconds.max(1e-9),
+        if pass == 2 {
+            format!(
+                "; {} spill slices corrected for the shards below",
+                r.fixed_slices
+            )
+        } else {
+            String::new()
+        }
+    );
+    let t = &r.stages;
+    println!(
+        "stages (s): read {:.2}, classify+forward DT {:.2}, histogram {:.2}, backward DT {:.2}, \
+         re-read+embed {:.2}, bricks+zstd {:.2}, write {:.2}",
+        t.read1, t.classify_forward, t.histogram, t.backward, t.embed, t.compress, t.write
+    );
+}
+
 pub(crate) fn print_prep(output: &Path, r: &PrepReport) -> Result<()> {
     let s = &r.header.summary;
     let mb = s.input_bytes as f64 / 1048576.0;

@@ -11,7 +11,7 @@ mod render;
 mod render_job;
 mod tools;
 
-pub use prep::{input_error, prep_error, PrepArgs, PrepBatchArgs};
+pub use prep::{input_error, prep_error, PrepArgs, PrepBatchArgs, PrepMergeArgs};
 pub use render::{AssembleArgs, ExperimentRenderArgs, RenderArgs};
 pub use render_job::render_error;
 pub use tools::{
@@ -51,6 +51,9 @@ pub struct Cli {
 pub enum Command {
     /// Classify cells, compute distance codes and write a packed file.
     Prep(PrepArgs),
+    /// Join the parts of a sharded prep (`prep --shard K/N`) into the
+    /// packed file one prep would have written.
+    PrepMerge(PrepMergeArgs),
     /// Prepare every volume under a directory (DICOM series, NRRD, NIfTI,
     /// raw sidecars) into OUT_DIR, resuming where a previous run stopped.
     PrepBatch(PrepBatchArgs),

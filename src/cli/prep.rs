@@ -25,6 +25,36 @@ pub struct PrepArgs {
     // first argument under a heading places it); first among its own.
     #[arg(short, long, help_heading = heading::OUTPUT, display_order = 0)]
     pub output: PathBuf,
+    /// Prepare shard K of N (brick layers) into --parts, for prep-merge.
+    ///
+    /// With --pass 1 (every shard), then --pass 2 (every shard, once
+    /// every scan is written), then `cdvol prep-merge`: the file is the
+    /// one a single prep writes, byte for byte (docs/SCALE.md;
+    /// tools/slurm/prep-array.sbatch runs them as Slurm arrays).
+    #[arg(long, value_name = "K/N", value_parser = cdvol::render::Shard::parse,
+          requires = "pass", help_heading = heading::PERFORMANCE)]
+    pub shard: Option<cdvol::render::Shard>,
+    /// With --shard: 1 (classify, forward transform, seam planes) or 2
+    /// (backward transform and bricks, after every shard's pass 1).
+    #[arg(long, value_name = "1|2", value_parser = clap::value_parser!(u8).range(1..=2),
+          requires = "shard", help_heading = heading::PERFORMANCE)]
+    pub pass: Option<u8>,
+    /// With --shard: the directory of the shards' files (default:
+    /// OUTPUT.parts beside the output).
+    #[arg(long, value_name = "DIR", requires = "shard", help_heading = heading::PERFORMANCE)]
+    pub parts: Option<PathBuf>,
+}
+
+/// `cdvol prep-merge`.
+#[derive(Args, Debug)]
+pub struct PrepMergeArgs {
+    /// The parts directory of `prep --shard K/N --pass 2` (every shard's
+    /// part), or the part files.
+    #[arg(required = true, help_heading = heading::INPUT)]
+    pub parts: Vec<PathBuf>,
+    /// Packed output file.
+    #[arg(short, long, help_heading = heading::OUTPUT)]
+    pub output: PathBuf,
 }
 
 /// How prep classifies and packs (shared by prep and prep-batch). The

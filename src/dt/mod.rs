@@ -46,6 +46,12 @@ use std::io;
 
 use rayon::prelude::*;
 
+mod seam;
+mod spill;
+
+pub use seam::{fix_forward, local_bottom, propagate, SeamChain};
+pub use spill::{FileSpill, MemSpill, Spill};
+
 /// Saturated distance ("no 1-cell within 254 cells").
 pub const FAR: u8 = u8::MAX;
 
@@ -297,58 +303,6 @@ pub fn spill_record(n_cells_slice: usize, dda: bool) -> usize {
     n_cells_slice * if dda { 3 } else { 1 }
 }
 
-/// Where the forward pass keeps its slices until the backward pass reads
-/// them in reverse. Prep uses a temporary file; tests use memory.
-pub trait Spill {
-    fn put(&mut self, index: usize, data: &[u8]) -> io::Result<()>;
-    fn get(&mut self, index: usize, out: &mut [u8]) -> io::Result<()>;
-}
-
-/// In-memory spill (tests and small volumes).
-#[derive(Default)]
-pub struct MemSpill(pub Vec<Vec<u8>>);
-
-impl Spill for MemSpill {
-    fn put(&mut self, index: usize, data: &[u8]) -> io::Result<()> {
-        if self.0.len() <= index {
-            self.0.resize(index + 1, Vec::new());
-        }
-        self.0[index] = data.to_vec();
-        Ok(())
-    }
-    fn get(&mut self, index: usize, out: &mut [u8]) -> io::Result<()> {
-        out.copy_from_slice(&self.0[index]);
-        Ok(())
-    }
-}
-
-/// A spill into an anonymous temporary file: fixed-size records.
-pub struct FileSpill {
-    file: std::fs::File,
-    record: u64,
-}
-
-impl FileSpill {
-    /// A temporary file in `dir` (deleted when dropped).
-    pub fn new_in(dir: &std::path::Path, record: usize) -> io::Result<FileSpill> {
-        Ok(FileSpill {
-            file: tempfile::tempfile_in(dir)?,
-            record: record as u64,
-        })
-    }
-}
-
-impl Spill for FileSpill {
-    fn put(&mut self, index: usize, data: &[u8]) -> io::Result<()> {
-        use std::os::unix::fs::FileExt;
-        self.file.write_all_at(data, index as u64 * self.record)
-    }
-    fn get(&mut self, index: usize, out: &mut [u8]) -> io::Result<()> {
-        use std::os::unix::fs::FileExt;
-        self.file.read_exact_at(out, index as u64 * self.record)
-    }
-}
-
 /// Block size (cells per axis) of the anisotropic codes. Each block keeps,
 /// per octant, the smallest code of its cells: conservative, and 8 bytes
 /// per 64 cells instead of 8 bytes per cell (docs/FORMAT.md).
@@ -559,6 +513,19 @@ impl ForwardDt {
         self
     }
 
+    /// Starts at cell slice `z0` instead of 0, as the forward pass of a
+    /// shard of a sharded prep ([`seam`]): `below` is `F(z0 - 1)`, the
+    /// forward distances of the slice under it, or `None` to count only
+    /// the shard's own 1-cells. Spills at indices from `z0` on.
+    pub fn starting_at(mut self, z0: usize, below: Option<&[u8]>) -> ForwardDt {
+        self.z = z0;
+        match below {
+            Some(p) => self.prev.copy_from_slice(p),
+            None => self.prev.fill(FAR),
+        }
+        self
+    }
+
     /// Consumes the class slice `z` (in order) and spills `F(z)`. With
     /// anisotropic codes, the -z octants' block slab goes to `block_spill`
     /// at index `z / ANISO_BLOCK` when it is complete (or at `last`).
@@ -644,6 +611,14 @@ impl BackwardDt {
         let n = self.ncx * self.ncy;
         self.dda = dda.then(|| DdaPass::new(n));
         self.record = if dda { vec![0; 3 * n] } else { Vec::new() };
+        self
+    }
+
+    /// Continues from the final distances `above` of the cell slice over
+    /// the first one [`BackwardDt::step`] is given (a shard's top, [`seam`]).
+    pub fn seeded(mut self, above: &[u8]) -> BackwardDt {
+        self.cur.copy_from_slice(above);
+        self.started = true;
         self
     }
 

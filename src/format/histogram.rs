@@ -152,20 +152,24 @@ impl ValueHistogram {
 
 /// Builds a [`ValueHistogram`] from sample slices in stored units (before
 /// the rescale), as prep's first pass reads them.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct HistogramBuilder {
     /// Integer samples: bins are whole numbers of integers.
     integer: bool,
     /// Lower edge of bin 0 and bin width, stored units (width a power of
     /// two; at least 1 for integers, whose edges lie half-way between them).
+    #[serde(with = "crate::json::f64_bits")]
     lo: f64,
+    #[serde(with = "crate::json::f64_bits")]
     width: f64,
     /// [`MAX_BINS`] counts once the first finite sample is seen.
     counts: Vec<u64>,
     nan: u64,
     infinite: u64,
     /// Smallest and largest finite stored value so far.
+    #[serde(with = "crate::json::f64_bits")]
     min: f64,
+    #[serde(with = "crate::json::f64_bits")]
     max: f64,
 }
 
@@ -276,52 +280,82 @@ impl HistogramBuilder {
         self.infinite += inf;
     }
 
-    /// Widens the bins (doubling the width, merging pairs, shifting by
-    /// whole new bins) until they hold `[a, b]` and every value seen.
+    /// Widens the bins until they hold `[a, b]` and every value seen.
+    ///
+    /// The grid is a function of the range seen alone, not of the order
+    /// the values came in: the width is the smallest power of two (at
+    /// least 1 for integers, at least `2^-40` of the largest magnitude for
+    /// floats, so a constant slice gets a width) whose grid of
+    /// [`MAX_BINS`] bins, edges at whole multiples of the width (minus
+    /// one half for integers), holds the range. Grids of such widths nest,
+    /// so re-binning is exact, and two builders of disjoint slices merge
+    /// ([`HistogramBuilder::merge`]) into exactly the builder of all of
+    /// them: a sharded prep writes the histogram one prep writes.
     fn cover(&mut self, a: f64, b: f64) {
         let n = MAX_BINS as f64;
-        if self.counts.is_empty() {
-            self.counts = vec![0; MAX_BINS];
-            if self.integer {
-                self.lo = a.floor() - 0.5;
-                self.width = 1.0;
-            } else {
-                self.lo = a;
-                let span = b - a;
-                let mag = if a == 0.0 { 1.0 } else { a.abs() };
-                // Some width > 0 even for a constant slice; doubling fixes
-                // it later.
-                self.width = pow2_at_least((span / n).max(mag * 2f64.powi(-40)));
-            }
-        }
         let (lo_all, hi_all) = (self.min.min(a), self.max.max(b));
         self.min = lo_all;
         self.max = hi_all;
         let fits = |lo: f64, w: f64| lo <= lo_all && hi_all < lo + n * w;
-        if fits(self.lo, self.width) {
+        if !self.counts.is_empty() && fits(self.lo, self.width) {
             return;
         }
-        // New width w' = width * 2^k and new edge lo' = lo + t * w' for an
-        // integer t: every old bin then lies inside one new bin.
-        // k = 0 first: a shift alone may do.
-        let mut w = self.width;
-        let (lo, t) = loop {
-            let t = ((lo_all - self.lo) / w).floor();
-            let lo = self.lo + t * w;
-            if fits(lo, w) || !w.is_finite() {
-                break (lo, t);
-            }
-            w *= 2.0;
+        let off = if self.integer { 0.5 } else { 0.0 };
+        let edge = |w: f64| ((lo_all + off) / w).floor() * w - off;
+        let base = if self.integer {
+            1.0
+        } else {
+            let mag = lo_all.abs().max(hi_all.abs());
+            let mag = if mag == 0.0 { 1.0 } else { mag };
+            pow2_at_least(((hi_all - lo_all) / n).max(mag * 2f64.powi(-40)))
         };
-        let ratio = w / self.width;
-        let mut merged = vec![0u64; MAX_BINS];
-        for (i, &c) in self.counts.iter().enumerate().filter(|(_, &c)| c > 0) {
-            let j = (i as f64 / ratio).floor() - t;
-            merged[(j.max(0.0) as usize).min(MAX_BINS - 1)] += c;
+        // The width of a smaller range is never larger (its grid's first
+        // edge is no lower): start from the current one.
+        let mut w = if self.counts.is_empty() {
+            base
+        } else {
+            base.max(self.width)
+        };
+        while w.is_finite() && !fits(edge(w), w) {
+            w *= 2.0;
         }
-        self.counts = merged;
+        let mut lo = edge(w);
+        if !(lo.is_finite() && w.is_finite()) {
+            // Values near the ends of f64 on both sides: no aligned grid
+            // is finite; bins from the smallest value (order-dependent
+            // only there).
+            lo = lo_all;
+            w = pow2_at_least(hi_all / n - lo_all / n);
+        }
+        let old = std::mem::replace(&mut self.counts, vec![0; MAX_BINS]);
+        let (old_lo, old_w) = (self.lo, self.width);
         self.lo = lo;
         self.width = w;
+        for (i, &c) in old.iter().enumerate().filter(|(_, &c)| c > 0) {
+            self.add_bin(old_lo + i as f64 * old_w, c);
+        }
+    }
+
+    /// Adds `c` samples at the bin whose lower edge is `e` (of a grid that
+    /// nests in this one).
+    fn add_bin(&mut self, e: f64, c: u64) {
+        let j = ((e - self.lo) / self.width).floor();
+        self.counts[(j.max(0.0) as usize).min(MAX_BINS - 1)] += c;
+    }
+
+    /// Adds the counts of `other`, a builder of other samples of the same
+    /// type: the result is the builder of both sets of samples, whatever
+    /// the order ([`HistogramBuilder::cover`]).
+    pub fn merge(&mut self, other: &HistogramBuilder) {
+        self.nan += other.nan;
+        self.infinite += other.infinite;
+        if other.counts.is_empty() {
+            return;
+        }
+        self.cover(other.min, other.max);
+        for (i, &c) in other.counts.iter().enumerate().filter(|(_, &c)| c > 0) {
+            self.add_bin(other.lo + i as f64 * other.width, c);
+        }
     }
 
     /// The histogram in rescaled units, bins trimmed to the data; `None`
@@ -529,6 +563,58 @@ mod tests {
         }
         // The width is at most 4x what the range needs.
         assert!(h.bin_width <= 4.0 * (1e4 + 1e3) / MAX_BINS as f64);
+    }
+
+    proptest::proptest! {
+        /// Builders of two runs of slices, merged either way round, equal
+        /// the builder of all the slices in order: the grid depends on the
+        /// range seen, not the order (what sharded prep relies on).
+        #[test]
+        fn merged_builders_equal_one_builder(
+            slices in proptest::collection::vec(
+                proptest::collection::vec(
+                    proptest::prop_oneof![
+                        8 => -1e5f64..1e5,
+                        1 => -1e12f64..1e12,
+                        1 => proptest::strategy::Just(f64::NAN),
+                        1 => proptest::strategy::Just(7.0),
+                    ],
+                    0..40,
+                ),
+                1..8,
+            ),
+            split in 0usize..8,
+            integer in proptest::bool::ANY,
+        ) {
+            let dtype = if integer { Dtype::I64 } else { Dtype::F64 };
+            let slices: Vec<Vec<f64>> = slices
+                .into_iter()
+                .map(|s| {
+                    s.into_iter()
+                        .filter(|v| !(integer && v.is_nan()))
+                        .map(|v| if integer { v.round() } else { v })
+                        .collect()
+                })
+                .collect();
+            let k = split.min(slices.len());
+            let run = |part: &[Vec<f64>]| {
+                let mut b = HistogramBuilder::new(dtype);
+                for s in part {
+                    b.add_slice(s, None);
+                }
+                b
+            };
+            let one = run(&slices);
+            let mut ab = run(&slices[..k]);
+            ab.merge(&run(&slices[k..]));
+            let mut ba = run(&slices[k..]);
+            ba.merge(&run(&slices[..k]));
+            proptest::prop_assert_eq!(&ab, &one);
+            proptest::prop_assert_eq!(&ba, &one);
+            let json = serde_json::to_string(&one).expect("serialises");
+            let back: HistogramBuilder = serde_json::from_str(&json).expect("parses");
+            proptest::prop_assert_eq!(back, one);
+        }
     }
 
     #[test]

@@ -13,24 +13,22 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use rayon::prelude::*;
-
-use crate::classify::{classify_slice, slice_extrema, slice_iso_flags, Classification};
-use crate::dt::{self, BackwardDt, FileSpill, ForwardDt, OctantBlocks, ANISO_BLOCK, FAR};
-use crate::format::histogram::HistogramBuilder;
+use crate::classify::Classification;
+use crate::dt::{self, FileSpill, ForwardDt, ANISO_BLOCK};
 use crate::format::word::choose_encoding;
 use crate::format::writer::PackedWriter;
 use crate::format::{FormatError, Header, Summary, FORMAT_VERSION, OLDEST_WRITE_VERSION};
 use crate::input::{InputError, SliceSource};
 use crate::progress::Progress;
-use crate::with_word;
 
 mod decide;
+mod passes;
+pub mod shard;
 mod slab;
 
 pub use decide::{guess_modality, modality, sampled_landmarks, Decided, LANDMARK_SLICES};
 
-use slab::{emit_slab, BrickOut, SlabCtx, SlabScratch};
+use slab::BrickOut;
 
 /// Options of `cdvol prep`.
 #[derive(Debug, Clone)]
@@ -359,6 +357,10 @@ pub enum PrepError {
     /// A label map that is not one (`--labels`).
     #[error(transparent)]
     Labels(#[from] crate::labels::LabelError),
+    /// A file of a sharded prep ([`shard`]) that does not fit the others
+    /// or the input: the file and what is wrong.
+    #[error("{}: {msg}", path.display())]
+    Shard { path: PathBuf, msg: String },
     /// A [`PrepOptions`] field is out of range: the field, its value, and
     /// what was expected.
     #[error("{field} {value}: {msg}")]
@@ -430,10 +432,102 @@ pub fn prep(
     progress: &dyn Progress,
 ) -> Result<PrepReport, PrepError> {
     let t0 = Instant::now();
-    opts.check()?;
+    let opts = &checked(src, &[out.to_path_buf()], opts)?;
     let meta = src.meta().clone();
-    crate::fsutil::check_outputs(&[out.to_path_buf()], &src.files(), Some(&meta.origin_desc))?;
-    let (per_sample, needed) = prep_memory(&meta, opts);
+    let nz = meta.dims()[2];
+    let [ncx, ncy, ncz] = meta.grid.cells();
+    let n_cells_slice = ncx * ncy;
+    let temp_dir = temp_dir_for(opts, out);
+    let spill_err = |source| PrepError::Io {
+        path: temp_dir.clone(),
+        what: "temporary spill file",
+        source,
+    };
+    let mut spill = FileSpill::new_in(&temp_dir, dt::spill_record(n_cells_slice, opts.dda))
+        .map_err(spill_err)?;
+    let nb_slice = ncx.div_ceil(ANISO_BLOCK) * ncy.div_ceil(ANISO_BLOCK);
+    let mut block_spill = if opts.aniso {
+        Some(FileSpill::new_in(&temp_dir, 4 * nb_slice).map_err(spill_err)?)
+    } else {
+        None
+    };
+
+    // ---- Pass 1: classify and run the forward transform. ----
+    let mut st = StageTimes::default();
+    let mut fwd = ForwardDt::new(ncx, ncy, opts.aniso).with_dda(opts.dda);
+    let stats = passes::scan(
+        src,
+        opts,
+        0..ncz,
+        0..nz,
+        &mut fwd,
+        &mut spill,
+        block_spill.as_mut().map(|s| s as &mut dyn dt::Spill),
+        &spill_err,
+        progress,
+        &mut st,
+    )?;
+    // Pass 1's planes are not needed any more: free them before pass 2
+    // allocates its slabs (docs/RELIABILITY.md, "Memory").
+    drop(fwd);
+    let mut header = header_for(src, opts, &stats)?;
+
+    // ---- Pass 2: backward transform, embed codes, write bricks. ----
+    let mut t = Instant::now();
+    let mut writer = PackedWriter::create(out, header.brick_count(), header.format_version)?;
+    st.write += t.elapsed().as_secs_f64();
+    let emitted = passes::emit(
+        &header,
+        src,
+        opts,
+        0..header.bricks[2] as usize,
+        None,
+        &mut spill,
+        block_spill.as_mut().map(|s| s as &mut dyn dt::Spill),
+        &spill_err,
+        &mut |id, o| put_brick(&mut writer, id, o),
+        progress,
+        &mut st,
+    )?;
+    t = Instant::now();
+    header.summary = summary_of(&header, &stats, &emitted, writer.payload_bytes());
+    writer.finish(&header)?;
+    st.write += t.elapsed().as_secs_f64();
+    let file_bytes = std::fs::metadata(out)
+        .map_err(|source| PrepError::Io {
+            path: out.to_path_buf(),
+            what: "cannot stat the written file",
+            source,
+        })?
+        .len();
+    let temp_bytes = header.summary.cells * if opts.dda { 3 } else { 1 }
+        + if opts.aniso {
+            4 * nb_slice as u64 * ncz.div_ceil(ANISO_BLOCK) as u64
+        } else {
+            0
+        };
+    Ok(PrepReport {
+        selection: selection_warning(&header),
+        header,
+        seconds: t0.elapsed().as_secs_f64(),
+        file_bytes,
+        temp_bytes,
+        stages: st,
+    })
+}
+
+/// What every prep checks before it reads a slice (the options, the
+/// outputs against the input's files, the planned memory, the rescale),
+/// and the options resolved for the input.
+fn checked(
+    src: &dyn SliceSource,
+    outputs: &[PathBuf],
+    opts: &PrepOptions,
+) -> Result<PrepOptions, PrepError> {
+    opts.check()?;
+    let meta = src.meta();
+    crate::fsutil::check_outputs(outputs, &src.files(), Some(&meta.origin_desc))?;
+    let (per_sample, needed) = prep_memory(meta, opts);
     let limit = opts.mem_limit.unwrap_or_else(crate::memory::default_limit);
     if needed > limit {
         let [nx, ny, _] = meta.dims().map(|d| d as u64);
@@ -464,126 +558,62 @@ pub fn prep(
     // Decided after the checks above: it reads slices (the modality's
     // guess, an MR preset's landmarks). A label map has no modality and
     // is classified by its labels.
-    let opts = &if opts.labels {
-        opts.for_labels(&meta)?
+    if opts.labels {
+        opts.for_labels(meta)
     } else {
-        opts.resolved(src)?
-    };
-    let decided = opts.decided.as_ref();
-    let b = opts.brick_size;
-    let [nx, ny, nz] = meta.dims();
-    let [ncx, ncy, ncz] = meta.grid.cells();
-    let n_cells_slice = ncx * ncy;
-    let temp_dir = match &opts.temp_dir {
+        opts.resolved(src)
+    }
+}
+
+/// Where the spill goes: `--temp-dir`, or beside the output.
+fn temp_dir_for(opts: &PrepOptions, out: &Path) -> PathBuf {
+    match &opts.temp_dir {
         Some(d) => d.clone(),
         None => match out.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         },
-    };
-    let spill_err = |source| PrepError::Io {
-        path: temp_dir.clone(),
-        what: "temporary spill file",
-        source,
-    };
-    let mut spill = FileSpill::new_in(&temp_dir, dt::spill_record(n_cells_slice, opts.dda))
-        .map_err(spill_err)?;
-    let nb_slice = ncx.div_ceil(ANISO_BLOCK) * ncy.div_ceil(ANISO_BLOCK);
-    let mut block_spill = if opts.aniso {
-        Some(FileSpill::new_in(&temp_dir, 4 * nb_slice).map_err(spill_err)?)
-    } else {
-        None
-    };
-
-    // ---- Pass 1: classify and run the forward transform. ----
-    let cls = &opts.classification;
-    let mut buf = vec![0.0f64; nx * ny];
-    // Per-column flags (iso) or extrema (transfer function) of the last
-    // two sample slices.
-    let is_tf = matches!(cls, Classification::TransferFunction { .. });
-    let planes_len = if is_tf { n_cells_slice } else { 0 };
-    let mut planes = [vec![0.0f64; planes_len], vec![0.0f64; planes_len]];
-    let mut min_planes = [vec![0.0f64; planes_len], vec![0.0f64; planes_len]];
-    let flags_len = if is_tf { 0 } else { n_cells_slice };
-    let mut flags = [vec![0u8; flags_len], vec![0u8; flags_len]];
-    let mut obj = vec![0u8; n_cells_slice];
-    let mut fwd = ForwardDt::new(ncx, ncy, opts.aniso).with_dda(opts.dda);
-    let mut summary = Summary {
-        cells: (ncx * ncy) as u64 * ncz as u64,
-        input_bytes: (nx * ny) as u64 * nz as u64 * meta.dtype.size() as u64,
-        ..Summary::default()
-    };
-    let (mut raw_min, mut raw_max) = (f64::INFINITY, f64::NEG_INFINITY);
-    let mut values = HistogramBuilder::new(meta.dtype);
-    let mut label_counter = opts
-        .labels
-        .then(|| crate::labels::LabelCounter::new(&meta.origin_desc));
-    let mut st = StageTimes::default();
-    let lap = |t: &mut Instant| {
-        let e = t.elapsed().as_secs_f64();
-        *t = Instant::now();
-        e
-    };
-    let mut t = Instant::now();
-    progress.begin("classify + forward DT", nz as u64);
-    for z in 0..nz {
-        src.read_slice(z, &mut buf)?;
-        st.read1 += lap(&mut t);
-        if meta.dtype.is_float() {
-            summary.nan_samples += buf.par_iter().filter(|v| v.is_nan()).count() as u64;
-        }
-        if let Some(c) = label_counter.as_mut() {
-            c.add_slice(&buf, nx, z)?;
-        }
-        let cur = z % 2;
-        let (lo, hi) = match cls {
-            Classification::Iso { iso } => {
-                slice_iso_flags(&buf, nx, ny, meta.rescale, *iso, &mut flags[cur])
-            }
-            Classification::TransferFunction { .. } => {
-                slice_extrema(&buf, nx, ny, &mut planes[cur], &mut min_planes[cur])
-            }
-        };
-        raw_min = raw_min.min(lo);
-        raw_max = raw_max.max(hi);
-        st.classify_forward += lap(&mut t);
-        values.add_slice(&buf, (lo <= hi).then_some((lo, hi)));
-        st.histogram += lap(&mut t);
-        if z > 0 {
-            let prev = 1 - cur;
-            summary.one_cells += match cls {
-                Classification::Iso { .. } => or_planes(&flags[prev], &flags[cur], &mut obj),
-                Classification::TransferFunction { .. } => classify_slice(
-                    cls,
-                    meta.rescale,
-                    [&planes[prev], &planes[cur]],
-                    [&min_planes[prev], &min_planes[cur]],
-                    ncx,
-                    &mut obj,
-                ),
-            };
-            fwd.push(
-                &obj,
-                z == ncz,
-                &mut spill,
-                block_spill.as_mut().map(|s| s as &mut dyn dt::Spill),
-            )
-            .map_err(spill_err)?;
-        }
-        st.classify_forward += lap(&mut t);
-        progress.advance(1);
     }
-    progress.end();
-    let range = (raw_min <= raw_max).then_some((raw_min, raw_max));
-    summary.raw_min = range.map(|r| r.0);
-    summary.raw_max = range.map(|r| r.1);
-    summary.histogram = values.finish(meta.rescale);
-    if summary.one_cells == 0 && !opts.allow_empty {
+}
+
+/// Writes one of pass 2's bricks.
+fn put_brick(writer: &mut PackedWriter, id: u64, o: BrickOut) -> Result<(), PrepError> {
+    match o {
+        BrickOut::Uniform(c) => writer.put_uniform(id, c),
+        BrickOut::Payload {
+            compressed,
+            no_object,
+            min_code,
+            value_max,
+            ..
+        } => writer.put_brick(id, &compressed, no_object.then_some(min_code), value_max)?,
+    }
+    Ok(())
+}
+
+/// The header of the file pass 1 found `stats` for (its summary left for
+/// [`summary_of`]): the storage and code encoding the value range allows,
+/// the modality, landmarks and labels. Refuses a classification that
+/// selected no cell unless [`PrepOptions::allow_empty`], and bricks too
+/// large for the format.
+fn header_for(
+    src: &dyn SliceSource,
+    opts: &PrepOptions,
+    stats: &passes::ScanStats,
+) -> Result<Header, PrepError> {
+    let meta = src.meta();
+    let cls = &opts.classification;
+    let decided = opts.decided.as_ref();
+    let b = opts.brick_size;
+    let [nx, ny, nz] = meta.dims();
+    let range = stats.range();
+    if stats.one_cells == 0 && !opts.allow_empty {
+        let [ncx, ncy, ncz] = meta.grid.cells();
         return Err(PrepError::Empty {
             source_desc: meta.origin_desc.clone(),
             warning: SelectionWarning {
                 one_cells: 0,
-                cells: summary.cells,
+                cells: (ncx * ncy) as u64 * ncz as u64,
                 classification: if opts.labels {
                     "the labels (every sample is 0)".into()
                 } else {
@@ -597,13 +627,9 @@ pub fn prep(
         });
     }
     let (storage, codes) = choose_encoding(meta.dtype, range);
-    // Pass 1's slice buffers are not needed any more: free them before
-    // pass 2 allocates its slabs (docs/RELIABILITY.md, "Memory").
-    drop((buf, planes, min_planes, flags, obj, fwd));
-
-    // ---- Pass 2: backward transform, embed codes, write bricks. ----
-    let bricks = [ncx, ncy, ncz].map(|c| c.div_ceil(b) as u64);
-    let mut header = Header {
+    let histogram = stats.values.finish(meta.rescale);
+    let bricks = meta.grid.cells().map(|c| c.div_ceil(b) as u64);
+    let header = Header {
         format_version: opts.format_version,
         dims: [nx as u64, ny as u64, nz as u64],
         axes: meta.grid.axes.clone(),
@@ -626,11 +652,14 @@ pub fn prep(
         landmarks: decided.and_then(|d| d.landmarks.clone()).or_else(|| {
             // An MR file records the landmarks of its whole histogram.
             let mr = decided.is_some_and(|d| d.modality.modality == crate::presets::Modality::Mr);
-            let h = summary.histogram.as_ref().filter(|_| mr)?;
+            let h = histogram.as_ref().filter(|_| mr)?;
             crate::format::landmarks::Landmarks::of(h, "the file's value histogram")
         }),
         look: decided.and_then(|d| d.look.clone()),
-        labels: label_counter.map(|c| c.finish(opts.label_table.clone())),
+        labels: stats.labels.as_ref().map(|counts| {
+            crate::labels::LabelCounter::from_counts(&meta.origin_desc, counts.clone())
+                .finish(opts.label_table.clone())
+        }),
         summary: Summary::default(),
     };
     if header.max_payload_len() > crate::format::MAX_PAYLOAD_LEN {
@@ -646,134 +675,29 @@ pub fn prep(
             ),
         });
     }
-    let mut writer = PackedWriter::create(out, header.brick_count(), header.format_version)?;
-    let mut hist = vec![0u64; codes.max_code() as usize + 1];
-    let mut bwd = BackwardDt::new(ncx, ncy, ncz, opts.aniso).with_dda(opts.dda);
-    // Distances of cell slices z0..=z1 of the current slab (the last one
-    // is the first slice of the slab above, kept from the previous round).
-    // (A volume of one slab has no slab above: no slot for its slice.)
-    let slab_slices = if ncz > b { b + 1 } else { ncz };
-    let mut slab_dist = vec![FAR; slab_slices * n_cells_slice];
-    let mut slab_blocks: Vec<Option<OctantBlocks>> = vec![None; b / ANISO_BLOCK];
-    // City-block and chamfer planes of cell slices z0..z1 (with --dda).
-    let dda_len = if opts.dda { b * n_cells_slice } else { 0 };
-    let mut slab_dda = [vec![0u8; dda_len], vec![0u8; dda_len]];
-    let mut scratch = SlabScratch::default();
-    progress.begin("backward DT + bricks", ncz as u64);
-    for bz in (0..bricks[2] as usize).rev() {
-        let z0 = bz * b;
-        let z1 = (z0 + b).min(ncz);
-        for z in (z0..z1).rev() {
-            let (g, blocks) = bwd
-                .step(
-                    z,
-                    &mut spill,
-                    block_spill.as_mut().map(|s| s as &mut dyn dt::Spill),
-                )
-                .map_err(spill_err)?;
-            slab_dist[(z - z0) * n_cells_slice..(z - z0 + 1) * n_cells_slice].copy_from_slice(g);
-            let counts = g
-                .par_chunks(1 << 16)
-                .map(|c| {
-                    let mut h = [0u64; 256];
-                    c.iter().for_each(|&d| h[d as usize] += 1);
-                    h
-                })
-                .reduce(|| [0u64; 256], |a, b| std::array::from_fn(|i| a[i] + b[i]));
-            for (d, &n) in counts.iter().enumerate().skip(1) {
-                hist[(d - 1).min(codes.max_code() as usize)] += n;
-            }
-            if let Some(bl) = blocks {
-                slab_blocks[(z - z0) / ANISO_BLOCK] = Some(bl);
-            }
-            if let Some(planes) = bwd.dda() {
-                let at = (z - z0) * n_cells_slice..(z - z0 + 1) * n_cells_slice;
-                for (s, p) in slab_dda.iter_mut().zip(planes) {
-                    s[at.clone()].copy_from_slice(p);
-                }
-            }
-            progress.advance(1);
-        }
-        st.backward += lap(&mut t);
-        let ctx = SlabCtx {
-            header: &header,
-            src,
-            dist: &slab_dist,
-            blocks: &slab_blocks,
-            dda: opts.dda.then_some([&slab_dda[0][..], &slab_dda[1][..]]),
-            z0,
-            z1,
-            has_upper: z1 < ncz,
-        };
-        let (outs, embed_s) =
-            with_word!(storage, W => emit_slab::<W>(&ctx, opts.zstd_level, &mut scratch)?);
-        st.embed += embed_s;
-        st.compress += lap(&mut t) - embed_s;
-        for (id, o) in outs {
-            match o {
-                BrickOut::Uniform(c) => {
-                    writer.put_uniform(id, c);
-                    summary.uniform_bricks += 1;
-                }
-                BrickOut::Payload {
-                    compressed,
-                    raw_len,
-                    no_object,
-                    min_code,
-                    value_max,
-                } => {
-                    writer.put_brick(id, &compressed, no_object.then_some(min_code), value_max)?;
-                    summary.raw_payload_bytes += raw_len;
-                }
-            }
-        }
-        // The first slice of this slab is the upper slice of the next one.
-        if bz > 0 {
-            slab_dist.copy_within(0..n_cells_slice, b * n_cells_slice);
-        }
-        st.write += lap(&mut t);
-    }
-    progress.end();
-    summary.code_histogram = hist;
-    summary.payload_bytes = writer.payload_bytes();
-    header.summary = summary;
-    writer.finish(&header)?;
-    st.write += lap(&mut t);
-    let file_bytes = std::fs::metadata(out)
-        .map_err(|source| PrepError::Io {
-            path: out.to_path_buf(),
-            what: "cannot stat the written file",
-            source,
-        })?
-        .len();
-    let temp_bytes = header.summary.cells * if opts.dda { 3 } else { 1 }
-        + if opts.aniso {
-            4 * nb_slice as u64 * ncz.div_ceil(ANISO_BLOCK) as u64
-        } else {
-            0
-        };
-    Ok(PrepReport {
-        selection: selection_warning(&header),
-        header,
-        seconds: t0.elapsed().as_secs_f64(),
-        file_bytes,
-        temp_bytes,
-        stages: st,
-    })
+    Ok(header)
 }
 
-/// `obj = a | b` (cells flagged from the slice below or above); returns the
-/// number of 1-cells.
-fn or_planes(a: &[u8], b: &[u8], obj: &mut [u8]) -> u64 {
-    obj.par_chunks_mut(1 << 16)
-        .zip(a.par_chunks(1 << 16).zip(b.par_chunks(1 << 16)))
-        .map(|(o, (a, b))| {
-            let mut n = 0u64;
-            for ((o, &a), &b) in o.iter_mut().zip(a).zip(b) {
-                *o = a | b;
-                n += *o as u64;
-            }
-            n
-        })
-        .sum()
+/// The file's summary from what the two passes counted and the bytes of
+/// payload written.
+fn summary_of(
+    header: &Header,
+    scan: &passes::ScanStats,
+    emit: &passes::EmitStats,
+    payload_bytes: u64,
+) -> Summary {
+    let range = scan.range();
+    Summary {
+        cells: header.cells().iter().product(),
+        one_cells: scan.one_cells,
+        code_histogram: emit.code_histogram.clone(),
+        uniform_bricks: emit.uniform_bricks,
+        raw_min: range.map(|r| r.0),
+        raw_max: range.map(|r| r.1),
+        nan_samples: scan.nan_samples,
+        input_bytes: header.dims.iter().product::<u64>() * header.dtype.size() as u64,
+        payload_bytes,
+        raw_payload_bytes: emit.raw_payload_bytes,
+        histogram: scan.values.finish(header.rescale),
+    }
 }

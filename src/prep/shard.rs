@@ -1,0 +1,784 @@
+//! Sharded prep of one volume (docs/DESIGN.md, "Sharded prep"): shard K
+//! of N holds the brick layers `K * L / N .. (K + 1) * L / N` of the `L`
+//! layers, and three steps, each one process per shard or one in all,
+//! write the file one prep writes, byte for byte:
+//!
+//! 1. [`scan`] (`prep --shard K/N --pass 1`, one per shard): pass 1 over
+//!    the shard's slices, from its own 1-cells alone; its forward spill
+//!    stays in the parts directory, and a scan file records what it
+//!    counted and its two seam planes ([`crate::dt::seam`]).
+//! 2. [`bricks`] (`prep --shard K/N --pass 2`, one per shard, after every
+//!    scan): reads the N scan files, carries the seam planes across the
+//!    shards below and above it, corrects its spill for the 1-cells below
+//!    and runs pass 2 into a part file: the bricks in file order, with
+//!    the header every shard computes alike.
+//! 3. [`merge`] (`prep-merge`, one): the parts, top shard first, streamed
+//!    into the packed file, one brick in memory at a time.
+//!
+//! A scan or part records the plan it belongs to (input, dimensions,
+//! options, N); the later steps refuse a file of another plan by name.
+
+use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::passes::{self, EmitStats, ScanStats};
+use super::slab::BrickOut;
+use super::{checked, header_for, summary_of, PrepError, PrepOptions, StageTimes};
+use crate::dt::{self, FileSpill, ForwardDt, SeamChain};
+use crate::format::writer::PackedWriter;
+use crate::format::Header;
+use crate::input::SliceSource;
+use crate::progress::Progress;
+
+const SCAN_MAGIC: &[u8; 8] = b"CDVSCAN1";
+const PART_MAGIC: &[u8; 8] = b"CDVPART1";
+const PART_END: &[u8; 8] = b"CDVPEND1";
+/// Bytes of a part record before its payload ([`PartWriter`]).
+const RECORD_LEN: usize = 27;
+
+/// The parts directory of an output: `OUT.cdv.parts`.
+pub fn parts_dir(out: &Path) -> PathBuf {
+    let mut s = out.as_os_str().to_owned();
+    s.push(".parts");
+    PathBuf::from(s)
+}
+
+/// A file of shard `k` of `n` in `dir`: `shard-K-of-N.EXT`.
+pub fn shard_file(dir: &Path, k: u32, n: u32, ext: &str) -> PathBuf {
+    dir.join(format!("shard-{k:04}-of-{n:04}.{ext}"))
+}
+
+/// The brick layers of shard `k` of `n` among `layers`; refuses more
+/// shards than layers.
+pub fn shard_layers(layers: usize, k: u32, n: u32) -> Result<Range<usize>, PrepError> {
+    let (k, n) = (k as usize, n as usize);
+    if n == 0 || k >= n || n > layers {
+        return Err(PrepError::Option {
+            field: "shard",
+            value: format!("{k}/{n}"),
+            msg: format!(
+                "expected K/N with 0 <= K < N <= {layers}, the volume's brick layers (a shard \
+                 holds at least one)"
+            ),
+        });
+    }
+    Ok(k * layers / n..(k + 1) * layers / n)
+}
+
+/// What every file of one sharded prep agrees on: the input, its shape,
+/// the options that change a byte of the output, and N.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+struct Plan {
+    source: String,
+    dims: [usize; 3],
+    dtype: String,
+    n: u32,
+    brick_size: usize,
+    zstd_level: i32,
+    format_version: u32,
+    gradient_halo: bool,
+    allow_empty: bool,
+    labels: bool,
+    /// The resolved classification, preset, look and landmarks, as JSON.
+    decided: String,
+}
+
+impl Plan {
+    fn of(src: &dyn SliceSource, opts: &PrepOptions, n: u32) -> Plan {
+        let meta = src.meta();
+        Plan {
+            source: meta.origin_desc.clone(),
+            dims: meta.dims(),
+            dtype: meta.dtype.name().to_string(),
+            n,
+            brick_size: opts.brick_size,
+            zstd_level: opts.zstd_level,
+            format_version: opts.format_version,
+            gradient_halo: opts.gradient_halo,
+            allow_empty: opts.allow_empty,
+            labels: opts.labels,
+            decided: serde_json::to_string(&(
+                &opts.classification,
+                opts.decided
+                    .as_ref()
+                    .map(|d| (&d.modality, &d.landmarks, &d.look)),
+                &opts.label_table,
+                &opts.stamp,
+            ))
+            .unwrap_or_default(),
+        }
+    }
+
+    /// The first field where `other` differs, for the error.
+    fn differs(&self, other: &Plan) -> Option<String> {
+        let a = serde_json::to_value(self).ok()?;
+        let b = serde_json::to_value(other).ok()?;
+        let (a, b) = (a.as_object()?, b.as_object()?);
+        a.iter().find(|(k, v)| b.get(*k) != Some(*v)).map(|(k, v)| {
+            format!(
+                "{k} is {}, expected {v} (as this shard's input and options give it)",
+                b.get(k).map(|v| v.to_string()).unwrap_or_default()
+            )
+        })
+    }
+}
+
+/// The JSON of a scan file, before its two planes.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct ScanRecord {
+    plan: Plan,
+    k: u32,
+    layers: [usize; 2],
+    stats: ScanStats,
+}
+
+/// What a shard's step did.
+#[derive(Debug, Clone)]
+pub struct ShardReport {
+    /// The file written (scan or part).
+    pub path: PathBuf,
+    pub cells: Range<usize>,
+    pub seconds: f64,
+    pub stages: StageTimes,
+    /// Pass 2: slices of the spill corrected for the 1-cells below.
+    pub fixed_slices: usize,
+}
+
+fn io_err(path: &Path, what: &'static str) -> impl Fn(std::io::Error) -> PrepError + use<> {
+    let path = path.to_path_buf();
+    move |source| PrepError::Io {
+        path: path.clone(),
+        what,
+        source,
+    }
+}
+
+fn refuse_unsharded_options(opts: &PrepOptions) -> Result<(), PrepError> {
+    for (on, field) in [(opts.aniso, "aniso"), (opts.dda, "dda")] {
+        if on {
+            return Err(PrepError::Option {
+                field,
+                value: "on".into(),
+                msg: "not with --shard: the octant and DDA planes have seams of their own; \
+                      prepare such a file in one process"
+                    .into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The cell slices of `layers` and the sample slices whose counts are the
+/// shard's (the one it shares with the shard above is counted there).
+fn slices_of(
+    src: &dyn SliceSource,
+    b: usize,
+    layers: &Range<usize>,
+) -> (Range<usize>, Range<usize>) {
+    let [_, _, nz] = src.meta().dims();
+    let ncz = src.meta().grid.cells()[2];
+    let cells = layers.start * b..(layers.end * b).min(ncz);
+    let counted = cells.start..if cells.end == ncz { nz } else { cells.end };
+    (cells, counted)
+}
+
+/// Step 1, `prep --shard K/N --pass 1`: pass 1 over shard `k` of `n`
+/// into `parts` (its spill and scan file).
+pub fn scan(
+    src: &dyn SliceSource,
+    parts: &Path,
+    k: u32,
+    n: u32,
+    opts: &PrepOptions,
+    progress: &dyn Progress,
+) -> Result<ShardReport, PrepError> {
+    let t0 = Instant::now();
+    let scan_path = shard_file(parts, k, n, "scan");
+    let spill_path = shard_file(parts, k, n, "spill");
+    std::fs::create_dir_all(parts).map_err(io_err(parts, "cannot create the parts directory"))?;
+    let opts = &checked(src, &[scan_path.clone(), spill_path.clone()], opts)?;
+    refuse_unsharded_options(opts)?;
+    let [ncx, ncy, ncz] = src.meta().grid.cells();
+    let b = opts.brick_size;
+    let layers = shard_layers(ncz.div_ceil(b), k, n)?;
+    let (cells, counted) = slices_of(src, b, &layers);
+    let file = std::fs::File::options()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(&spill_path)
+        .map_err(io_err(&spill_path, "cannot create the shard's spill"))?;
+    let spill_err = io_err(&spill_path, "shard spill");
+    let mut spill = FileSpill::at(file, dt::spill_record(ncx * ncy, false), cells.start);
+    let mut fwd = ForwardDt::new(ncx, ncy, false).starting_at(cells.start, None);
+    let mut st = StageTimes::default();
+    let stats = passes::scan(
+        src,
+        opts,
+        cells.clone(),
+        counted,
+        &mut fwd,
+        &mut spill,
+        None,
+        &spill_err,
+        progress,
+        &mut st,
+    )?;
+    drop(fwd);
+    let t = Instant::now();
+    let mut top = vec![0u8; ncx * ncy];
+    dt::Spill::get(&mut spill, cells.end - 1, &mut top).map_err(&spill_err)?;
+    let bottom =
+        dt::local_bottom(&mut spill, cells.start, cells.end, ncx, ncy).map_err(&spill_err)?;
+    st.backward += t.elapsed().as_secs_f64();
+    let record = ScanRecord {
+        plan: Plan::of(src, opts, n),
+        k,
+        layers: [layers.start, layers.end],
+        stats,
+    };
+    let json = serde_json::to_vec(&record).map_err(|e| PrepError::Shard {
+        path: scan_path.clone(),
+        msg: e.to_string(),
+    })?;
+    let mut bytes = Vec::with_capacity(16 + json.len() + 2 * top.len());
+    bytes.extend_from_slice(SCAN_MAGIC);
+    bytes.extend_from_slice(&(json.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(&json);
+    bytes.extend_from_slice(&top);
+    bytes.extend_from_slice(&bottom);
+    let t = Instant::now();
+    crate::fsutil::write_atomic(&scan_path, &bytes).map_err(|e| PrepError::Shard {
+        path: scan_path.clone(),
+        msg: e.to_string(),
+    })?;
+    st.write += t.elapsed().as_secs_f64();
+    Ok(ShardReport {
+        path: scan_path,
+        cells,
+        seconds: t0.elapsed().as_secs_f64(),
+        stages: st,
+        fixed_slices: 0,
+    })
+}
+
+/// A scan file: its record and its top and bottom planes.
+fn read_scan(path: &Path, plane: usize) -> Result<(ScanRecord, Vec<u8>, Vec<u8>), PrepError> {
+    let bad = |msg: String| PrepError::Shard {
+        path: path.to_path_buf(),
+        msg,
+    };
+    let bytes = crate::fsutil::read_regular(path).map_err(|e| {
+        bad(format!(
+            "cannot read the scan of this shard ({e}): run `prep --shard K/N --pass 1` for \
+             every shard first"
+        ))
+    })?;
+    if bytes.len() < 16 || &bytes[..8] != SCAN_MAGIC {
+        return Err(bad("not a cdvol shard scan (magic CDVSCAN1)".into()));
+    }
+    let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
+    let end = 16usize.saturating_add(len);
+    if bytes.len() != end.saturating_add(2 * plane) {
+        return Err(bad(format!(
+            "{} bytes, expected {} (a record of {len} bytes and two planes of {plane} cells)",
+            bytes.len(),
+            end.saturating_add(2 * plane)
+        )));
+    }
+    let record: ScanRecord =
+        serde_json::from_slice(&bytes[16..end]).map_err(|e| bad(format!("record: {e}")))?;
+    let top = bytes[end..end + plane].to_vec();
+    let bottom = bytes[end + plane..].to_vec();
+    Ok((record, top, bottom))
+}
+
+/// Step 2, `prep --shard K/N --pass 2`: the part file of shard `k` of
+/// `n` from the N scans in `parts`. Removes the shard's spill when the
+/// part is written.
+pub fn bricks(
+    src: &dyn SliceSource,
+    parts: &Path,
+    k: u32,
+    n: u32,
+    opts: &PrepOptions,
+    progress: &dyn Progress,
+) -> Result<ShardReport, PrepError> {
+    let t0 = Instant::now();
+    let part_path = shard_file(parts, k, n, "part");
+    let spill_path = shard_file(parts, k, n, "spill");
+    let opts = &checked(src, std::slice::from_ref(&part_path), opts)?;
+    refuse_unsharded_options(opts)?;
+    let [ncx, ncy, ncz] = src.meta().grid.cells();
+    let plane = ncx * ncy;
+    let b = opts.brick_size;
+    let layers = shard_layers(ncz.div_ceil(b), k, n)?;
+    let (cells, _) = slices_of(src, b, &layers);
+    let plan = Plan::of(src, opts, n);
+    let mut st = StageTimes::default();
+    // The seams: up through the shards below (F under this one, then over
+    // it), down through the shards above (the distance from this one's
+    // top to the 1-cells at or above it); the stats of every shard.
+    let t = Instant::now();
+    let mut up = SeamChain::new(ncx, ncy);
+    let mut below = None;
+    let mut stats: Option<ScanStats> = None;
+    let mut depths = Vec::with_capacity(n as usize);
+    let mut bottoms: Vec<Option<Vec<u8>>> = Vec::new();
+    for j in 0..n {
+        let path = shard_file(parts, j, n, "scan");
+        let (rec, top, bottom) = read_scan(&path, plane)?;
+        if let Some(d) = plan.differs(&rec.plan) {
+            return Err(PrepError::Shard { path, msg: d });
+        }
+        let want = shard_layers(ncz.div_ceil(b), j, n)?;
+        if rec.k != j || rec.layers != [want.start, want.end] {
+            return Err(PrepError::Shard {
+                path,
+                msg: format!(
+                    "shard {} with layers {:?}, expected shard {j} with layers {want:?}",
+                    rec.k, rec.layers
+                ),
+            });
+        }
+        let (c, _) = slices_of(src, b, &want);
+        if j == k {
+            below = up.plane().map(<[u8]>::to_vec);
+        }
+        if j <= k {
+            up.cross(&top, c.len());
+        }
+        depths.push(c.len());
+        // Only the shards above are carried down: keep their bottoms.
+        bottoms.push((j > k).then_some(bottom));
+        match stats.as_mut() {
+            None => stats = Some(rec.stats),
+            Some(s) => s.merge(&rec.stats),
+        }
+    }
+    let stats = stats.expect("n >= 1 scans");
+    let mut down = SeamChain::new(ncx, ncy);
+    for j in (k as usize + 1..n as usize).rev() {
+        let bottom = bottoms[j].take().expect("kept above");
+        down.cross(&bottom, depths[j]);
+    }
+    drop(bottoms);
+    // The final distances of the cell slice over the shard: its 1-cells
+    // above, and those at or below through the slice under it.
+    let above = down.plane().map(|g| {
+        let f_top = up.plane().expect("crossed this shard");
+        let from_below = dt::propagate(f_top, ncx, ncy, 1);
+        g.iter()
+            .zip(&from_below)
+            .map(|(&a, &b)| a.min(b))
+            .collect::<Vec<u8>>()
+    });
+    let header = header_for(src, opts, &stats)?;
+    let file = std::fs::File::options()
+        .read(true)
+        .write(true)
+        .open(&spill_path)
+        .map_err(io_err(
+            &spill_path,
+            "cannot open the shard's spill: run `prep --shard K/N --pass 1` again",
+        ))?;
+    let spill_err = io_err(&spill_path, "shard spill");
+    let mut spill = FileSpill::at(file, dt::spill_record(plane, false), cells.start);
+    let fixed = match &below {
+        Some(p) => {
+            dt::fix_forward(&mut spill, p, cells.start, cells.end, ncx, ncy).map_err(&spill_err)?
+        }
+        None => 0,
+    };
+    st.backward += t.elapsed().as_secs_f64();
+    let mut part = PartWriter::create(&part_path)?;
+    let emitted = passes::emit(
+        &header,
+        src,
+        opts,
+        layers.clone(),
+        above.as_deref(),
+        &mut spill,
+        None,
+        &spill_err,
+        &mut |id, o| part.put(id, &o),
+        progress,
+        &mut st,
+    )?;
+    let t = Instant::now();
+    part.finish(&PartTrailer {
+        plan,
+        k,
+        layers: [layers.start, layers.end],
+        header,
+        scan: stats,
+        emit: emitted,
+        bricks: 0,
+        payload_bytes: 0,
+    })?;
+    drop(spill);
+    // The part is written: the spill is not needed again.
+    let _ = std::fs::remove_file(&spill_path);
+    st.write += t.elapsed().as_secs_f64();
+    Ok(ShardReport {
+        path: part_path,
+        cells,
+        seconds: t0.elapsed().as_secs_f64(),
+        stages: st,
+        fixed_slices: fixed,
+    })
+}
+
+/// The JSON at the end of a part file.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct PartTrailer {
+    plan: Plan,
+    k: u32,
+    layers: [usize; 2],
+    /// The file's header, summary left out (every shard computes it alike).
+    header: Header,
+    /// Pass 1's counts of the whole volume (merged from the scans).
+    scan: ScanStats,
+    /// Pass 2's counts of this shard.
+    emit: EmitStats,
+    /// Records and bytes of compressed payload in the part.
+    bricks: u64,
+    payload_bytes: u64,
+}
+
+/// A part file: `CDVPART1`, one record per brick in file order, the
+/// trailer's JSON, its length (u64) and `CDVPEND1`. A record is the
+/// brick id (u64), its kind (u8: 0 uniform, 1 payload), a code (u32: the
+/// uniform code, or the smallest code of a brick without 1-cells), the
+/// no-object flag (u8), the largest value (u8 flag, f64 bits) and the
+/// compressed payload (u32 length, bytes). Integers little-endian.
+struct PartWriter {
+    target: PathBuf,
+    tmp: BufWriter<tempfile::NamedTempFile>,
+    bricks: u64,
+    payload_bytes: u64,
+}
+
+impl PartWriter {
+    fn create(target: &Path) -> Result<PartWriter, PrepError> {
+        let tmp = crate::fsutil::temp_beside(target).map_err(io_err(
+            target,
+            "cannot create a temporary file beside the part",
+        ))?;
+        let mut tmp = BufWriter::with_capacity(1 << 20, tmp);
+        tmp.write_all(PART_MAGIC)
+            .map_err(io_err(target, "cannot write the part"))?;
+        Ok(PartWriter {
+            target: target.to_path_buf(),
+            tmp,
+            bricks: 0,
+            payload_bytes: 0,
+        })
+    }
+
+    fn put(&mut self, id: u64, o: &BrickOut) -> Result<(), PrepError> {
+        let mut rec = Vec::with_capacity(32);
+        rec.extend_from_slice(&id.to_le_bytes());
+        let payload: &[u8] = match o {
+            BrickOut::Uniform(code) => {
+                rec.push(0);
+                rec.extend_from_slice(&code.to_le_bytes());
+                rec.extend_from_slice(&[0, 0]);
+                rec.extend_from_slice(&0u64.to_le_bytes());
+                &[]
+            }
+            BrickOut::Payload {
+                compressed,
+                no_object,
+                min_code,
+                value_max,
+                ..
+            } => {
+                rec.push(1);
+                rec.extend_from_slice(&min_code.to_le_bytes());
+                rec.push(*no_object as u8);
+                rec.push(value_max.is_some() as u8);
+                rec.extend_from_slice(&value_max.unwrap_or(0.0).to_bits().to_le_bytes());
+                compressed
+            }
+        };
+        let len = u32::try_from(payload.len()).map_err(|_| PrepError::Shard {
+            path: self.target.clone(),
+            msg: format!(
+                "brick {id}: a payload of {} bytes exceeds 4 GiB",
+                payload.len()
+            ),
+        })?;
+        rec.extend_from_slice(&len.to_le_bytes());
+        debug_assert_eq!(rec.len(), RECORD_LEN);
+        let io = io_err(&self.target, "cannot write the part");
+        self.tmp.write_all(&rec).map_err(&io)?;
+        self.tmp.write_all(payload).map_err(&io)?;
+        self.bricks += 1;
+        self.payload_bytes += payload.len() as u64;
+        Ok(())
+    }
+
+    fn finish(mut self, trailer: &PartTrailer) -> Result<(), PrepError> {
+        let trailer = PartTrailer {
+            bricks: self.bricks,
+            payload_bytes: self.payload_bytes,
+            plan: trailer.plan.clone(),
+            k: trailer.k,
+            layers: trailer.layers,
+            header: trailer.header.clone(),
+            scan: trailer.scan.clone(),
+            emit: trailer.emit.clone(),
+        };
+        let json = serde_json::to_vec(&trailer).map_err(|e| PrepError::Shard {
+            path: self.target.clone(),
+            msg: e.to_string(),
+        })?;
+        let io = io_err(&self.target, "cannot write the part");
+        self.tmp.write_all(&json).map_err(&io)?;
+        self.tmp
+            .write_all(&(json.len() as u64).to_le_bytes())
+            .map_err(&io)?;
+        self.tmp.write_all(PART_END).map_err(&io)?;
+        let tmp = self
+            .tmp
+            .into_inner()
+            .map_err(|e| io_err(&self.target, "cannot flush the part")(e.into_error()))?;
+        tmp.as_file()
+            .sync_all()
+            .map_err(io_err(&self.target, "cannot sync the part"))?;
+        crate::fsutil::commit(tmp, &self.target).map_err(|e| PrepError::Shard {
+            path: self.target.clone(),
+            msg: e.to_string(),
+        })
+    }
+}
+
+/// Reads a part's trailer; returns it and where the records end.
+fn read_trailer(path: &Path) -> Result<(PartTrailer, u64), PrepError> {
+    let bad = |msg: String| PrepError::Shard {
+        path: path.to_path_buf(),
+        msg,
+    };
+    let mut f = crate::fsutil::open_regular(path).map_err(|e| bad(format!("cannot open: {e}")))?;
+    let len = f
+        .seek(SeekFrom::End(0))
+        .map_err(|e| bad(format!("cannot seek: {e}")))?;
+    if len < 32 {
+        return Err(bad(format!("{len} bytes: not a cdvol part (too short)")));
+    }
+    let mut head = [0u8; 8];
+    f.seek(SeekFrom::Start(0))
+        .and_then(|_| f.read_exact(&mut head))
+        .map_err(|e| bad(format!("cannot read: {e}")))?;
+    let mut tail = [0u8; 16];
+    f.seek(SeekFrom::Start(len - 16))
+        .and_then(|_| f.read_exact(&mut tail))
+        .map_err(|e| bad(format!("cannot read: {e}")))?;
+    if &head != PART_MAGIC || &tail[8..] != PART_END {
+        return Err(bad(
+            "not a complete cdvol part (magic CDVPART1 ... CDVPEND1)".into(),
+        ));
+    }
+    let json_len = u64::from_le_bytes(tail[..8].try_into().expect("8 bytes"));
+    let records_end = (len - 16)
+        .checked_sub(json_len)
+        .filter(|&e| e >= 8)
+        .ok_or_else(|| bad(format!("a trailer of {json_len} bytes in a file of {len}")))?;
+    let mut json = vec![0u8; json_len as usize];
+    f.seek(SeekFrom::Start(records_end))
+        .and_then(|_| f.read_exact(&mut json))
+        .map_err(|e| bad(format!("cannot read the trailer: {e}")))?;
+    let t: PartTrailer = serde_json::from_slice(&json).map_err(|e| bad(format!("trailer: {e}")))?;
+    Ok((t, records_end))
+}
+
+/// What [`merge`] wrote.
+#[derive(Debug, Clone)]
+pub struct MergeReport {
+    pub header: Header,
+    pub parts: u32,
+    pub file_bytes: u64,
+    pub seconds: f64,
+}
+
+/// The part files (`shard-K-of-N.part`) in `dir`, sorted.
+pub fn find_parts(dir: &Path) -> Result<Vec<PathBuf>, PrepError> {
+    let rd = std::fs::read_dir(dir).map_err(io_err(dir, "cannot list the parts directory"))?;
+    let mut out = Vec::new();
+    for e in rd {
+        let e = e.map_err(io_err(dir, "cannot list the parts directory"))?;
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with("shard-") && name.ends_with(".part") {
+            out.push(e.path());
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// Step 3, `prep-merge`: the parts of one sharded prep (every shard once)
+/// into the packed file `out`, streamed top shard first, as one prep
+/// writes it. Memory: one brick and the file's index.
+pub fn merge(
+    parts: &[PathBuf],
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<MergeReport, PrepError> {
+    let t0 = Instant::now();
+    crate::fsutil::check_outputs(&[out.to_path_buf()], parts, None)?;
+    let first = parts.first().ok_or_else(|| PrepError::Option {
+        field: "parts",
+        value: "none".into(),
+        msg: "expected the part files of `prep --shard K/N --pass 2`".into(),
+    })?;
+    let (t0_trailer, _) = read_trailer(first)?;
+    let n = t0_trailer.plan.n;
+    let mut by_k: Vec<Option<(PathBuf, PartTrailer, u64)>> = (0..n).map(|_| None).collect();
+    for p in parts {
+        let (t, end) = read_trailer(p)?;
+        if let Some(d) = t0_trailer.plan.differs(&t.plan) {
+            return Err(PrepError::Shard {
+                path: p.clone(),
+                msg: format!(
+                    "{d}; it belongs to another sharded prep than {}",
+                    first.display()
+                ),
+            });
+        }
+        if t.header != t0_trailer.header || t.scan != t0_trailer.scan {
+            return Err(PrepError::Shard {
+                path: p.clone(),
+                msg: format!(
+                    "its header differs from that of {}: the parts come from different scans",
+                    first.display()
+                ),
+            });
+        }
+        let k = t.k as usize;
+        if k >= n as usize {
+            return Err(PrepError::Shard {
+                path: p.clone(),
+                msg: format!("shard {k} of {n}"),
+            });
+        }
+        if let Some((q, _, _)) = &by_k[k] {
+            return Err(PrepError::Shard {
+                path: p.clone(),
+                msg: format!("shard {k} of {n} again (also {})", q.display()),
+            });
+        }
+        by_k[k] = Some((p.clone(), t, end));
+    }
+    if let Some(k) = by_k.iter().position(Option::is_none) {
+        return Err(PrepError::Shard {
+            path: first.clone(),
+            msg: format!(
+                "shard {k} of {n} is missing: run `prep --shard {k}/{n} --pass 2` (expected {})",
+                shard_file(
+                    first.parent().unwrap_or(Path::new(".")),
+                    k as u32,
+                    n,
+                    "part"
+                )
+                .display()
+            ),
+        });
+    }
+    let mut header = t0_trailer.header.clone();
+    let mut writer = PackedWriter::create(out, header.brick_count(), header.format_version)?;
+    let mut seen = vec![false; header.brick_count() as usize];
+    let mut emit = EmitStats::default();
+    progress.begin("merge parts", n as u64);
+    for (path, t, end) in by_k.iter().rev().flatten() {
+        copy_part(path, t, *end, &mut writer, &mut seen)?;
+        emit.merge(&t.emit);
+        progress.advance(1);
+    }
+    progress.end();
+    if let Some(id) = seen.iter().position(|s| !s) {
+        return Err(PrepError::Shard {
+            path: first.clone(),
+            msg: format!("no part holds brick {id}"),
+        });
+    }
+    header.summary = summary_of(&header, &t0_trailer.scan, &emit, writer.payload_bytes());
+    writer.finish(&header)?;
+    let file_bytes = std::fs::metadata(out)
+        .map_err(io_err(out, "cannot stat the written file"))?
+        .len();
+    Ok(MergeReport {
+        header,
+        parts: n,
+        file_bytes,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// Streams the records of one part into `writer`.
+fn copy_part(
+    path: &Path,
+    t: &PartTrailer,
+    end: u64,
+    writer: &mut PackedWriter,
+    seen: &mut [bool],
+) -> Result<(), PrepError> {
+    let bad = |msg: String| PrepError::Shard {
+        path: path.to_path_buf(),
+        msg,
+    };
+    let f = crate::fsutil::open_regular(path).map_err(|e| bad(format!("cannot open: {e}")))?;
+    let mut r = BufReader::with_capacity(1 << 20, f);
+    r.seek(SeekFrom::Start(8))
+        .map_err(|e| bad(format!("cannot seek: {e}")))?;
+    let mut pos = 8u64;
+    let mut payload = Vec::new();
+    for i in 0..t.bricks {
+        let mut rec = [0u8; RECORD_LEN];
+        r.read_exact(&mut rec)
+            .map_err(|e| bad(format!("record {i}: {e}")))?;
+        let id = u64::from_le_bytes(rec[0..8].try_into().expect("8"));
+        let kind = rec[8];
+        let code = u32::from_le_bytes(rec[9..13].try_into().expect("4"));
+        let no_object = rec[13] != 0;
+        let has_max = rec[14] != 0;
+        let vmax = f64::from_bits(u64::from_le_bytes(rec[15..23].try_into().expect("8")));
+        let len = u32::from_le_bytes(rec[23..27].try_into().expect("4")) as usize;
+        let slot = seen
+            .get_mut(id as usize)
+            .ok_or_else(|| bad(format!("record {i}: brick {id} is not in the volume")))?;
+        if std::mem::replace(slot, true) {
+            return Err(bad(format!("record {i}: brick {id} again")));
+        }
+        pos += (RECORD_LEN + len) as u64;
+        if pos > end {
+            return Err(bad(format!("record {i} runs past the records' end")));
+        }
+        match kind {
+            0 => writer.put_uniform(id, code),
+            1 => {
+                payload.resize(len, 0);
+                r.read_exact(&mut payload)
+                    .map_err(|e| bad(format!("record {i}: {e}")))?;
+                writer.put_brick(
+                    id,
+                    &payload,
+                    no_object.then_some(code),
+                    has_max.then_some(vmax),
+                )?;
+            }
+            other => return Err(bad(format!("record {i}: kind {other}, expected 0 or 1"))),
+        }
+    }
+    if pos != end {
+        return Err(bad(format!(
+            "{} bytes of records, the trailer says {} records end at {end}",
+            pos, t.bricks
+        )));
+    }
+    Ok(())
+}
