@@ -63,6 +63,7 @@ mod one_look;
 mod orient;
 mod phantom_mr;
 mod prep;
+mod prep_shard;
 mod real_data;
 mod reference;
 mod render;
