@@ -6,7 +6,9 @@
 # submit.sh, waits for both, and checks that the assembled PNG is
 # byte-identical (cmp) to a single-process `cdvol render` with the same
 # options. Also renders a 6-frame turntable in 3 shards (split by frame) and
-# compares every frame with a single-process turntable. Prints the job ids,
+# compares every frame with a single-process turntable, and preps a CT
+# phantom in 4 shards with submit-prep.sh (pass 1 array, pass 2 array,
+# merge) and compares the packed file with a single-process prep. Prints the job ids,
 # each task's node, state and run time, and PASS or FAIL; exits non-zero on
 # failure.
 #
@@ -77,6 +79,11 @@ iso=$(sed -n 's/.*iso \([-+0-9.eE]*\).*/\1/p' <<< "$msg")
 "$CDVOL" prep -q "$work/s.json" -o "$work/s.cdv" --iso "$iso" > /dev/null || fail "cdvol prep failed"
 rm -f "$work/s.raw"
 say "volume: $work/s.cdv (96^3 spheres, iso $iso)"
+prep_args=(--iso 300 --brick 8)
+"$CDVOL" phantom ct -q --dims 64,60,90 --dtype u16 -o "$work/ct.json" > /dev/null || fail "cdvol phantom ct failed"
+"$CDVOL" prep -q "$work/ct.json" -o "$work/ct-single.cdv" "${prep_args[@]}" > /dev/null ||
+    fail "single-process prep failed"
+say "prep input: $work/ct.json (64 x 60 x 90 u16 CT phantom), single prep ${prep_args[*]}"
 
 # --- cluster -----------------------------------------------------------------
 eval "$("$here/local-cluster.sh" env)"
@@ -111,7 +118,14 @@ say "submitting the image: submit.sh $work/s.cdv $work/image $shards ${render_ar
 submit image "$shards" "${render_args[@]}"
 say "submitting the turntable: submit.sh $work/s.cdv $work/turntable $tt_shards ${tt_args[*]}"
 submit turntable "$tt_shards" "${tt_args[@]}"
-say "image: render array job $image_render, assemble job $image_assemble; turntable: render array job $turntable_render, check job $turntable_assemble"
+say "submitting the prep: submit-prep.sh $work/ct.json $work/ct.cdv 4 ${prep_args[*]}"
+"$here/submit-prep.sh" "$work/ct.json" "$work/ct.cdv" 4 "${prep_args[@]}" > "$work/prep.submit" ||
+    fail "submit-prep.sh failed"
+sed 's/^/  /' "$work/prep.submit"
+read -r prep_pass1 prep_pass2 prep_merge <<< "$(tail -n 1 "$work/prep.submit")"
+[[ $prep_pass1 =~ ^[0-9]+$ && $prep_pass2 =~ ^[0-9]+$ && $prep_merge =~ ^[0-9]+$ ]] ||
+    fail "unexpected submit-prep.sh output: $(tail -n 1 "$work/prep.submit")"
+say "image: render array job $image_render, assemble job $image_assemble; turntable: render array job $turntable_render, check job $turntable_assemble; prep: pass 1 $prep_pass1, pass 2 $prep_pass2, merge $prep_merge"
 
 job_field() { # JOBLINE FIELD -> value of FIELD= in a `scontrol show job -o` line
     tr ' ' '\n' <<< "$1" | sed -n "s/^$2=//p" | head -n 1
@@ -135,10 +149,12 @@ final() { # JOBID -> its state once finished (UNKNOWN if slurmctld forgot it), n
 while :; do
     a=$(final "$image_assemble")
     b=$(final "$turntable_assemble")
-    [ -z "$a" ] || [ -z "$b" ] || break
+    c=$(final "$prep_merge")
+    [ -z "$a" ] || [ -z "$b" ] || [ -z "$c" ] || break
     [ $((SECONDS - t_submit)) -lt "$timeout" ] || {
         squeue >&2 || true
-        scancel "$image_render" "$image_assemble" "$turntable_render" "$turntable_assemble" 2>/dev/null || true
+        scancel "$image_render" "$image_assemble" "$turntable_render" "$turntable_assemble" \
+            "$prep_pass1" "$prep_pass2" "$prep_merge" 2>/dev/null || true
         fail "jobs not finished after ${timeout}s"
     }
     sleep 1
@@ -176,6 +192,22 @@ report() { # NAME RENDER_JOB ASSEMBLE_JOB TASKS -> prints the jobs, fails unless
 }
 report image "$image_render" "$image_assemble" "$shards"
 report turntable "$turntable_render" "$turntable_assemble" "$tt_shards"
+say "prep jobs (scontrol show job):"
+prep_jobs=$(scontrol show job -o "$prep_pass1"; scontrol show job -o "$prep_pass2"; scontrol show job -o "$prep_merge")
+while read -r line; do
+    [ -n "$line" ] || continue
+    printf 'test-array:   %-8s %-6s %-10s %-9s %s\n' "$(job_field "$line" JobId)" \
+        "$(job_field "$line" ArrayTaskId)" "$(job_field "$line" JobState)" \
+        "$(job_field "$line" RunTime)" "$(job_field "$line" JobName)"
+done <<< "$prep_jobs"
+if [ "$(grep -c 'JobState=COMPLETED' <<< "$prep_jobs")" != 9 ]; then
+    for f in "$work"/ct.cdv.logs/*.out; do
+        echo "----- $f" >&2
+        tail -n 20 "$f" >&2
+    done
+    fail "a prep job did not complete (expected 4 + 4 tasks and the merge)"
+fi
+grep -h 'done on\|prep-merge: wrote' "$work"/ct.cdv.logs/*.out | sort -V | sed 's/^/test-array:   /' || true
 say "all jobs done ${t_jobs}s after the first submission"
 
 # --- compare -----------------------------------------------------------------
@@ -198,4 +230,8 @@ for f in "$work/tt-single"/frame.*.png; do
 done
 [ $n_frames = "$tt_frames" ] || fail "single-process turntable wrote $n_frames frames, expected $tt_frames"
 say "turntable: all $tt_frames frames == single-process turntable"
-say "PASS ($shards-shard image: jobs $image_render/$image_assemble; $tt_frames-frame turntable in $tt_shards shards: jobs $turntable_render/$turntable_assemble)"
+[ -s "$work/ct.cdv" ] || fail "no merged $work/ct.cdv"
+cmp "$work/ct.cdv" "$work/ct-single.cdv" || fail "the sharded prep's file differs from the single-process prep's"
+[ ! -e "$work/ct.cdv.parts" ] || fail "the merge left $work/ct.cdv.parts behind"
+say "prep: merged ct.cdv == single-process prep ($(stat -c %s "$work/ct.cdv") bytes)"
+say "PASS ($shards-shard image: jobs $image_render/$image_assemble; $tt_frames-frame turntable in $tt_shards shards: jobs $turntable_render/$turntable_assemble; 4-shard prep: jobs $prep_pass1/$prep_pass2/$prep_merge)"
