@@ -6,8 +6,12 @@
 #      (NZ = S GiB / (2 NXY^2); slice gaps scaled by 160/NZ so the head keeps
 #      its proportions), streamed, on both cores;
 #   2. `cdvol prep --iso 300` packs it;
-#   3. `cdvol render` draws 2048x2048 surface and composite images with
-#      --cache-mb 1024.
+#   3. with SHARDS=N, the same prep in N shards on this machine, one after
+#      another (`prep --shard K/N --pass 1` for every K, then `--pass 2`,
+#      then `prep-merge`), each step timed, and the merged file compared
+#      with the single prep's (sha256);
+#   4. `cdvol render` draws 2048x2048 surface and composite images with
+#      --cache-mb 1024 (RENDER=0 leaves them out).
 # Each stage runs under /usr/bin/time -v while a sampler records the peak
 # of extra disk in use; the render stages also report, from --stats, the
 # distinct bricks read of the total, all brick reads (a brick evicted and
@@ -18,6 +22,7 @@
 # usage: tools/scale-test.sh [WORKDIR]
 #   SIZES="16 32"  GiB per volume      NXY=2048   samples along x and y
 #   KEEP=1         keep the generated files
+#   SHARDS=N       also prep in N shards (step 3)   RENDER=0  no renders
 #   OVERFLOW_CHECKS=1  build with integer overflow checks (catches 32-bit
 #                      index arithmetic at these sizes; slower)
 set -euo pipefail
@@ -107,7 +112,34 @@ for s in $sizes; do
     run "$name.prep" "$bytes" "$bin" prep -q --iso 300 "$side" -o "$cdv"
     row "$vol" "prep"
     grep -h '^wrote\|^stages' "$work/$name.prep.out" >&2 || true
+    if [ "${SHARDS:-0}" -gt 0 ]; then
+        n=$SHARDS
+        want=$(sha256sum < "$cdv")
+        single_s=$wall
+        # Room for the shards' spills and parts: the single file goes.
+        [ "${RENDER:-1}" = 0 ] && rm -f "$cdv"
+        sharded="$work/$name.sharded.cdv"
+        total=0
+        for pass in 1 2; do
+            for ((k = 0; k < n; k++)); do
+                sync; echo 1 > /proc/sys/vm/drop_caches 2>/dev/null || true
+                run "$name.shard$k.pass$pass" $((bytes / n)) "$bin" prep -q --iso 300 "$side" \
+                    -o "$sharded" --shard "$k/$n" --pass "$pass"
+                row "$vol" "shard $k/$n pass $pass"
+                grep -h '^wrote\|^stages' "$work/$name.shard$k.pass$pass.out" >&2 || true
+                total=$(echo "$total + $wall" | bc -l)
+            done
+        done
+        run "$name.merge" "$bytes" "$bin" prep-merge -q "$sharded.parts" -o "$sharded"
+        row "$vol" "prep-merge"
+        total=$(echo "$total + $wall" | bc -l)
+        got=$(sha256sum < "$sharded")
+        [ "$got" = "$want" ] || { echo "scale-test: the $n-shard prep differs from the single prep" >&2; exit 1; }
+        echo "scale-test: $n-shard prep == single prep (sha256 ${got:0:16}); shards in sequence ${total} s against ${single_s} s for one prep" >&2
+        rm -rf "$sharded" "$sharded.parts"
+    fi
     [ "${KEEP:-0}" = 1 ] || rm -f "$raw"
+    [ "${RENDER:-1}" = 1 ] || continue
 
     for mode in surface composite; do
         extra=()
