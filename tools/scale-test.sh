@@ -23,6 +23,7 @@
 #   SIZES="16 32"  GiB per volume      NXY=2048   samples along x and y
 #   KEEP=1         keep the generated files
 #   SHARDS=N       also prep in N shards (step 3)   RENDER=0  no renders
+#   DROP_CACHES=0  keep the page cache between stages (default: dropped)
 #   OVERFLOW_CHECKS=1  build with integer overflow checks (catches 32-bit
 #                      index arithmetic at these sizes; slower)
 set -euo pipefail
@@ -108,7 +109,7 @@ for s in $sizes; do
     row "$vol" "phantom ct"
 
     # Start prep from disk, not from the page cache, where we may.
-    sync; echo 1 > /proc/sys/vm/drop_caches 2>/dev/null || true
+    [ "${DROP_CACHES:-1}" = 0 ] || { sync; echo 1 > /proc/sys/vm/drop_caches 2>/dev/null || true; }
     run "$name.prep" "$bytes" "$bin" prep -q --iso 300 "$side" -o "$cdv"
     row "$vol" "prep"
     grep -h '^wrote\|^stages' "$work/$name.prep.out" >&2 || true
@@ -122,7 +123,7 @@ for s in $sizes; do
         total=0
         for pass in 1 2; do
             for ((k = 0; k < n; k++)); do
-                sync; echo 1 > /proc/sys/vm/drop_caches 2>/dev/null || true
+                [ "${DROP_CACHES:-1}" = 0 ] || { sync; echo 1 > /proc/sys/vm/drop_caches 2>/dev/null || true; }
                 run "$name.shard$k.pass$pass" $((bytes / n)) "$bin" prep -q --iso 300 "$side" \
                     -o "$sharded" --shard "$k/$n" --pass "$pass"
                 row "$vol" "shard $k/$n pass $pass"
@@ -145,7 +146,7 @@ for s in $sizes; do
         extra=()
         [ "$mode" = composite ] && extra=(--tf "$work/tf.json")
         stats="$work/$name.$mode.json"
-        sync; echo 1 > /proc/sys/vm/drop_caches 2>/dev/null || true
+        [ "${DROP_CACHES:-1}" = 0 ] || { sync; echo 1 > /proc/sys/vm/drop_caches 2>/dev/null || true; }
         run "$name.$mode" 0 "$bin" render -q "$cdv" -o "$work/$name.$mode.png" --mode "$mode" \
             "${extra[@]}" --width 2048 --height 2048 --view 30,20 --cache-mb "$cache_mb" \
             --stats "$stats"

@@ -8,10 +8,11 @@
 //!    stays in the parts directory, and a scan file records what it
 //!    counted and its two seam planes ([`crate::dt::seam`]).
 //! 2. [`bricks`] (`prep --shard K/N --pass 2`, one per shard, after every
-//!    scan): reads the N scan files, carries the seam planes across the
-//!    shards below and above it, corrects its spill for the 1-cells below
-//!    and runs pass 2 into a part file: the bricks in file order, with
-//!    the header every shard computes alike.
+//!    scan): reads the N scans' counts, carries the seam planes of the
+//!    shards within 254 cell slices across the shards below and above
+//!    it, corrects its spill for the 1-cells below and runs pass 2 into a
+//!    part file: the bricks in file order, with the header every shard
+//!    computes alike.
 //! 3. [`merge`] (`prep-merge`, one): the parts, top shard first, streamed
 //!    into the packed file, one brick in memory at a time.
 //!
@@ -26,7 +27,7 @@ use std::time::Instant;
 use super::passes::{self, EmitStats, ScanStats};
 use super::slab::BrickOut;
 use super::{checked, header_for, summary_of, PrepError, PrepOptions, StageTimes};
-use crate::dt::{self, FileSpill, ForwardDt, SeamChain};
+use crate::dt::{self, FileSpill, ForwardDt, SeamChain, FAR};
 use crate::format::writer::PackedWriter;
 use crate::format::Header;
 use crate::input::SliceSource;
@@ -265,35 +266,51 @@ pub fn scan(
     })
 }
 
-/// A scan file: its record and its top and bottom planes.
-fn read_scan(path: &Path, plane: usize) -> Result<(ScanRecord, Vec<u8>, Vec<u8>), PrepError> {
+/// A scan file's record, and where its two planes start.
+fn read_scan(path: &Path, plane: usize) -> Result<(ScanRecord, u64), PrepError> {
     let bad = |msg: String| PrepError::Shard {
         path: path.to_path_buf(),
         msg,
     };
-    let bytes = crate::fsutil::read_regular(path).map_err(|e| {
+    let mut f = crate::fsutil::open_regular(path).map_err(|e| {
         bad(format!(
             "cannot read the scan of this shard ({e}): run `prep --shard K/N --pass 1` for \
              every shard first"
         ))
     })?;
-    if bytes.len() < 16 || &bytes[..8] != SCAN_MAGIC {
+    let size = f
+        .metadata()
+        .map_err(|e| bad(format!("cannot stat: {e}")))?
+        .len();
+    let mut head = [0u8; 16];
+    if size < 16 || f.read_exact(&mut head).is_err() || &head[..8] != SCAN_MAGIC {
         return Err(bad("not a cdvol shard scan (magic CDVSCAN1)".into()));
     }
-    let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
-    let end = 16usize.saturating_add(len);
-    if bytes.len() != end.saturating_add(2 * plane) {
+    let len = u64::from_le_bytes(head[8..16].try_into().expect("8 bytes"));
+    let end = 16u64.saturating_add(len);
+    let want = end.saturating_add(2 * plane as u64);
+    if size != want {
         return Err(bad(format!(
-            "{} bytes, expected {} (a record of {len} bytes and two planes of {plane} cells)",
-            bytes.len(),
-            end.saturating_add(2 * plane)
+            "{size} bytes, expected {want} (a record of {len} bytes and two planes of {plane} cells)"
         )));
     }
+    let mut json = vec![0u8; len as usize];
+    f.read_exact(&mut json)
+        .map_err(|e| bad(format!("cannot read the record: {e}")))?;
     let record: ScanRecord =
-        serde_json::from_slice(&bytes[16..end]).map_err(|e| bad(format!("record: {e}")))?;
-    let top = bytes[end..end + plane].to_vec();
-    let bottom = bytes[end + plane..].to_vec();
-    Ok((record, top, bottom))
+        serde_json::from_slice(&json).map_err(|e| bad(format!("record: {e}")))?;
+    Ok((record, end))
+}
+
+/// Plane `which` (0: top, 1: bottom) of a scan file whose planes start at
+/// `at`.
+fn read_plane(path: &Path, at: u64, plane: usize, which: u64) -> Result<Vec<u8>, PrepError> {
+    use std::os::unix::fs::FileExt;
+    let f = crate::fsutil::open_regular(path).map_err(io_err(path, "cannot open the scan"))?;
+    let mut out = vec![0u8; plane];
+    f.read_exact_at(&mut out, at + which * plane as u64)
+        .map_err(io_err(path, "cannot read a seam plane of the scan"))?;
+    Ok(out)
 }
 
 /// Step 2, `prep --shard K/N --pass 2`: the part file of shard `k` of
@@ -319,18 +336,14 @@ pub fn bricks(
     let (cells, _) = slices_of(src, b, &layers);
     let plan = Plan::of(src, opts, n);
     let mut st = StageTimes::default();
-    // The seams: up through the shards below (F under this one, then over
-    // it), down through the shards above (the distance from this one's
-    // top to the 1-cells at or above it); the stats of every shard.
+    // Every scan's record: the plan, the shard, its counts.
     let t = Instant::now();
-    let mut up = SeamChain::new(ncx, ncy);
-    let mut below = None;
     let mut stats: Option<ScanStats> = None;
     let mut depths = Vec::with_capacity(n as usize);
-    let mut bottoms: Vec<Option<Vec<u8>>> = Vec::new();
+    let mut planes_at = Vec::with_capacity(n as usize);
     for j in 0..n {
         let path = shard_file(parts, j, n, "scan");
-        let (rec, top, bottom) = read_scan(&path, plane)?;
+        let (rec, at) = read_scan(&path, plane)?;
         if let Some(d) = plan.differs(&rec.plan) {
             return Err(PrepError::Shard { path, msg: d });
         }
@@ -344,28 +357,46 @@ pub fn bricks(
                 ),
             });
         }
-        let (c, _) = slices_of(src, b, &want);
-        if j == k {
-            below = up.plane().map(<[u8]>::to_vec);
-        }
-        if j <= k {
-            up.cross(&top, c.len());
-        }
-        depths.push(c.len());
-        // Only the shards above are carried down: keep their bottoms.
-        bottoms.push((j > k).then_some(bottom));
+        depths.push(slices_of(src, b, &want).0.len());
+        planes_at.push(at);
         match stats.as_mut() {
             None => stats = Some(rec.stats),
             Some(s) => s.merge(&rec.stats),
         }
     }
     let stats = stats.expect("n >= 1 scans");
-    let mut down = SeamChain::new(ncx, ncy);
-    for j in (k as usize + 1..n as usize).rev() {
-        let bottom = bottoms[j].take().expect("kept above");
-        down.cross(&bottom, depths[j]);
+    // The seams, from the shards within reach: a plane carried through
+    // FAR slices or more is FAR everywhere, so only the shards whose
+    // nearer end lies within 254 slices of this one count.
+    let (k, n) = (k as usize, n as usize);
+    let plane_of = |j: usize, which: u64| {
+        read_plane(
+            &shard_file(parts, j as u32, n as u32, "scan"),
+            planes_at[j],
+            plane,
+            which,
+        )
+    };
+    let mut lo = k;
+    while lo > 0 && depths[lo..k].iter().sum::<usize>() < FAR as usize {
+        lo -= 1;
     }
-    drop(bottoms);
+    let mut hi = k;
+    while hi + 1 < n && depths[k + 1..=hi].iter().sum::<usize>() < FAR as usize {
+        hi += 1;
+    }
+    // Up: F under this shard, then over it.
+    let mut up = SeamChain::new(ncx, ncy);
+    for (j, &depth) in depths.iter().enumerate().take(k).skip(lo) {
+        up.cross(&plane_of(j, 0)?, depth);
+    }
+    let below = up.plane().map(<[u8]>::to_vec);
+    up.cross(&plane_of(k, 0)?, depths[k]);
+    // Down: the distance from this shard's top to the 1-cells above it.
+    let mut down = SeamChain::new(ncx, ncy);
+    for j in (k + 1..=hi).rev() {
+        down.cross(&plane_of(j, 1)?, depths[j]);
+    }
     // The final distances of the cell slice over the shard: its 1-cells
     // above, and those at or below through the slice under it.
     let above = down.plane().map(|g| {
@@ -376,6 +407,7 @@ pub fn bricks(
             .map(|(&a, &b)| a.min(b))
             .collect::<Vec<u8>>()
     });
+    let k = k as u32;
     let header = header_for(src, opts, &stats)?;
     let file = std::fs::File::options()
         .read(true)

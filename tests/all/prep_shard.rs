@@ -135,13 +135,33 @@ fn codes_reach_across_many_thin_shards() {
     }
 }
 
+/// Pass 2 reads the seam planes of the shards within 254 slices only: a
+/// 1-cell at the top of shard 0 is 253 cells from shard 2, across a shard
+/// of 252 slices, so shard 2 must read shard 0's plane (with 256 slices
+/// between, it would be too far to count).
+#[test]
+fn seams_reach_exactly_as_far_as_the_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    // Bricks of 4, 189 layers: 3 shards of 63 layers, 252 cells each.
+    let dims = [6, 5, 757];
+    let mut v = vec![0.0; dims[0] * dims[1] * dims[2]];
+    v[(251 * dims[1] + 2) * dims[0] + 3] = 200.0;
+    let src = stack(dir.path(), dims, "u8", &v);
+    let mut opts = PrepOptions::new(Classification::Iso { iso: 150.0 });
+    opts.brick_size = 4;
+    let one = same_bytes(dir.path(), &src, &opts, 3);
+    check_oracle(&one, &v, dims, 150.0);
+    let s = PackedVolume::open(&one).unwrap().header().summary.clone();
+    assert!(s.code_histogram[252] > 0, "codes of 252 reach shard 2");
+}
+
 /// Transfer-function classification, a label map and format version 2.
 #[test]
 fn every_classification_and_format_shards_alike() {
     let dir = tempfile::tempdir().unwrap();
     let dims = [20, 18, 49];
     let values: Vec<f64> = (0..dims.iter().product::<usize>())
-        .map(|i| (mix(i as u64) % 5) as f64 * (mix(i as u64 * 7) % 3 == 0) as u64 as f64)
+        .map(|i| (mix(i as u64) % 5) as f64 * (mix(i as u64 * 7).is_multiple_of(3)) as u64 as f64)
         .collect();
     let src = stack(dir.path(), dims, "u16", &values);
     let tf = Classification::TransferFunction {
@@ -200,7 +220,13 @@ fn mismatched_missing_and_early_parts_are_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let dims = [10, 10, 33];
     let values: Vec<f64> = (0..1000 * 33 / 10)
-        .map(|i| if mix(i as u64) % 50 == 0 { 200.0 } else { 0.0 })
+        .map(|i| {
+            if mix(i as u64).is_multiple_of(50) {
+                200.0
+            } else {
+                0.0
+            }
+        })
         .collect();
     let src = stack(dir.path(), dims, "u8", &values);
     let mut opts = PrepOptions::new(Classification::Iso { iso: 150.0 });
