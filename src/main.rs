@@ -165,7 +165,13 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
         Command::Info(a) => {
             use cdvol::input::kind::{sniff, Kind};
             let kind = if a.file.is_dir() {
-                Some("DICOM series")
+                let tiff = std::fs::read_dir(&a.file)
+                    .map(|rd| {
+                        rd.flatten()
+                            .any(|e| cdvol::input::tiff::is_tiff_name(&e.path()))
+                    })
+                    .unwrap_or(false);
+                Some(if tiff { "TIFF stack" } else { "DICOM series" })
             } else {
                 match sniff(&a.file) {
                     Ok(Kind::Packed) | Err(_) => None,

@@ -9,8 +9,9 @@ use super::heading;
 
 #[derive(Args, Debug)]
 pub struct PrepArgs {
-    /// The volume: a directory holding a DICOM series, a raw-stack sidecar
-    /// (.json), NRRD (.nrrd, .nhdr) or NIfTI-1 (.nii, .nii.gz).
+    /// The volume: a directory holding a DICOM series or one TIFF per
+    /// slice, a multi-page TIFF, a raw-stack sidecar (.json), NRRD (.nrrd,
+    /// .nhdr) or NIfTI-1 (.nii, .nii.gz).
     #[arg(help_heading = heading::INPUT, display_order = 0)]
     pub input: PathBuf,
     /// The DICOM series to prepare when the directory holds several

@@ -46,7 +46,7 @@ use std::io;
 
 use rayon::prelude::*;
 
-mod seam;
+pub mod seam;
 mod spill;
 
 pub use seam::{fix_forward, local_bottom, propagate, SeamChain};

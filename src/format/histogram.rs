@@ -345,7 +345,7 @@ impl HistogramBuilder {
 
     /// Adds the counts of `other`, a builder of other samples of the same
     /// type: the result is the builder of both sets of samples, whatever
-    /// the order ([`HistogramBuilder::cover`]).
+    /// the order (the grid depends on the range alone).
     pub fn merge(&mut self, other: &HistogramBuilder) {
         self.nan += other.nan;
         self.infinite += other.infinite;

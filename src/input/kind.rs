@@ -18,6 +18,8 @@ pub enum Kind {
     Nifti,
     /// A JSON document: a raw stack's sidecar.
     Sidecar,
+    /// A TIFF (classic or BigTIFF): a multi-page stack.
+    Tiff,
     /// A cdvol packed file (already prepared).
     Packed,
     /// Something cdvol does not read, in words ("PNG image").
@@ -31,6 +33,7 @@ impl Kind {
             Kind::Nrrd => "NRRD",
             Kind::Nifti => "NIfTI-1",
             Kind::Sidecar => "raw stack (JSON sidecar)",
+            Kind::Tiff => "TIFF stack",
             Kind::Packed => "cdvol packed file",
             Kind::Unsupported(what) => what,
         }
@@ -38,7 +41,8 @@ impl Kind {
 }
 
 /// What cdvol reads, for messages about what it does not.
-pub const READS: &str = "cdvol reads DICOM series (give the directory), NIfTI (.nii, .nii.gz), \
+pub const READS: &str = "cdvol reads DICOM series (give the directory), TIFF stacks (a directory \
+                         of one TIFF per slice, or a multi-page TIFF), NIfTI (.nii, .nii.gz), \
                          NRRD (.nrrd, .nhdr) and raw stacks described by a JSON sidecar";
 
 /// The kind of the regular file `path` from its first 512 bytes and,
@@ -87,11 +91,12 @@ pub fn kind_of(head: &[u8], name: &str) -> Kind {
     if starts(b"CDVOLPK") {
         return Kind::Packed;
     }
+    if starts(b"II*\0") || starts(b"MM\0*") || starts(b"II+\0") || starts(b"MM\0+") {
+        return Kind::Tiff;
+    }
     let unsupported = [
         (&b"\x89PNG"[..], "PNG image"),
         (&b"\xff\xd8\xff"[..], "JPEG image"),
-        (&b"II*\0"[..], "TIFF image"),
-        (&b"MM\0*"[..], "TIFF image"),
         (&b"GIF8"[..], "GIF image"),
         (&b"BM"[..], "BMP image"),
         (&b"PK\x03\x04"[..], "ZIP archive"),

@@ -14,6 +14,7 @@ pub mod nifti;
 pub mod nrrd;
 pub mod raw;
 pub mod sidecar;
+pub mod tiff;
 
 use std::path::PathBuf;
 
@@ -156,8 +157,8 @@ impl VolumeMeta {
 }
 
 /// Opens any supported input by its name: a directory of DICOM files (one
-/// series), a raw-stack sidecar (`.json`), NRRD (`.nrrd`, `.nhdr`) or
-/// NIfTI-1 (`.nii`, `.nii.gz`). Anything else that is not a regular file
+/// series) or of TIFF slices, a multi-page TIFF, a raw-stack sidecar
+/// (`.json`), NRRD (`.nrrd`, `.nhdr`) or NIfTI-1 (`.nii`, `.nii.gz`). Anything else that is not a regular file
 /// (a FIFO, socket or device) is refused without being opened.
 pub fn open(path: &std::path::Path) -> Result<Box<dyn SliceSource>, InputError> {
     open_with(path, None)
@@ -175,6 +176,13 @@ pub fn open_with(
         source,
     })?;
     if m.is_dir() {
+        // A directory of TIFF slices, else a DICOM series.
+        let has_tiff = std::fs::read_dir(path)
+            .map(|rd| rd.flatten().any(|e| tiff::is_tiff_name(&e.path())))
+            .unwrap_or(false);
+        if has_tiff && series.is_none() {
+            return Ok(Box::new(tiff::TiffSource::open_dir(path)?));
+        }
         return Ok(Box::new(dicom::open_dir(path, series)?));
     }
     crate::fsutil::check_regular(path).map_err(|source| InputError::Io {
@@ -192,6 +200,7 @@ pub fn open_with(
         kind::Kind::Nrrd => nrrd::open(path),
         kind::Kind::Nifti => nifti::open(path),
         kind::Kind::Sidecar => Ok(Box::new(raw::RawSource::open(path)?)),
+        kind::Kind::Tiff => Ok(Box::new(tiff::TiffSource::open_file(path)?)),
         kind::Kind::Packed => Err(InputError::Unsupported {
             path: path.to_path_buf(),
             what: "a cdvol packed file, already prepared (render, info or export it)",

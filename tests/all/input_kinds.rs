@@ -14,7 +14,7 @@ fn unsupported_files_are_named_for_what_they_are() {
     write("picture.png", b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR");
     write("photo.jpg", b"\xff\xd8\xff\xe0\0\x10JFIF");
     write("cranium.raw", &[7u8; 4096]);
-    write("stack.tif", b"II*\0\x08\0\0\0");
+    write("anim.gif", b"GIF89a\x01\0\x01\0");
     write("data.gz", &[0x1f, 0x8b, 8, 0, 0, 0, 0, 0]);
     write("empty.json", b"");
     let mut dcm = vec![0u8; 132];
@@ -24,7 +24,7 @@ fn unsupported_files_are_named_for_what_they_are() {
         ("picture.png", "PNG image"),
         ("photo.jpg", "JPEG image"),
         ("cranium.raw", "raw binary data"),
-        ("stack.tif", "TIFF image"),
+        ("anim.gif", "GIF image"),
         ("data.gz", "gzip-compressed data"),
         (
             "slice.dcm",
