@@ -22,6 +22,7 @@ use crate::input::{InputError, SliceSource};
 use crate::progress::Progress;
 
 mod decide;
+mod part;
 mod passes;
 pub mod shard;
 mod slab;
