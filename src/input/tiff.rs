@@ -334,7 +334,7 @@ impl TiffSource {
             }
         }
         let nz = files.len();
-        let desc = format!("{} ({nz} TIFF slices)", dir.display());
+        let desc = dir.display().to_string();
         TiffSource::finish(
             dir,
             &mut dec,
@@ -371,7 +371,7 @@ impl TiffSource {
         }
         dec.seek_to_image(0)
             .map_err(|e| tiff_err(path, "page 0", e))?;
-        let desc = format!("{} ({nz} TIFF pages)", path.display());
+        let desc = path.display().to_string();
         let mut meta_dec = decoder(path)?;
         TiffSource::finish(
             path,
@@ -401,7 +401,10 @@ impl TiffSource {
                 "1 slice, expected at least 2 (one cell)",
             ));
         }
-        let mut notes = Vec::new();
+        let mut notes = vec![match &pages {
+            Pages::Files(f) => format!("{} TIFF slices, one a file", f.len()),
+            Pages::Pages { .. } => format!("{} TIFF pages, one a slice", dims[2]),
+        }];
         let v = match voxel_size(first) {
             Some((v, from)) => {
                 notes.push(format!(
