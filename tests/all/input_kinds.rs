@@ -48,6 +48,18 @@ fn unsupported_files_are_named_for_what_they_are() {
         }
         assert!(!e.contains("utf-8"), "{e}");
     }
+    // A TIFF goes to the TIFF reader, which names the file and what is
+    // wrong with it (here: an image directory that ends after its header).
+    write("broken.tif", b"II*\0\x08\0\0\0");
+    let e = fails(cdvol().current_dir(d.path()).args([
+        "prep",
+        "broken.tif",
+        "-o",
+        "out.cdv",
+        "--iso",
+        "1",
+    ]));
+    assert!(e.contains("broken.tif") && e.contains("TIFF"), "{e}");
     // A packed file given to prep.
     let v: Vec<f64> = (0..4 * 4 * 3).map(|i| (i * 7 % 50) as f64).collect();
     write_stack(d.path(), "v", [4, 4, 3], "u8", &v, ["1", "1", "1"], "");
