@@ -175,6 +175,9 @@ fn run(cmd: Command, progress: &dyn Progress) -> Result<()> {
             } else {
                 match sniff(&a.file) {
                     Ok(Kind::Packed) | Err(_) => None,
+                    Ok(Kind::Sidecar) if cdvol::input::tiff::TiffSource::is_sidecar(&a.file) => {
+                        Some("TIFF stack (JSON sidecar)")
+                    }
                     Ok(k) => Some(k.name()),
                 }
             };

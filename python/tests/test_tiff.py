@@ -106,3 +106,30 @@ def test_a_missing_or_doubled_slice_is_refused_by_name(tmp_path, cdvol_bin):
     assert r.returncode != 0
     assert "slice number 2 again" in r.stderr, r.stderr
     assert not (tmp_path / "x.cdv").exists()
+
+
+def test_a_sidecar_gives_the_slice_positions_of_a_stack(tmp_path, cdvol_bin):
+    """Slices of varying thickness: a JSON sidecar names the directory and
+    gives the z positions; x and y come from the ImageJ metadata."""
+    a = volume("int16", shape=(6, 12, 10))
+    d = tmp_path / "rec"
+    d.mkdir()
+    for z in range(a.shape[0]):
+        tifffile.imwrite(d / f"slice{z:02d}.tif", a[z], imagej=True,
+                         resolution=(1 / 0.4, 1 / 0.4), metadata={"unit": "mm"})
+    z = [0.0, 1.0, 2.0, 4.0, 6.5, 9.0]
+    side = tmp_path / "rec.json"
+    side.write_text(json.dumps({"tiff": "rec", "z": {"positions": z}}))
+    got, _ = values_back(cdvol_bin, tmp_path, side, a)
+    assert np.array_equal(got, a)
+    axes = info(cdvol_bin, side)["axes"]
+    assert axes[2]["extent"] == [0.0, 9.0] and axes[2]["uniform"] is False
+    assert axes[2]["spacing_min"] == pytest.approx(1.0) and axes[2]["spacing_max"] == pytest.approx(2.5)
+    assert axes[0]["spacing_min"] == pytest.approx(0.4)
+    # A key that is not one of the sidecar's, and positions of the wrong count.
+    side.write_text(json.dumps({"tiff": "rec", "z": {"positions": z}, "dtype": "u16"}))
+    r = subprocess.run([str(cdvol_bin), "info", str(side)], capture_output=True, text=True)
+    assert r.returncode != 0 and "dtype" in r.stderr and "rec.json" in r.stderr, r.stderr
+    side.write_text(json.dumps({"tiff": "rec", "z": {"positions": z[:-1]}}))
+    r = subprocess.run([str(cdvol_bin), "info", str(side)], capture_output=True, text=True)
+    assert r.returncode != 0 and "z" in r.stderr and "rec.json" in r.stderr, r.stderr

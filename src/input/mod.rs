@@ -199,6 +199,9 @@ pub fn open_with(
     match kind {
         kind::Kind::Nrrd => nrrd::open(path),
         kind::Kind::Nifti => nifti::open(path),
+        kind::Kind::Sidecar if tiff::TiffSource::is_sidecar(path) => {
+            Ok(Box::new(tiff::TiffSource::open_sidecar(path)?))
+        }
         kind::Kind::Sidecar => Ok(Box::new(raw::RawSource::open(path)?)),
         kind::Kind::Tiff => Ok(Box::new(tiff::TiffSource::open_file(path)?)),
         kind::Kind::Packed => Err(InputError::Unsupported {

@@ -97,7 +97,7 @@ pub const MAX_SIDECAR_BYTES: u64 = 64 << 20;
 
 /// The text of the sidecar at `path`, refused by its size before it is
 /// read and read through a bounded reader.
-fn read_bounded(path: &Path) -> Result<String, InputError> {
+pub(crate) fn read_bounded(path: &Path) -> Result<String, InputError> {
     use std::io::Read;
     let io = |source| InputError::Io {
         path: path.to_path_buf(),
@@ -337,7 +337,7 @@ pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
     })
 }
 
-fn parse_axis(
+pub(crate) fn parse_axis(
     path: &Path,
     name: &str,
     v: Option<&Value>,

@@ -9,7 +9,10 @@
 //! (`ImageDescription` starting `ImageJ=`, with `spacing=` for z, `unit=`,
 //! and the X/YResolution tags in pixels per unit) or OME-XML's (`Pixels`
 //! attributes `PhysicalSizeX/Y/Z` and their units, micrometres by
-//! default). Without either, 1 mm, said in the report.
+//! default). Without either, 1 mm, said in the report. A JSON sidecar
+//! (`{"tiff": "slices/", "z": {"positions": [...]}}`,
+//! [`TiffSource::open_sidecar`]) names a stack and gives the axes, the
+//! slice positions of a stack whose slices are not evenly spaced above all.
 //!
 //! A directory's files are ordered by the last number in their names
 //! (natural order: `s2.tif` before `s10.tif`); two files with the same
@@ -35,6 +38,8 @@ pub struct TiffSource {
     meta: VolumeMeta,
     pages: Pages,
     notes: Vec<String>,
+    /// The JSON sidecar that named the stack and gave its axes, if any.
+    sidecar: Option<PathBuf>,
 }
 
 enum Pages {
@@ -432,7 +437,104 @@ impl TiffSource {
             },
             pages,
             notes,
+            sidecar: None,
         })
+    }
+
+    /// A JSON sidecar that names a TIFF stack and gives the axes its
+    /// metadata does not (slice positions, above all, for a stack whose
+    /// slices are not evenly spaced): `{"tiff": "slices/", "z":
+    /// {"positions": [...]}}`. Key `tiff`: the directory or multi-page
+    /// file, relative to the sidecar; keys `x`, `y`, `z` as in a raw
+    /// stack's sidecar (a spacing in mm, `{"spacing": [...]}` or
+    /// `{"positions": [...]}`), each replacing what the TIFF says; key
+    /// `origin` (mm). Other keys are refused by name.
+    pub fn open_sidecar(path: &Path) -> Result<TiffSource, InputError> {
+        use serde_json::Value;
+        let text = super::sidecar::read_bounded(path)?;
+        let v: Value = serde_json::from_str(&text).map_err(|source| InputError::Json {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        if let Some(key) = crate::json::duplicate_key(&text) {
+            return Err(InputError::field(
+                path,
+                key,
+                "duplicate key, expected each key once",
+            ));
+        }
+        let obj = v
+            .as_object()
+            .ok_or_else(|| InputError::field(path, "(top level)", "expected a JSON object"))?;
+        for k in obj.keys() {
+            if !["tiff", "x", "y", "z", "origin"].contains(&k.as_str()) {
+                return Err(InputError::field(
+                    path,
+                    k.as_str(),
+                    "not a key of a TIFF stack's sidecar, expected tiff, x, y, z or origin",
+                ));
+            }
+        }
+        let name = obj.get("tiff").and_then(Value::as_str).ok_or_else(|| {
+            InputError::field(path, "tiff", "expected the stack's directory or file name")
+        })?;
+        let target = path.parent().unwrap_or(Path::new(".")).join(name);
+        let mut src = if target.is_dir() {
+            TiffSource::open_dir(&target)?
+        } else {
+            TiffSource::open_file(&target)?
+        };
+        let origin = match obj.get("origin") {
+            None => [0.0; 3],
+            Some(o) => {
+                let a: Option<Vec<f64>> = o.as_array().filter(|a| a.len() == 3).map(|a| {
+                    a.iter()
+                        .filter_map(|c| c.as_f64())
+                        .filter(|c| c.is_finite())
+                        .collect()
+                });
+                match a {
+                    Some(a) if a.len() == 3 => [a[0], a[1], a[2]],
+                    _ => {
+                        return Err(InputError::field(
+                            path,
+                            "origin",
+                            format!("{o}, expected [x, y, z] in finite mm"),
+                        ))
+                    }
+                }
+            }
+        };
+        let dims = src.meta.dims();
+        for (i, axis) in ["x", "y", "z"].iter().enumerate() {
+            let given = obj.get(*axis);
+            let a = match given {
+                Some(_) => super::sidecar::parse_axis(path, axis, given, dims[i], origin[i])?,
+                None => {
+                    let c = src.meta.grid.axes[i].coords();
+                    let step = c[1] - c[0];
+                    Axis::uniform(origin[i], step, dims[i])
+                        .map_err(|e| InputError::field(path, *axis, e.to_string()))?
+                }
+            };
+            if given.is_some() {
+                src.notes
+                    .push(format!("{axis} axis from {}", path.display()));
+            }
+            src.meta.grid.axes[i] = a;
+        }
+        src.sidecar = Some(path.to_path_buf());
+        Ok(src)
+    }
+
+    /// Whether the JSON file `path` is a TIFF stack's sidecar (has a
+    /// top-level key `tiff`); false for anything else, which the raw
+    /// sidecar's reader then explains.
+    pub fn is_sidecar(path: &Path) -> bool {
+        super::sidecar::read_bounded(path)
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .is_some_and(|v| v.get("tiff").is_some())
     }
 }
 
@@ -502,10 +604,12 @@ impl SliceSource for TiffSource {
     }
 
     fn files(&self) -> Vec<PathBuf> {
+        let mut out: Vec<PathBuf> = self.sidecar.iter().cloned().collect();
         match &self.pages {
-            Pages::Files(f) => f.clone(),
-            Pages::Pages { path, .. } => vec![path.clone()],
+            Pages::Files(f) => out.extend(f.iter().cloned()),
+            Pages::Pages { path, .. } => out.push(path.clone()),
         }
+        out
     }
 }
 
