@@ -9,8 +9,7 @@ use std::path::{Path, PathBuf};
 
 use super::passes::{EmitStats, ScanStats};
 use super::slab::BrickOut;
-use super::PrepError;
-use super::PrepOptions;
+use super::{PrepError, PrepOptions};
 use crate::format::writer::PackedWriter;
 use crate::format::Header;
 use crate::input::SliceSource;
