@@ -278,6 +278,9 @@ pub fn prep_error(e: cdvol::prep::PrepError) -> anyhow::Error {
             "brick_size" => "--brick",
             "zstd_level" => "--zstd-level",
             "format_version" => "--format-version",
+            "shard" => "--shard",
+            "aniso" => "--aniso",
+            "dda" => "--dda",
             other => other,
         };
         return anyhow::anyhow!("option {flag}: {e}");

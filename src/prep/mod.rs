@@ -7,8 +7,10 @@
 //! depth: finish the distance transform, re-read the slab's samples,
 //! embed the codes, cut the slab into bricks, compress them in parallel and
 //! append them. Memory is bounded by one slab (docs/BENCHMARKS.md, "Prep:
-//! whole program on 4 GiB and 2 GiB volumes", has the formula); nothing
-//! grows with nz.
+//! whole program, and the regression check", has the formula); nothing
+//! grows with nz. The passes themselves are in `passes.rs`; a sharded prep
+//! ([`shard`]) runs them over one shard's slices per process and merges
+//! the parts into the same file.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
