@@ -132,21 +132,8 @@ pub(crate) fn read_bounded(path: &Path) -> Result<String, InputError> {
 
 /// Reads and checks a sidecar. Data files are not opened here.
 pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
-    let text = read_bounded(path)?;
-    let v: Value = serde_json::from_str(&text).map_err(|source| InputError::Json {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    if let Some(key) = crate::json::duplicate_key(&text) {
-        return Err(InputError::field(
-            path,
-            key,
-            "duplicate key, expected each key once",
-        ));
-    }
-    let obj = v
-        .as_object()
-        .ok_or_else(|| InputError::field(path, "(top level)", "expected a JSON object"))?;
+    let obj = read_object(path)?;
+    let obj = &obj;
     let err = |field: &str, msg: String| InputError::field(path, field, msg);
     let get = |field: &str| obj.get(field).filter(|v| !v.is_null());
 
@@ -220,25 +207,7 @@ pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
     };
 
     // origin
-    let origin = match get("origin") {
-        None => [0.0; 3],
-        Some(o) => {
-            let a = o
-                .as_array()
-                .filter(|a| a.len() == 3)
-                .ok_or_else(|| err("origin", format!("{o}, expected [x, y, z] in mm")))?;
-            let mut out = [0.0; 3];
-            for (i, c) in a.iter().enumerate() {
-                out[i] = c.as_f64().filter(|c| c.is_finite()).ok_or_else(|| {
-                    err(
-                        &format!("origin[{i}]"),
-                        format!("{c}, expected a finite number (mm)"),
-                    )
-                })?;
-            }
-            out
-        }
-    };
+    let origin = parse_origin(path, get("origin"))?;
 
     // axes
     let mut axes = Vec::with_capacity(3);
@@ -335,6 +304,52 @@ pub fn parse_sidecar(path: &Path) -> Result<Sidecar, InputError> {
             Some(v) => return Err(err("modality", format!("{v}, expected \"CT\" or \"MR\""))),
         },
     })
+}
+
+/// A sidecar's JSON object: read within the size bound, parsed, and
+/// refused when a key is repeated or the top level is not an object.
+pub(crate) fn read_object(path: &Path) -> Result<serde_json::Map<String, Value>, InputError> {
+    let text = read_bounded(path)?;
+    let v: Value = serde_json::from_str(&text).map_err(|source| InputError::Json {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if let Some(key) = crate::json::duplicate_key(&text) {
+        return Err(InputError::field(
+            path,
+            key,
+            "duplicate key, expected each key once",
+        ));
+    }
+    match v {
+        Value::Object(m) => Ok(m),
+        _ => Err(InputError::field(
+            path,
+            "(top level)",
+            "expected a JSON object",
+        )),
+    }
+}
+
+/// Key `origin`: `[x, y, z]` in mm, `[0, 0, 0]` when absent.
+pub(crate) fn parse_origin(path: &Path, o: Option<&Value>) -> Result<[f64; 3], InputError> {
+    let Some(o) = o else {
+        return Ok([0.0; 3]);
+    };
+    let a = o.as_array().filter(|a| a.len() == 3).ok_or_else(|| {
+        InputError::field(path, "origin", format!("{o}, expected [x, y, z] in mm"))
+    })?;
+    let mut out = [0.0; 3];
+    for (i, c) in a.iter().enumerate() {
+        out[i] = c.as_f64().filter(|c| c.is_finite()).ok_or_else(|| {
+            InputError::field(
+                path,
+                format!("origin[{i}]"),
+                format!("{c}, expected a finite number (mm)"),
+            )
+        })?;
+    }
+    Ok(out)
 }
 
 pub(crate) fn parse_axis(

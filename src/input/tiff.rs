@@ -451,21 +451,7 @@ impl TiffSource {
     /// `origin` (mm). Other keys are refused by name.
     pub fn open_sidecar(path: &Path) -> Result<TiffSource, InputError> {
         use serde_json::Value;
-        let text = super::sidecar::read_bounded(path)?;
-        let v: Value = serde_json::from_str(&text).map_err(|source| InputError::Json {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        if let Some(key) = crate::json::duplicate_key(&text) {
-            return Err(InputError::field(
-                path,
-                key,
-                "duplicate key, expected each key once",
-            ));
-        }
-        let obj = v
-            .as_object()
-            .ok_or_else(|| InputError::field(path, "(top level)", "expected a JSON object"))?;
+        let obj = super::sidecar::read_object(path)?;
         for k in obj.keys() {
             if !["tiff", "x", "y", "z", "origin"].contains(&k.as_str()) {
                 return Err(InputError::field(
@@ -484,27 +470,7 @@ impl TiffSource {
         } else {
             TiffSource::open_file(&target)?
         };
-        let origin = match obj.get("origin") {
-            None => [0.0; 3],
-            Some(o) => {
-                let a: Option<Vec<f64>> = o.as_array().filter(|a| a.len() == 3).map(|a| {
-                    a.iter()
-                        .filter_map(|c| c.as_f64())
-                        .filter(|c| c.is_finite())
-                        .collect()
-                });
-                match a {
-                    Some(a) if a.len() == 3 => [a[0], a[1], a[2]],
-                    _ => {
-                        return Err(InputError::field(
-                            path,
-                            "origin",
-                            format!("{o}, expected [x, y, z] in finite mm"),
-                        ))
-                    }
-                }
-            }
-        };
+        let origin = super::sidecar::parse_origin(path, obj.get("origin"))?;
         let dims = src.meta.dims();
         for (i, axis) in ["x", "y", "z"].iter().enumerate() {
             let given = obj.get(*axis);
